@@ -1,0 +1,31 @@
+# Two commands do everything on a fresh machine:
+#   make run    installs into .venv if needed and runs the reference case
+#   make test   installs into .venv if needed and runs the test suite
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+CASE   ?= cases/wall_0.5MPa.yaml
+# numba's on-disk cache lives inside the project, so that `make clean-cache` can clear it
+export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba_cache
+
+.PHONY: run test venv lint clean-cache
+
+$(BIN)/masonry: pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	touch $(BIN)/masonry
+
+venv: $(BIN)/masonry
+
+run: venv
+	$(BIN)/masonry run $(CASE) --overwrite
+
+test: venv
+	$(BIN)/python -m pytest -q
+
+lint: venv
+	$(BIN)/ruff check masonry_nscd tests
+
+clean-cache:
+	rm -rf $(NUMBA_CACHE_DIR)

@@ -1,0 +1,464 @@
+r"""The joint law: a frictional cohesive zone (FCZM) in series with an elastic spring.
+
+One law per contact point and per unit area (model.md section 2). Sign conventions: the normal
+relative displacement ``u_n > 0`` opens the joint, the normal traction ``T_n > 0`` is tension.
+Displacements are measured from the initial state (the initial gap is already subtracted).
+
+Series split of the total relative displacement ``u`` (m) into a cohesive and a spring part::
+
+    u = u_c + u_s,      T = (1 - d_spring) K^spring u_s = T_coh + T_fric        (Pa)
+
+Cohesion: ``T_coh = beta b (K_I^coh u_c,n, K_II^coh u_c,t)`` with the integrity ``beta`` in [0, 1]
+and the constant initial integrity ``b = 1 - d_coh,0``. Signorini on ``u_c,n >= 0``; Coulomb
+friction on the rate of ``u_c,t``, active in compression only, with
+``mu_eff = mu (1 - beta b)^p``. The integrity follows the exponential envelope of model.md::
+
+    beta_env(nu) = sigma_e / (b k nu) exp(phi (delta_e - nu))   for delta_e < nu <= nu_u
+
+and is irreversible: ``beta = min(beta_old, beta_env)``.
+
+The local problem of one time step
+----------------------------------
+Inside a step the integrity is frozen. The contact point sees the rest of the system through
+a compliance ``A`` (m/Pa, symmetric positive semi-definite, 3x3) and a predictor ``u~`` (m)::
+
+    u_{n+1} = u~ - A T          (A = theta h^2 S W_aa for NSCD; A = 0 for a driven point)
+
+so that ``u_c = u~ - (A + C_s) T`` with the spring compliance ``C_s = diag(c_n, c_t, c_t)``,
+``c = 1 / ((1 - d_spring) K^spring)``. The solver tries the statuses in turn, each in closed form:
+
+* open (``u_c,n > 0``, no friction): ``(I + D kappa) u_c = u~`` with ``D = A + C_s``,
+  ``kappa = beta b diag(K_I^coh, K_II^coh, K_II^coh)``;
+* stick (``u_c,n = 0``, ``u_c,t`` unchanged): ``T = D^-1 (u~ - u_c)``, valid while
+  ``|T_t - kappa_t u_c,t| <= mu_eff (-T_n)``;
+* slide: ``T_t = kappa_t u_c,t + mu_eff N e`` with ``e`` the slip direction and ``N = -T_n``;
+  closed form when ``D`` is diagonal, a 3x3 Newton iteration on ``T`` when ``A`` couples the
+  normal and tangential directions.
+
+Glued points (blocks glued to the steel beams) are bilateral: ``u_{n+1} = 0``, ``T = A^-1 u~``.
+Dry Signorini-Coulomb is this same law with ``b = 0`` (no cohesion, ``mu_eff = mu``) and no spring.
+
+The compressive normal spring is ``(1 - d_spring) K_I^spring`` (the study's equation 2, switch
+``damaged``) or ``K_I^spring`` (switch ``undamaged``, as the reference code LMGC90 does in 3D).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+# --- layout of the parameter vector of one joint law (float64) ----------------------------
+P_CN_T = 0  # normal spring compliance in tension, m/Pa
+P_CN_C = 1  # normal spring compliance in compression, m/Pa
+P_CT = 2  # tangential spring compliance, m/Pa
+P_KI = 3  # K_I^coh, Pa/m
+P_KII = 4  # K_II^coh, Pa/m
+P_B = 5  # initial integrity b = 1 - d_coh,0
+P_MU = 6  # friction coefficient
+P_P = 7  # friction growth exponent
+P_D1 = 8  # delta_1 = sigma_I^e / K_I^coh, m
+P_D2 = 9  # delta_2 = sigma_II^e / K_II^coh, m
+P_GI = 10  # G_fI, J/m^2
+P_GII = 11  # G_fII, J/m^2
+P_ETA = 12  # residual integrity at full failure
+N_PARAMS = 13
+
+# --- kinds of contact point ------------------------------------------------------------------
+KIND_JOINT = 0  # the joint law (FCZM + spring, or dry Signorini-Coulomb)
+KIND_GLUED = 1  # bilateral glue: relative displacement held at zero
+
+# --- status codes ------------------------------------------------------------------------------
+ST_OPEN = 0
+ST_STICK = 1
+ST_SLIDE = 2
+ST_GLUED = 3
+ST_AMBIGUOUS = 4  # no status satisfied every condition (reported, should not persist)
+
+
+def joint_params(
+    *,
+    K_I_spring: float = 4.3e11,
+    K_II_spring: float = 1.8e11,
+    d_spring: float = 0.953,
+    sigma_I_e: float = 0.05e6,
+    K_I_coh: float = 1.21e11,
+    G_fI: float = 3.0,
+    sigma_II_e: float = 0.27e6,
+    K_II_coh: float = 2.8e11,
+    G_fII: float = 206.0,
+    d_coh_initial: float = 0.99944,
+    mu: float = 0.7,
+    p: float = 1.0,
+    eta: float = 1e-4,
+    compression_spring: str = "damaged",
+    law: str = "fczm",
+) -> np.ndarray:
+    """Pack the joint parameters (SI units, model.md Table 3) into a float64 vector.
+
+    ``law='coulomb'`` gives dry Signorini-Coulomb: no cohesion (b = 0), no spring (zero
+    compliance), friction coefficient ``mu``.
+    """
+    P = np.zeros(N_PARAMS)
+    P[P_MU] = mu
+    P[P_P] = p
+    P[P_ETA] = eta
+    if law == "coulomb":
+        # no spring, no cohesion: the envelope is never evaluated (b = 0)
+        P[P_KI] = K_I_coh
+        P[P_KII] = K_II_coh
+        P[P_D1] = sigma_I_e / K_I_coh
+        P[P_D2] = sigma_II_e / K_II_coh
+        P[P_GI] = G_fI
+        P[P_GII] = G_fII
+        return P
+    if law != "fczm":
+        raise ValueError(f"unknown joint law {law!r}: allowed 'fczm' or 'coulomb'")
+    if compression_spring not in ("damaged", "undamaged"):
+        raise ValueError("compression_spring must be 'damaged' or 'undamaged'")
+    P[P_CN_T] = 1.0 / ((1.0 - d_spring) * K_I_spring)
+    P[P_CN_C] = P[P_CN_T] if compression_spring == "damaged" else 1.0 / K_I_spring
+    P[P_CT] = 1.0 / ((1.0 - d_spring) * K_II_spring)
+    P[P_KI] = K_I_coh
+    P[P_KII] = K_II_coh
+    P[P_B] = 1.0 - d_coh_initial
+    P[P_D1] = sigma_I_e / K_I_coh
+    P[P_D2] = sigma_II_e / K_II_coh
+    P[P_GI] = G_fI
+    P[P_GII] = G_fII
+    return P
+
+
+@njit(cache=True)
+def mixed_mode(ucn: float, uct2: float, P: np.ndarray):
+    """Mixed-mode quantities of the envelope for a cohesive opening (u_c,n, |u_c,t|^2).
+
+    Returns ``(nu, delta_e, sigma_e, k, phi, nu_u)`` in m, m, Pa, Pa/m, 1/m, m. Written with the
+    weights ``a = <u_c,n>_+^2`` and ``c = |u_c,t|^2`` (so ``m = c / a``) to stay finite in pure
+    mode II (``m = infinity``).
+    """
+    a = ucn * ucn if ucn > 0.0 else 0.0
+    c = uct2
+    nu = math.sqrt(a + c)
+    d1 = P[P_D1]
+    d2 = P[P_D2]
+    if a + c <= 0.0:
+        a = 1.0  # no opening: take pure mode I (only delta_e is used then)
+    den = d2 * d2 * a + d1 * d1 * c
+    delta_e = d1 * d2 * math.sqrt((a + c) / den)
+    G = (d2 * d2 * a * P[P_GI] + d1 * d1 * c * P[P_GII]) / den
+    k = math.sqrt((P[P_KI] ** 2 * a + P[P_KII] ** 2 * c) / (a + c))
+    sigma_e = k * delta_e
+    phi = sigma_e / (G - 0.5 * sigma_e * delta_e)
+    nu_u = delta_e - math.log(P[P_ETA]) / phi
+    return nu, delta_e, sigma_e, k, phi, nu_u
+
+
+@njit(cache=True)
+def envelope_integrity(ucn: float, uct1: float, uct2: float, beta_old: float, P: np.ndarray):
+    """Irreversible integrity ``beta = min(beta_old, beta_env(u_c))`` (dimensionless)."""
+    b = P[P_B]
+    if b <= 0.0:
+        return beta_old
+    nu, delta_e, sigma_e, k, phi, nu_u = mixed_mode(ucn, uct1 * uct1 + uct2 * uct2, P)
+    if nu <= delta_e:
+        return beta_old
+    if nu >= nu_u:
+        return 0.0
+    env = sigma_e / (b * k * nu) * math.exp(phi * (delta_e - nu))
+    return min(beta_old, env)
+
+
+@njit(cache=True)
+def _solve3(M: np.ndarray, r: np.ndarray, x: np.ndarray) -> bool:
+    """Solve the 3x3 system ``M x = r`` by Gaussian elimination with partial pivoting."""
+    a = M.copy()
+    y = r.copy()
+    for col in range(3):
+        piv = col
+        for i in range(col + 1, 3):
+            if abs(a[i, col]) > abs(a[piv, col]):
+                piv = i
+        if a[piv, col] == 0.0:
+            return False
+        if piv != col:
+            for j in range(3):
+                t = a[col, j]
+                a[col, j] = a[piv, j]
+                a[piv, j] = t
+            t = y[col]
+            y[col] = y[piv]
+            y[piv] = t
+        for i in range(col + 1, 3):
+            f = a[i, col] / a[col, col]
+            for j in range(col, 3):
+                a[i, j] -= f * a[col, j]
+            y[i] -= f * y[col]
+    for i in range(2, -1, -1):
+        s = y[i]
+        for j in range(i + 1, 3):
+            s -= a[i, j] * x[j]
+        x[i] = s / a[i, i]
+    return True
+
+
+@njit(cache=True)
+def _slide(ut, D, u0_1, u0_2, kt, mu_eff, T, uc) -> bool:
+    """Sliding contact: solve for T with ``u_c,n = 0`` and Coulomb at the limit.
+
+    Unknown ``T``; the slip ``s = u~_t - D_tn T_n - D_tt T_t - u0`` and the friction
+    ``R_t = T_t - kappa_t (u0 + s)`` must satisfy ``R_t = mu_eff N s / |s|`` with ``N = -T_n``
+    and the normal condition ``u~_n - D_nn T_n - D_nt . T_t = 0``. Closed form when D is
+    diagonal; otherwise Newton from the closed form of diag(D). Returns False when no
+    admissible slide (N >= 0, s . R_t >= 0) is found.
+    """
+    dn = D[0, 0]
+    dt = 0.5 * (D[1, 1] + D[2, 2])
+    # closed form with the diagonal part
+    Tn = ut[0] / dn
+    q1 = ut[1] - u0_1 - dt * kt * u0_1
+    q2 = ut[2] - u0_2 - dt * kt * u0_2
+    qn = math.sqrt(q1 * q1 + q2 * q2)
+    N = -Tn
+    if N < 0.0 or qn == 0.0:
+        return False
+    lam = (qn - dt * mu_eff * N) / (1.0 + dt * kt)
+    if lam < 0.0:
+        lam = 0.0
+    e1 = q1 / qn
+    e2 = q2 / qn
+    T[0] = Tn
+    T[1] = kt * (u0_1 + lam * e1) + mu_eff * N * e1
+    T[2] = kt * (u0_2 + lam * e2) + mu_eff * N * e2
+    coupled = (
+        D[0, 1] != 0.0 or D[0, 2] != 0.0 or D[1, 2] != 0.0 or D[1, 1] != D[2, 2]
+    )
+    if coupled:
+        F = np.empty(3)
+        J = np.empty((3, 3))
+        dx = np.empty(3)
+        scale = abs(ut[0]) + abs(ut[1]) + abs(ut[2]) + 1e-300
+        converged = False
+        for _ in range(40):
+            s1 = ut[1] - D[1, 0] * T[0] - D[1, 1] * T[1] - D[1, 2] * T[2] - u0_1
+            s2 = ut[2] - D[2, 0] * T[0] - D[2, 1] * T[1] - D[2, 2] * T[2] - u0_2
+            sn = math.sqrt(s1 * s1 + s2 * s2)
+            if sn <= 1e-300:
+                return False
+            e1 = s1 / sn
+            e2 = s2 / sn
+            N = -T[0]
+            F[0] = ut[0] - D[0, 0] * T[0] - D[0, 1] * T[1] - D[0, 2] * T[2]
+            F[1] = T[1] - kt * (u0_1 + s1) - mu_eff * N * e1
+            F[2] = T[2] - kt * (u0_2 + s2) - mu_eff * N * e2
+            # residual in displacement units: normal row is m, tangential rows are Pa * dt
+            res = abs(F[0]) + dt * (abs(F[1]) + abs(F[2]))
+            if res <= 1e-13 * scale:
+                converged = True
+                break
+            # P = (I - e e^T) / |s|
+            p11 = (1.0 - e1 * e1) / sn
+            p12 = -e1 * e2 / sn
+            p22 = (1.0 - e2 * e2) / sn
+            J[0, 0] = -D[0, 0]
+            J[0, 1] = -D[0, 1]
+            J[0, 2] = -D[0, 2]
+            # ds/dT_n = -D_t0, ds/dT_t = -D_tt
+            for i in range(2):
+                pi1 = p11 if i == 0 else p12
+                pi2 = p12 if i == 0 else p22
+                ei = e1 if i == 0 else e2
+                # d(mu N e_i)/dT_n = -mu e_i - mu N (P D_t0)_i
+                pd0 = pi1 * D[1, 0] + pi2 * D[2, 0]
+                J[1 + i, 0] = kt * D[1 + i, 0] + mu_eff * ei + mu_eff * N * pd0
+                for j in range(2):
+                    pdj = pi1 * D[1, 1 + j] + pi2 * D[2, 1 + j]
+                    J[1 + i, 1 + j] = (1.0 if i == j else 0.0) + kt * D[1 + i, 1 + j] \
+                        + mu_eff * N * pdj
+            if not _solve3(J, F, dx):
+                return False
+            for i in range(3):
+                T[i] -= dx[i]
+        if not converged:
+            return False
+    # final slip and admissibility
+    s1 = ut[1] - D[1, 0] * T[0] - D[1, 1] * T[1] - D[1, 2] * T[2] - u0_1
+    s2 = ut[2] - D[2, 0] * T[0] - D[2, 1] * T[1] - D[2, 2] * T[2] - u0_2
+    if not coupled:
+        s1 = lam * e1
+        s2 = lam * e2
+    N = -T[0]
+    r1 = T[1] - kt * (u0_1 + s1)
+    r2 = T[2] - kt * (u0_2 + s2)
+    if N < 0.0 or s1 * r1 + s2 * r2 < -1e-12 * (abs(r1) + abs(r2)) * math.sqrt(s1 * s1 + s2 * s2):
+        return False
+    uc[0] = 0.0
+    uc[1] = u0_1 + s1
+    uc[2] = u0_2 + s2
+    return True
+
+
+@njit(cache=True)
+def local_solve(
+    ut: np.ndarray,
+    A: np.ndarray,
+    uc_old: np.ndarray,
+    beta: float,
+    P: np.ndarray,
+    kind: int,
+    T: np.ndarray,
+    uc: np.ndarray,
+) -> int:
+    """Solve the local problem of one contact point for one step (frozen integrity).
+
+    Inputs: predictor ``ut`` (m), compliance ``A`` (m/Pa), cohesive displacement at the start of
+    the step ``uc_old`` (m), integrity ``beta``, parameters ``P``, the point's ``kind``.
+    Outputs written in place: traction ``T`` (Pa, tension positive) and cohesive displacement
+    ``uc`` (m) at the end of the step. Returns the status code (ST_*).
+    """
+    D = np.empty((3, 3))
+    if kind == KIND_GLUED:
+        ok = _solve3(A, ut, T)
+        uc[0] = 0.0
+        uc[1] = 0.0
+        uc[2] = 0.0
+        if not ok:
+            T[:] = 0.0
+        return ST_GLUED
+
+    b = P[P_B]
+    kn = beta * b * P[P_KI]
+    kt = beta * b * P[P_KII]
+    mu_eff = P[P_MU] * (1.0 - beta * b) ** P[P_P]
+
+    # --- open: no friction, Signorini inactive ------------------------------------------
+    for i in range(3):
+        for j in range(3):
+            D[i, j] = A[i, j]
+    D[0, 0] += P[P_CN_T]
+    D[1, 1] += P[P_CT]
+    D[2, 2] += P[P_CT]
+    M = np.empty((3, 3))
+    for i in range(3):
+        M[i, 0] = (1.0 if i == 0 else 0.0) + D[i, 0] * kn
+        M[i, 1] = (1.0 if i == 1 else 0.0) + D[i, 1] * kt
+        M[i, 2] = (1.0 if i == 2 else 0.0) + D[i, 2] * kt
+    x = np.empty(3)
+    if _solve3(M, ut, x) and x[0] > 0.0:
+        uc[0] = x[0]
+        uc[1] = x[1]
+        uc[2] = x[2]
+        T[0] = kn * x[0]
+        T[1] = kt * x[1]
+        T[2] = kt * x[2]
+        return ST_OPEN
+    open_uc = x.copy()
+
+    # --- closed: stick ----------------------------------------------------------------------
+    D[0, 0] += P[P_CN_C] - P[P_CN_T]
+    rhs = np.empty(3)
+    rhs[0] = ut[0]
+    rhs[1] = ut[1] - uc_old[1]
+    rhs[2] = ut[2] - uc_old[2]
+    if _solve3(D, rhs, T):
+        if T[0] <= 0.0:
+            r1 = T[1] - kt * uc_old[1]
+            r2 = T[2] - kt * uc_old[2]
+            if math.sqrt(r1 * r1 + r2 * r2) <= mu_eff * (-T[0]) * (1.0 + 1e-12):
+                uc[0] = 0.0
+                uc[1] = uc_old[1]
+                uc[2] = uc_old[2]
+                return ST_STICK
+        # --- closed: slide ----------------------------------------------------------------
+        if _slide(ut, D, uc_old[1], uc_old[2], kt, mu_eff, T, uc):
+            return ST_SLIDE
+    # No status fits every condition. This happens only when A couples the normal and the
+    # tangential directions strongly (far more than a contact point of a block does). Take the
+    # stick solution with the friction projected radially onto the Coulomb disk (or, under
+    # tension, the open solution); the Gauss-Seidel sweeps go on from there, and the caller
+    # counts these points.
+    if _solve3(D, rhs, T) and T[0] < 0.0:
+        r1 = T[1] - kt * uc_old[1]
+        r2 = T[2] - kt * uc_old[2]
+        rn = math.sqrt(r1 * r1 + r2 * r2)
+        lim = mu_eff * (-T[0])
+        if rn > lim:
+            T[1] = kt * uc_old[1] + r1 * lim / rn
+            T[2] = kt * uc_old[2] + r2 * lim / rn
+        uc[0] = 0.0
+        uc[1] = uc_old[1]
+        uc[2] = uc_old[2]
+        return ST_AMBIGUOUS
+    uc[0] = max(open_uc[0], 0.0)
+    uc[1] = open_uc[1]
+    uc[2] = open_uc[2]
+    T[0] = kn * uc[0]
+    T[1] = kt * uc[1]
+    T[2] = kt * uc[2]
+    return ST_AMBIGUOUS
+
+
+@njit(cache=True)
+def spring_displacement(T: np.ndarray, P: np.ndarray, us: np.ndarray) -> None:
+    """Spring part ``u_s = C_s T`` of the relative displacement (m)."""
+    us[0] = T[0] * (P[P_CN_T] if T[0] >= 0.0 else P[P_CN_C])
+    us[1] = T[1] * P[P_CT]
+    us[2] = T[2] * P[P_CT]
+
+
+@njit(cache=True)
+def local_solve_implicit(
+    ut: np.ndarray,
+    A: np.ndarray,
+    uc_old: np.ndarray,
+    beta_old: float,
+    P: np.ndarray,
+    kind: int,
+    T: np.ndarray,
+    uc: np.ndarray,
+):
+    """Local problem with the integrity consistent with the end of the step.
+
+    Finds ``beta`` in ``[0, beta_old]`` with ``beta = min(beta_old, beta_env(u_c(beta)))``,
+    where ``u_c(beta)`` solves the local problem with that integrity (``local_solve``). The
+    function ``g(beta) = beta_env(u_c(beta)) - beta`` is >= 0 at 0 and < 0 at ``beta_old``
+    whenever the integrity must drop, so the root is bracketed; it is found by regula falsi
+    (Illinois variant), which also copes with the jumps of ``g`` at status changes. This makes
+    the softening implicit: the traction never overshoots the envelope, whatever the step.
+
+    Returns ``(status, beta)``; ``T`` and ``uc`` hold the solution for that ``beta``.
+    """
+    st = local_solve(ut, A, uc_old, beta_old, P, kind, T, uc)
+    if kind == KIND_GLUED or P[P_B] <= 0.0:
+        return st, beta_old
+    g_hi = envelope_integrity(uc[0], uc[1], uc[2], beta_old, P) - beta_old
+    if g_hi >= 0.0:
+        return st, beta_old
+    hi = beta_old
+    lo = 0.0
+    st = local_solve(ut, A, uc_old, 0.0, P, kind, T, uc)
+    g_lo = envelope_integrity(uc[0], uc[1], uc[2], beta_old, P)
+    if g_lo <= 0.0:
+        return st, 0.0
+    side = 0
+    beta = lo
+    for _ in range(100):
+        beta = (lo * g_hi - hi * g_lo) / (g_hi - g_lo)
+        st = local_solve(ut, A, uc_old, beta, P, kind, T, uc)
+        g = envelope_integrity(uc[0], uc[1], uc[2], beta_old, P) - beta
+        if abs(g) <= 1e-14 or hi - lo <= 1e-14:
+            break
+        if g > 0.0:
+            lo = beta
+            g_lo = g
+            if side == -1:
+                g_hi *= 0.5
+            side = -1
+        else:
+            hi = beta
+            g_hi = g
+            if side == 1:
+                g_lo *= 0.5
+            side = 1
+    return st, beta
