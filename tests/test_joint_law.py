@@ -157,7 +157,7 @@ def test_coulomb_law_is_rigid_plastic():
 
 
 def test_coupled_compliance_slide_satisfies_the_law():
-    """With a full (coupled) compliance the Newton slide solution meets every condition.
+    """With a full (coupled) compliance the iterated slide solution meets every condition.
 
     The coupling is that of a contact point on a block face (A up to a third of the spring
     compliance, with off-diagonal terms up to half its diagonal): larger normal-tangential

@@ -32,7 +32,7 @@ so that ``u_c = u~ - (A + C_s) T`` with the spring compliance ``C_s = diag(c_n, 
 * stick (``u_c,n = 0``, ``u_c,t`` unchanged): ``T = D^-1 (u~ - u_c)``, valid while
   ``|T_t - kappa_t u_c,t| <= mu_eff (-T_n)``;
 * slide: ``T_t = kappa_t u_c,t + mu_eff N e`` with ``e`` the slip direction and ``N = -T_n``;
-  closed form when ``D`` is diagonal, a 3x3 Newton iteration on ``T`` when ``A`` couples the
+  closed form when ``D`` is diagonal, iterated on the off-diagonal part when ``A`` couples the
   normal and tangential directions.
 
 Glued points (blocks glued to the steel beams) are bilateral: ``u_{n+1} = 0``, ``T = A^-1 u~``.
@@ -204,98 +204,69 @@ def _solve3(M: np.ndarray, r: np.ndarray, x: np.ndarray) -> bool:
 
 
 @njit(cache=True)
-def _slide(ut, D, u0_1, u0_2, kt, mu_eff, T, uc) -> bool:
-    """Sliding contact: solve for T with ``u_c,n = 0`` and Coulomb at the limit.
+def _slide_diagonal(ut0, ut1, ut2, dn, dt, u0_1, u0_2, kt, mu_eff, T, s):
+    """Closed-form sliding for ``D = diag(dn, dt, dt)``; returns False if not admissible.
 
-    Unknown ``T``; the slip ``s = u~_t - D_tn T_n - D_tt T_t - u0`` and the friction
-    ``R_t = T_t - kappa_t (u0 + s)`` must satisfy ``R_t = mu_eff N s / |s|`` with ``N = -T_n``
-    and the normal condition ``u~_n - D_nn T_n - D_nt . T_t = 0``. Closed form when D is
-    diagonal; otherwise Newton from the closed form of diag(D). Returns False when no
-    admissible slide (N >= 0, s . R_t >= 0) is found.
+    Normal: ``T_n = u~_n / dn``. Tangential: with ``q = u~_t - u0 - dt kappa_t u0`` the slip is
+    ``s = lambda e``, ``e = q / |q|``, ``lambda = (|q| - dt mu_eff N) / (1 + dt kappa_t)``.
     """
-    dn = D[0, 0]
-    dt = 0.5 * (D[1, 1] + D[2, 2])
-    # closed form with the diagonal part
-    Tn = ut[0] / dn
-    q1 = ut[1] - u0_1 - dt * kt * u0_1
-    q2 = ut[2] - u0_2 - dt * kt * u0_2
-    qn = math.sqrt(q1 * q1 + q2 * q2)
+    Tn = ut0 / dn
     N = -Tn
+    q1 = ut1 - u0_1 - dt * kt * u0_1
+    q2 = ut2 - u0_2 - dt * kt * u0_2
+    qn = math.sqrt(q1 * q1 + q2 * q2)
     if N < 0.0 or qn == 0.0:
         return False
     lam = (qn - dt * mu_eff * N) / (1.0 + dt * kt)
     if lam < 0.0:
-        lam = 0.0
+        return False
     e1 = q1 / qn
     e2 = q2 / qn
+    s[0] = lam * e1
+    s[1] = lam * e2
     T[0] = Tn
-    T[1] = kt * (u0_1 + lam * e1) + mu_eff * N * e1
-    T[2] = kt * (u0_2 + lam * e2) + mu_eff * N * e2
-    coupled = (
-        D[0, 1] != 0.0 or D[0, 2] != 0.0 or D[1, 2] != 0.0 or D[1, 1] != D[2, 2]
-    )
-    if coupled:
-        F = np.empty(3)
-        J = np.empty((3, 3))
-        dx = np.empty(3)
-        scale = abs(ut[0]) + abs(ut[1]) + abs(ut[2]) + 1e-300
-        converged = False
-        for _ in range(40):
-            s1 = ut[1] - D[1, 0] * T[0] - D[1, 1] * T[1] - D[1, 2] * T[2] - u0_1
-            s2 = ut[2] - D[2, 0] * T[0] - D[2, 1] * T[1] - D[2, 2] * T[2] - u0_2
-            sn = math.sqrt(s1 * s1 + s2 * s2)
-            if sn <= 1e-300:
-                return False
-            e1 = s1 / sn
-            e2 = s2 / sn
-            N = -T[0]
-            F[0] = ut[0] - D[0, 0] * T[0] - D[0, 1] * T[1] - D[0, 2] * T[2]
-            F[1] = T[1] - kt * (u0_1 + s1) - mu_eff * N * e1
-            F[2] = T[2] - kt * (u0_2 + s2) - mu_eff * N * e2
-            # residual in displacement units: normal row is m, tangential rows are Pa * dt
-            res = abs(F[0]) + dt * (abs(F[1]) + abs(F[2]))
-            if res <= 1e-13 * scale:
-                converged = True
-                break
-            # P = (I - e e^T) / |s|
-            p11 = (1.0 - e1 * e1) / sn
-            p12 = -e1 * e2 / sn
-            p22 = (1.0 - e2 * e2) / sn
-            J[0, 0] = -D[0, 0]
-            J[0, 1] = -D[0, 1]
-            J[0, 2] = -D[0, 2]
-            # ds/dT_n = -D_t0, ds/dT_t = -D_tt
-            for i in range(2):
-                pi1 = p11 if i == 0 else p12
-                pi2 = p12 if i == 0 else p22
-                ei = e1 if i == 0 else e2
-                # d(mu N e_i)/dT_n = -mu e_i - mu N (P D_t0)_i
-                pd0 = pi1 * D[1, 0] + pi2 * D[2, 0]
-                J[1 + i, 0] = kt * D[1 + i, 0] + mu_eff * ei + mu_eff * N * pd0
-                for j in range(2):
-                    pdj = pi1 * D[1, 1 + j] + pi2 * D[2, 1 + j]
-                    J[1 + i, 1 + j] = (1.0 if i == j else 0.0) + kt * D[1 + i, 1 + j] \
-                        + mu_eff * N * pdj
-            if not _solve3(J, F, dx):
-                return False
-            for i in range(3):
-                T[i] -= dx[i]
-        if not converged:
+    T[1] = kt * (u0_1 + s[0]) + mu_eff * N * e1
+    T[2] = kt * (u0_2 + s[1]) + mu_eff * N * e2
+    return True
+
+
+@njit(cache=True)
+def _slide(ut, D, u0_1, u0_2, kt, mu_eff, T, uc) -> bool:
+    """Sliding contact: ``u_c,n = 0``, Coulomb at its limit, slip along the friction traction.
+
+    ``D`` is split into its diagonal part ``diag(dn, dt, dt)`` (``dt`` the mean tangential
+    compliance) and the rest ``D_o``; the closed form of the diagonal problem is iterated with
+    ``u~ - D_o T`` as predictor until T stops changing (a contraction when the coupling is small
+    against the diagonal, as it is for the contact points of blocks). Returns False when no
+    admissible slide is found (then the caller reports the point).
+    """
+    dn = D[0, 0]
+    dt = 0.5 * (D[1, 1] + D[2, 2])
+    s = np.zeros(2)
+    Tn_old = np.zeros(3)
+    w0 = ut[0]
+    w1 = ut[1]
+    w2 = ut[2]
+    converged = False
+    for it in range(200):
+        if not _slide_diagonal(w0, w1, w2, dn, dt, u0_1, u0_2, kt, mu_eff, T, s):
             return False
-    # final slip and admissibility
-    s1 = ut[1] - D[1, 0] * T[0] - D[1, 1] * T[1] - D[1, 2] * T[2] - u0_1
-    s2 = ut[2] - D[2, 0] * T[0] - D[2, 1] * T[1] - D[2, 2] * T[2] - u0_2
-    if not coupled:
-        s1 = lam * e1
-        s2 = lam * e2
-    N = -T[0]
-    r1 = T[1] - kt * (u0_1 + s1)
-    r2 = T[2] - kt * (u0_2 + s2)
-    if N < 0.0 or s1 * r1 + s2 * r2 < -1e-12 * (abs(r1) + abs(r2)) * math.sqrt(s1 * s1 + s2 * s2):
+        change = abs(T[0] - Tn_old[0]) + abs(T[1] - Tn_old[1]) + abs(T[2] - Tn_old[2])
+        if change <= 1e-13 * (abs(T[0]) + abs(T[1]) + abs(T[2])) or it > 0 and change == 0.0:
+            converged = True
+            break
+        Tn_old[0] = T[0]
+        Tn_old[1] = T[1]
+        Tn_old[2] = T[2]
+        # predictor shifted by the off-diagonal part: u~ - (D - diag(dn, dt, dt)) T
+        w0 = ut[0] - D[0, 1] * T[1] - D[0, 2] * T[2]
+        w1 = ut[1] - D[1, 0] * T[0] - (D[1, 1] - dt) * T[1] - D[1, 2] * T[2]
+        w2 = ut[2] - D[2, 0] * T[0] - D[2, 1] * T[1] - (D[2, 2] - dt) * T[2]
+    if not converged:
         return False
     uc[0] = 0.0
-    uc[1] = u0_1 + s1
-    uc[2] = u0_2 + s2
+    uc[1] = u0_1 + s[0]
+    uc[2] = u0_2 + s[1]
     return True
 
 
