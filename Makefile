@@ -5,8 +5,6 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 CASE   ?= cases/wall_0.5MPa.yaml
-# numba's on-disk cache lives inside the project, so that `make clean-cache` can clear it
-export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba_cache
 
 .PHONY: run test venv lint clean-cache
 
@@ -27,5 +25,5 @@ test: venv
 lint: venv
 	$(BIN)/ruff check masonry_nscd tests
 
-clean-cache:
-	rm -rf $(NUMBA_CACHE_DIR)
+clean-cache: venv
+	$(BIN)/masonry cache-clear

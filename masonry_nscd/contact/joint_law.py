@@ -271,6 +271,83 @@ def _slide(ut, D, u0_1, u0_2, kt, mu_eff, T, uc) -> bool:
 
 
 @njit(cache=True)
+def _slide_residual(alpha, ut, Dinv, u0_1, u0_2, kt, mu_eff, T, s):
+    """For a slip direction ``e(alpha)``: the slip length that puts the friction on the cone
+    along e, the tractions, and the residual of the friction across e (zero at a solution).
+
+    With ``s = lam e``, ``T = D^-1 (u~ - (0, u0 + lam e))`` is linear in ``lam``, and so is
+    ``R_t . e - mu_eff N``; its root gives lam. Returns (residual, ok).
+    """
+    e1 = math.cos(alpha)
+    e2 = math.sin(alpha)
+    # T = T0 + lam * Te
+    T0 = np.empty(3)
+    Te = np.empty(3)
+    for i in range(3):
+        T0[i] = Dinv[i, 0] * ut[0] + Dinv[i, 1] * (ut[1] - u0_1) + Dinv[i, 2] * (ut[2] - u0_2)
+        Te[i] = -(Dinv[i, 1] * e1 + Dinv[i, 2] * e2)
+    # g(lam) = (T_t - kt (u0 + lam e)) . e + mu_eff T_n  (= R.e - mu N)
+    g0 = (T0[1] - kt * u0_1) * e1 + (T0[2] - kt * u0_2) * e2 + mu_eff * T0[0]
+    ge = Te[1] * e1 + Te[2] * e2 - kt + mu_eff * Te[0]
+    if ge == 0.0:
+        return 0.0, False
+    lam = -g0 / ge
+    if lam < 0.0:
+        return 0.0, False
+    for i in range(3):
+        T[i] = T0[i] + lam * Te[i]
+    if T[0] > 0.0:
+        return 0.0, False
+    s[0] = lam * e1
+    s[1] = lam * e2
+    r1 = T[1] - kt * (u0_1 + s[0])
+    r2 = T[2] - kt * (u0_2 + s[1])
+    return -r1 * e2 + r2 * e1, True
+
+
+@njit(cache=True)
+def _slide_by_angle(ut, D, u0_1, u0_2, kt, mu_eff, T, uc) -> bool:
+    """Robust sliding solution: scan the slip direction, then bisect the residual across it.
+
+    Used when the iteration of ``_slide`` does not converge (strong normal-tangential coupling,
+    as for dry contacts of deformable blocks, where no spring adds to the diagonal).
+    """
+    Dinv = np.linalg.inv(D)
+    s = np.zeros(2)
+    n_scan = 72
+    prev_ok = False
+    prev_f = 0.0
+    prev_a = 0.0
+    for k in range(n_scan + 1):
+        a = 2.0 * math.pi * k / n_scan
+        f, ok = _slide_residual(a, ut, Dinv, u0_1, u0_2, kt, mu_eff, T, s)
+        if ok and prev_ok and (f == 0.0 or (f > 0.0) != (prev_f > 0.0)):
+            lo = prev_a
+            hi = a
+            flo = prev_f
+            for _ in range(60):
+                mid = 0.5 * (lo + hi)
+                fm, okm = _slide_residual(mid, ut, Dinv, u0_1, u0_2, kt, mu_eff, T, s)
+                if not okm:
+                    break
+                if (fm > 0.0) == (flo > 0.0):
+                    lo = mid
+                    flo = fm
+                else:
+                    hi = mid
+            fm, okm = _slide_residual(0.5 * (lo + hi), ut, Dinv, u0_1, u0_2, kt, mu_eff, T, s)
+            if okm:
+                uc[0] = 0.0
+                uc[1] = u0_1 + s[0]
+                uc[2] = u0_2 + s[1]
+                return True
+        prev_ok = ok
+        prev_f = f
+        prev_a = a
+    return False
+
+
+@njit(cache=True)
 def local_solve(
     ut: np.ndarray,
     A: np.ndarray,
@@ -343,6 +420,8 @@ def local_solve(
                 return ST_STICK
         # --- closed: slide ----------------------------------------------------------------
         if _slide(ut, D, uc_old[1], uc_old[2], kt, mu_eff, T, uc):
+            return ST_SLIDE
+        if _slide_by_angle(ut, D, uc_old[1], uc_old[2], kt, mu_eff, T, uc):
             return ST_SLIDE
     # No status fits every condition. This happens only when A couples the normal and the
     # tangential directions strongly (far more than a contact point of a block does). Take the

@@ -116,3 +116,29 @@ def _normal_for_stress(sigma: float, beta: float, P: np.ndarray) -> float:
             f"the joint cannot carry a normal tension of {sigma} Pa: it has no cohesion left"
         )
     return sigma / kn + sigma * P[jl.P_CN_T]
+
+
+def drive_joint_history(P: np.ndarray, u_path: np.ndarray) -> JointCurve:
+    """Drive one point along an arbitrary history of total relative displacements (n, 3), m.
+
+    Used to check that the NSCD step, given the relative displacements it produced, gives the
+    tractions of the stand-alone law.
+    """
+    A = np.zeros((3, 3))
+    T = np.zeros(3)
+    uc = np.zeros(3)
+    uc_old = np.zeros(3)
+    beta = 1.0
+    n = len(u_path)
+    out = {k: np.zeros(n) for k in ("u_n", "u_t", "T_n", "T_t", "d_coh")}
+    status = np.zeros(n, dtype=np.int64)
+    Ts = np.zeros((n, 3))
+    for i in range(n):
+        ut = np.ascontiguousarray(u_path[i], dtype=float)
+        status[i], beta = jl.local_solve_implicit(ut, A, uc_old, beta, P, jl.KIND_JOINT, T, uc)
+        uc_old[:] = uc
+        Ts[i] = T
+        out["u_n"][i], out["u_t"][i] = ut[0], ut[1]
+        out["T_n"][i], out["T_t"][i] = T[0], T[1]
+        out["d_coh"][i] = 1.0 - beta * P[jl.P_B]
+    return JointCurve(status=status, **out)

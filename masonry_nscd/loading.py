@@ -1,0 +1,40 @@
+r"""Load histories: smooth tanh ramps.
+
+A ramp goes from 0 at ``start`` to 1 at ``start + duration`` (s) along
+
+    s(x) = (tanh(k (2 x - 1)) + tanh(k)) / (2 tanh(k)),     x = (t - start) / duration,
+
+with ``k = 3``: an S-curve whose slope at both ends is ``k (1 - tanh(k)^2) / tanh(k)``, about
+3 % of its mid-ramp slope, so loads start and stop with no shock. Forces are the ramp times their
+full value; the horizontal displacement is driven through its velocity, ``rate * s(t)``, so that
+the top beam starts moving smoothly and then moves at constant rate.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+K_TANH = 3.0
+
+
+def smooth_step(t: float, start: float, duration: float) -> float:
+    """The tanh ramp from 0 (t <= start) to 1 (t >= start + duration)."""
+    if t <= start:
+        return 0.0
+    if t >= start + duration:
+        return 1.0
+    x = (t - start) / duration
+    return (math.tanh(K_TANH * (2.0 * x - 1.0)) + math.tanh(K_TANH)) / (2.0 * math.tanh(K_TANH))
+
+
+@dataclass(frozen=True)
+class Ramp:
+    """``value * smooth_step(t, start, duration)`` as a callable history."""
+
+    value: float
+    start: float
+    duration: float
+
+    def __call__(self, t: float) -> float:
+        return self.value * smooth_step(t, self.start, self.duration)

@@ -1,0 +1,154 @@
+"""The NSCD time loop of one scene: state, one Moreau-Jean step, reports.
+
+``Integrator.step`` advances from t_n to t_n+1 = t_n + h:
+
+1. external forces at t_n and t_n+1, internal forces at u_n;
+2. free velocities of every body (``kernels.free_velocity``), imposed velocities set;
+3. local free velocities of the contact points;
+4. the contact problem by non-linear Gauss-Seidel (``kernels.nlgs``), warm-started from the
+   tractions of the previous step;
+5. velocities, displacements, local relative displacements and joint states updated.
+
+A step whose Gauss-Seidel did not reach the tolerance within ``max_iterations`` sweeps is
+reported (``StepReport.converged`` False) and the caller decides; NaN or infinity anywhere in
+the new state raises ``DivergenceError`` naming the step and what diverged.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from masonry_nscd.model import ContactPoint, Loads, RigidBody
+from masonry_nscd.nscd import kernels
+from masonry_nscd.nscd.system import build_system
+
+
+class DivergenceError(RuntimeError):
+    """The state became NaN or infinite."""
+
+
+@dataclass(frozen=True)
+class StepReport:
+    step: int
+    time: float  # s, end of the step
+    sweeps: int
+    residual: float
+    converged: bool
+    ambiguous: int  # contact points whose local problem had no exact status
+
+
+@dataclass
+class JointState:
+    """Per contact point, at the end of the last step (SI units)."""
+
+    u: np.ndarray  # (npt, 3) m, relative displacement in the local frame (n, t, s)
+    U: np.ndarray  # (npt, 3) m/s, relative velocity
+    uc: np.ndarray  # (npt, 3) m, cohesive part of u
+    beta: np.ndarray  # (npt,) integrity
+    T: np.ndarray  # (npt, 3) Pa, traction (tension positive)
+    status: np.ndarray  # (npt,) joint_law.ST_*
+
+
+class Integrator:
+    """Moreau-Jean theta-method with implicit contact impulses for one scene."""
+
+    def __init__(
+        self,
+        bodies: list,
+        points: list[ContactPoint],
+        params: np.ndarray,
+        loads: Loads,
+        *,
+        h: float,
+        theta: float = 1.0,
+        tolerance: float = 1e-6,
+        max_iterations: int = 10000,
+        check_every: int = 5,
+        beta0: float | np.ndarray = 1.0,
+    ):
+        self.bodies = bodies
+        self.points = points
+        self.params = np.ascontiguousarray(np.atleast_2d(params), dtype=float)
+        self.loads = loads
+        self.sys = build_system(bodies, points, h, theta)
+        self.tolerance = tolerance
+        self.max_iterations = max_iterations
+        self.check_every = check_every
+        s = self.sys
+        self.imposed = []  # (global dof, history)
+        for i, b in enumerate(bodies):
+            if isinstance(b, RigidBody):
+                for d, hist in b.imposed_velocity.items():
+                    self.imposed.append((int(s.body_dof0[i] + d), hist))
+        n, npt = s.ndof, s.npt
+        self.t = 0.0
+        self.step_index = 0
+        self.u = np.zeros(n)
+        self.v = np.zeros(n)
+        self.fint = np.zeros(n)
+        self.joints = JointState(
+            u=np.zeros((npt, 3)), U=np.zeros((npt, 3)), uc=np.zeros((npt, 3)),
+            beta=np.broadcast_to(np.asarray(beta0, dtype=float), (npt,)).copy(),
+            T=np.zeros((npt, 3)), status=np.zeros(npt, dtype=np.int64),
+        )
+        self._F0 = loads.at(0.0, n)
+        self._dv = np.zeros(n)
+
+    # --- one step -----------------------------------------------------------------------
+    def internal_forces(self) -> np.ndarray:
+        """Internal forces at the current displacements (N). Linear elastic blocks: K u."""
+        s = self.sys
+        kernels.elastic_forces(s.body_dof0, s.k_off, s.k, self.u, self.fint)
+        return self.fint
+
+    def step(self) -> StepReport:
+        s = self.sys
+        h, theta = s.h, s.theta
+        t1 = self.t + h
+        F1 = self.loads.at(t1, s.ndof)
+        fint = self.internal_forces()
+        v_free = np.empty(s.ndof)
+        kernels.free_velocity(s.body_dof0, s.minv_off, s.minv, s.k_off, s.k, fint, self.v,
+                              self._F0, F1, h, theta, v_free)
+        for d, hist in self.imposed:
+            v_free[d] = hist(t1)
+        U_free = np.empty((s.npt, 3))
+        kernels.local_velocities(s.side_dofs, s.side_coef, v_free, U_free)
+        j = self.joints
+        T = j.T.copy()
+        uc = np.empty_like(j.uc)
+        beta = np.empty_like(j.beta)
+        status = np.empty_like(j.status)
+        sweeps, residual, amb = kernels.nlgs(
+            U_free, j.u, j.U, s.kind, s.law, self.params, s.area, s.W, s.side_dofs,
+            s.side_coef, s.side_body, s.body_dof0, s.y_off, s.y, h, theta, j.uc, j.beta,
+            T, uc, beta, status, self._dv, self.tolerance, self.max_iterations,
+            self.check_every,
+        )
+        v1 = v_free + self._dv
+        u1 = self.u + h * (theta * v1 + (1.0 - theta) * self.v)
+        U1 = np.empty((s.npt, 3))
+        kernels.local_velocities(s.side_dofs, s.side_coef, v1, U1)
+        ul1 = j.u + h * (theta * U1 + (1.0 - theta) * j.U)
+        self.step_index += 1
+        if not (np.isfinite(u1).all() and np.isfinite(v1).all() and np.isfinite(T).all()):
+            what = "body velocities" if not np.isfinite(v1).all() else "contact tractions"
+            raise DivergenceError(f"step {self.step_index} (t = {t1:.6g} s): {what} not finite")
+        self.u, self.v, self.t, self._F0 = u1, v1, t1, F1
+        self.joints = JointState(u=ul1, U=U1, uc=uc, beta=beta, T=T, status=status)
+        return StepReport(self.step_index, t1, int(sweeps), float(residual),
+                          bool(residual <= self.tolerance), int(amb))
+
+    # --- read-outs ----------------------------------------------------------------------
+    def point_forces(self) -> np.ndarray:
+        """Force of each contact point on its candidate body, global frame (npt, 3), N.
+
+        The antagonist body receives the opposite force.
+        """
+        s = self.sys
+        return -s.area[:, None] * np.einsum("aij,ai->aj", s.frame, self.joints.T)
+
+    def body_dofs(self, i: int) -> slice:
+        return slice(int(self.sys.body_dof0[i]), int(self.sys.body_dof0[i + 1]))

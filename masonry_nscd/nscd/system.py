@@ -1,0 +1,154 @@
+r"""Pack bodies and contact points into the flat arrays of the NSCD kernels.
+
+For each body the iteration matrix of the theta-method is
+
+    M_hat = M + (theta h)^2 K          (kg; K the elastic tangent of a block, 0 for rigid bodies)
+
+and its inverse is stored densely per body (blocks have a few tens of dofs). Imposed dofs of a
+rigid body get zero rows and columns in ``M_hat^-1``: impulses do not change their velocity.
+
+For each contact point ``a`` and each of its two sides (body B) the kernels use
+
+    H_aB   (k, 3)         local relative velocity U_a = sum_B H_aB^T v_B   (sparse: k dofs)
+    Y_aB = M_hat_B^-1 H_aB (ndof_B, 3)  velocity change of body B per unit local impulse
+    W_aa = sum_B H_aB^T Y_aB  (3, 3)     diagonal block of the Delassus operator (1/kg)
+
+so that a change ``dr`` of the local impulse of ``a`` changes the velocities of its bodies by
+``Y_aB dr`` and nothing else. The Delassus operator is never assembled beyond its diagonal
+blocks: the off-diagonal coupling is carried by the body velocities (cost per point and sweep
+~ 2 ndof_B, memory linear in the number of points).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from masonry_nscd.fe import hex8
+from masonry_nscd.model import DOF_IMPOSED, Block, ContactPoint, RigidBody
+
+MAX_SIDE_DOFS = 12
+
+
+@dataclass
+class System:
+    """Flat arrays shared by the kernels (read-only during a step)."""
+
+    ndof: int
+    body_dof0: np.ndarray  # (nb + 1,)
+    body_deformable: np.ndarray  # (nb,) bool
+    minv_off: np.ndarray  # (nb,) offsets into minv
+    minv: np.ndarray  # flat, dense M_hat^-1 per body (row-major)
+    k_off: np.ndarray  # (nb,) offsets into k (-1 for rigid bodies)
+    k: np.ndarray  # flat, dense K per deformable block
+    mass: np.ndarray  # (ndof,) lumped mass (translations kg, rotations kg m^2)
+    imposed_dofs: np.ndarray  # (ni,)
+    # contact points
+    kind: np.ndarray  # (npt,)
+    law: np.ndarray  # (npt,)
+    area: np.ndarray  # (npt,) m^2
+    frame: np.ndarray  # (npt, 3, 3)
+    side_dofs: np.ndarray  # (npt, 2, 12), -1 padded
+    side_coef: np.ndarray  # (npt, 2, 12, 3)
+    side_body: np.ndarray  # (npt, 2), -1 for none
+    y_off: np.ndarray  # (npt, 2) offsets into y, -1 where the side cannot move
+    y: np.ndarray  # flat Y_aB blocks (ndof_B, 3)
+    W: np.ndarray  # (npt, 3, 3)
+    h: float
+    theta: float
+
+    @property
+    def npt(self) -> int:
+        return len(self.area)
+
+
+def body_matrices(body, h: float, theta: float):
+    """Stiffness K (or None), lumped mass per dof, and M_hat^-1 of one body."""
+    if isinstance(body, Block):
+        C = hex8.elastic_matrix(body.E, body.nu)
+        K, m = hex8.assemble_block(body.X, body.conn, C, body.density)
+        Mhat = np.diag(m) + (theta * h) ** 2 * K
+        return K, m, np.linalg.inv(Mhat)
+    assert isinstance(body, RigidBody)
+    m = np.concatenate([np.full(3, body.mass), body.inertia])
+    free = body.dof_mode != DOF_IMPOSED
+    minv = np.zeros((6, 6))
+    minv[free, free] = 1.0 / m[free]
+    return None, m, minv
+
+
+def build_system(bodies, points: list[ContactPoint], h: float, theta: float) -> System:
+    """Number the dofs, factor each body and precompute the Delassus blocks."""
+    nb = len(bodies)
+    body_dof0 = np.zeros(nb + 1, dtype=np.int64)
+    for i, b in enumerate(bodies):
+        body_dof0[i + 1] = body_dof0[i] + b.ndof
+    ndof = int(body_dof0[-1])
+    minvs, ks, mass = [], [], np.zeros(ndof)
+    minv_off = np.zeros(nb, dtype=np.int64)
+    k_off = np.full(nb, -1, dtype=np.int64)
+    off = koff = 0
+    imposed = []
+    for i, b in enumerate(bodies):
+        K, m, minv = body_matrices(b, h, theta)
+        mass[body_dof0[i]:body_dof0[i + 1]] = m
+        minv_off[i] = off
+        off += minv.size
+        minvs.append(minv.ravel())
+        if K is not None:
+            k_off[i] = koff
+            koff += K.size
+            ks.append(K.ravel())
+        if isinstance(b, RigidBody):
+            imposed += [body_dof0[i] + d for d in range(6) if b.dof_mode[d] == DOF_IMPOSED]
+    npt = len(points)
+    side_dofs = np.full((npt, 2, MAX_SIDE_DOFS), -1, dtype=np.int64)
+    side_coef = np.zeros((npt, 2, MAX_SIDE_DOFS, 3))
+    side_body = np.full((npt, 2), -1, dtype=np.int64)
+    y_off = np.full((npt, 2), -1, dtype=np.int64)
+    W = np.zeros((npt, 3, 3))
+    ys = []
+    yo = 0
+    for a, p in enumerate(points):
+        for s, ((dofs, coef), bi) in enumerate(zip(p.sides, p.bodies)):
+            n = len(dofs)
+            side_dofs[a, s, :n] = dofs
+            side_coef[a, s, :n] = coef
+            side_body[a, s] = bi
+            d0, d1 = body_dof0[bi], body_dof0[bi + 1]
+            nB = d1 - d0
+            minv = minvs[bi].reshape(nB, nB)
+            H = np.zeros((nB, 3))
+            H[dofs - d0] = coef
+            Y = minv @ H
+            if not np.any(Y):
+                continue  # a fixed body: impulses do not move it
+            y_off[a, s] = yo
+            yo += Y.size
+            ys.append(Y.ravel())
+            W[a] += H.T @ Y
+    # A direction along which no free body can move (an imposed dof of a rigid body, say) has a
+    # zero row in W_aa: the relative motion there is kinematic and the point carries no traction
+    # in it. Give it a finite compliance in the local problem (the predictor along it is zero,
+    # so the traction comes out zero); the velocity maps Y are untouched.
+    for a in range(npt):
+        dmax = np.abs(np.diag(W[a])).max()
+        for i in range(3):
+            if W[a, i, i] <= 1e-12 * dmax:
+                W[a, i, :] = 0.0
+                W[a, :, i] = 0.0
+                W[a, i, i] = dmax if dmax > 0 else 1.0
+    cat = lambda xs: np.concatenate(xs) if xs else np.zeros(0)  # noqa: E731
+    return System(
+        ndof=ndof, body_dof0=body_dof0,
+        body_deformable=np.array([isinstance(b, Block) for b in bodies]),
+        minv_off=minv_off, minv=cat(minvs), k_off=k_off, k=cat(ks), mass=mass,
+        imposed_dofs=np.array(imposed, dtype=np.int64),
+        kind=np.array([p.kind for p in points], dtype=np.int64),
+        law=np.array([p.law for p in points], dtype=np.int64),
+        area=np.array([p.area for p in points], dtype=float),
+        frame=np.array([p.frame for p in points], dtype=float).reshape(npt, 3, 3),
+        side_dofs=side_dofs, side_coef=side_coef, side_body=side_body, y_off=y_off,
+        y=cat(ys), W=W, h=h, theta=theta,
+    )

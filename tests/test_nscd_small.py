@@ -1,0 +1,125 @@
+"""The NSCD engine on small scenes, against closed-form answers."""
+
+import numpy as np
+import pytest
+
+from masonry_nscd.contact import joint_law as jl
+from masonry_nscd.contact.point_driver import drive_joint_history
+from masonry_nscd.scenes.small import block_between_plates, block_on_support, column
+
+
+@pytest.mark.parametrize("divisions", [(1, 1, 1), (2, 2, 1), (3, 2, 2)])
+def test_block_between_plates_has_axial_stiffness_EA_over_L(divisions):
+    integ, info = block_between_plates(divisions=divisions, force=50e3, tolerance=1e-7)
+    for _ in range(250):
+        rep = integ.step()
+        assert rep.converged
+    k = 50e3 / -integ.u[info["top_dof"]]
+    assert k == pytest.approx(info["stiffness"], rel=1e-2)
+
+
+def test_column_at_rest_reaction_equals_weight_and_no_drift():
+    integ, info = column(n_blocks=3, tolerance=1e-7)
+    for i in range(1000):
+        rep = integ.step()
+        assert rep.converged
+        if i == 499:
+            u500 = integ.u.copy()
+    glued = np.array([p.group == 1 for p in integ.points])
+    reaction = integ.point_forces()[glued, 1].sum()
+    assert reaction == pytest.approx(info["weight"], rel=1e-6)
+    # at rest: no drift between step 500 and 1000 (far below the settlement itself)
+    settle = np.abs(integ.u).max()
+    assert settle > 1e-8
+    # what moves between steps 500 and 1000 stays within the solver tolerance (1e-7 of the
+    # forces), far from a drift of the settlement
+    assert np.abs(integ.u - u500).max() < 1e-3 * settle
+
+
+def _slide_distance(ratio, steps=400):
+    N = 10e3
+    mu = 0.6
+    integ, info = block_on_support(law="coulomb", mu=mu, normal_force=N,
+                                   shear_force=ratio * mu * N, shear_start=0.05,
+                                   shear_ramp=0.1, rigid=True)
+    xs = []
+    for _ in range(steps):
+        assert integ.step().converged
+        xs.append(integ.u[info["dofs_x"]].mean())
+    return np.array(xs), info
+
+
+def test_coulomb_block_sticks_below_mu_N():
+    xs, _ = _slide_distance(0.99)
+    # a rigid block that sticks does not move at all
+    assert abs(xs[-1]) < 1e-12
+    assert abs(xs[-1] - xs[-100]) < 1e-9
+
+
+def test_coulomb_block_slides_above_mu_N_with_newtons_acceleration():
+    xs, info = _slide_distance(1.01)
+    h = 1e-3
+    # once the shear is fully applied (t > 0.15 s) the block accelerates at (F - mu N) / m
+    t = np.arange(1, len(xs) + 1) * h
+    sel = t > 0.2
+    a = np.polyfit(t[sel], xs[sel], 2)[0] * 2.0
+    expected = 0.01 * 0.6 * 10e3 / info["mass"]
+    assert a == pytest.approx(expected, rel=1e-2)
+
+
+@pytest.mark.parametrize("sigma", [0.0, 0.5e6])
+def test_rigid_block_on_joint_peak_shear_is_law_peak_times_area(sigma):
+    size = (0.3, 0.1, 0.15)
+    area = size[0] * size[2]
+    integ, info = block_on_support(law="fczm", mu=0.7, normal_force=sigma * area, rigid=True,
+                                   size=size, shear_velocity=2e-3, shear_start=0.06,
+                                   shear_ramp=0.02, h=2e-4)
+    fx = []
+    for _ in range(int(0.6 / 2e-4)):
+        assert integ.step().converged
+        fx.append(-integ.point_forces()[:, 0].sum())  # force of the block on the support
+    peak = max(fx)
+    # law peak: 0.1088 MPa of cohesion (b = 1 - 0.99944) plus mu (1 - b) sigma of friction
+    expected = (0.1088e6 + 0.7 * (1 - 5.6e-4) * sigma) * area
+    assert peak == pytest.approx(expected, rel=5e-3)
+
+
+def test_nscd_single_contact_with_free_rigid_partner_equals_standalone_law():
+    """A rigid body of finite mass on one contact point, loaded by forces: the tractions of the
+    NSCD step equal those of the stand-alone law driven by the same relative displacements."""
+    size = (0.1, 0.1, 0.1)
+    from masonry_nscd.contact.points import dof_offsets, face_contacts
+    from masonry_nscd.loading import Ramp
+    from masonry_nscd.model import Block, Loads, RigidBody
+    from masonry_nscd.nscd.integrator import Integrator
+
+    zero = lambda t: 0.0  # noqa: E731
+    body = RigidBody.box((0, 0, 0), size, 2000.0,
+                         imposed_velocity={d: zero for d in (2, 3, 4, 5)})
+    support = RigidBody(center=(0.05, -0.05, 0.05), mass=1.0, inertia=np.ones(3),
+                        imposed_velocity={d: zero for d in range(6)})
+    geom = Block(origin=(0, 0, 0), size=size, divisions=(1, 1, 1), E=1.0, nu=0.0,
+                 density=1.0)
+    bodies = [body, support]
+    dof0 = dof_offsets(bodies)
+    pts = face_contacts(bodies, dof0, 0, geom, 1, False, [(1, None)], gap=0.0,
+                        tangent=(1, 0, 0), kind=jl.KIND_JOINT, law=0, group=0, n_gauss=1)
+    assert len(pts) == 1
+    P = jl.joint_params(d_coh_initial=0.0)
+    loads = Loads()
+    F = np.zeros(12)
+    F[0], F[1] = 2.0e3, 0.8e3  # pulls up and sideways: mixed-mode opening to failure
+    loads.add(F, Ramp(1.0, 0.0, 0.05))
+    integ = Integrator(bodies, pts, P, loads, h=1e-4, theta=1.0, tolerance=1e-12,
+                       max_iterations=100, check_every=1)
+    us, Ts = [], []
+    for _ in range(400):
+        assert integ.step().converged
+        us.append(integ.joints.u[0].copy())
+        Ts.append(integ.joints.T[0].copy())
+    us, Ts = np.array(us), np.array(Ts)
+    assert integ.joints.beta[0] < 0.5  # the joint softened on the way
+    ref = drive_joint_history(P, us)
+    scale = np.abs(Ts).max()
+    assert np.abs(ref.T_n - Ts[:, 0]).max() < 1e-9 * scale
+    assert np.abs(ref.T_t - Ts[:, 1]).max() < 1e-9 * scale
