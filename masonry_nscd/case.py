@@ -1,0 +1,1229 @@
+"""The case file: what one simulation of a masonry wall is, validated, with SI units.
+
+A case file is a YAML mapping with the sections below; every value is in SI units (m, Pa, N, J,
+s, kg) and every section and field is optional (the defaults are the reference study: Venzal's
+1.85 x 1.20 x 0.15 m limestone wall, 11 courses in running bond, ENDO3D blocks, frictional
+cohesive joints, 0.5 MPa of vertical stress, 10 mm of imposed horizontal displacement; see
+``docs/model.md`` section 1 of the shared documentation)::
+
+    name: wall_0.5MPa            # default: the file's stem
+    description: ...
+    wall:     geometry of the units, the joints, the bond and the mesh     -> Wall
+    blocks:   material of the units (elastic | endo3d | rigid)             -> Blocks, Endo3d
+    joint:    joint law (frictional cohesive zone + spring, or Coulomb)    -> Joint
+    supports: boundary conditions of the top steel beam                    -> Supports
+    loading:  gravity, vertical stress, horizontal displacement stages     -> Loading
+    solver:   time step, theta, NLGS tolerance                             -> Solver
+    output:   what is written and how often                                -> Output
+
+Units are in the field names (``_m``, ``_Pa``, ``_Pa_m`` = Pa/m, ``_J_m2`` = J/m^2, ``_kg_m3``,
+``_kg``, ``_s``, ``_m_s`` = m/s, ``_m_s2`` = m/s^2) or, for dimensionless numbers and counts, in
+the field's description.
+
+Reading YAML. PyYAML implements YAML 1.1, where ``1e5`` and ``0.3e6`` are *strings* (a 1.1 float
+needs a dot and a signed exponent), ``010`` is 8 and ``no``/``on`` are booleans. Case files are
+read with a loader that implements the YAML 1.2 core schema instead: ``1e5``, ``0.3e6``,
+``-2.5E-3``, ``.5`` are floats; ``10``, ``0x1f``, ``0o17`` are integers; only
+``true``/``false`` (any case style) are booleans; ``null``, ``~`` and an empty value are null;
+everything else is text. Duplicate keys in a mapping are an error (PyYAML silently keeps the last
+one). Numbers given as quoted text ("0.3e6") are still converted by the (lax) validation; true and
+false are *not* accepted where a number is expected.
+
+Errors. Every problem in a case file - missing file, YAML syntax, wrong type, out-of-range value,
+unknown field, inconsistent geometry, bad ``--set`` override - raises :class:`CaseError`, whose
+``messages`` are one readable line each, naming the field path (``joint.d_spring``), the value
+given and what is allowed.
+
+Public API: :class:`Case` (and its sections), :func:`load_case`, :func:`case_from_dict`,
+:func:`case_to_yaml`, :func:`read_yaml`, :class:`CaseError`.
+"""
+
+from __future__ import annotations
+
+import copy
+import difflib
+import math
+import re
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Annotated, Any, ClassVar, Literal, get_args, get_origin
+
+import yaml
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
+from pydantic_core import PydanticCustomError
+
+__all__ = [
+    "Blocks",
+    "Case",
+    "CaseError",
+    "Endo3d",
+    "GravityStage",
+    "HorizontalStage",
+    "Joint",
+    "Loading",
+    "Output",
+    "Solver",
+    "StressStage",
+    "Supports",
+    "Wall",
+    "case_from_dict",
+    "case_to_yaml",
+    "load_case",
+    "read_yaml",
+]
+
+#: Tolerance of the running-bond length identity (m).
+BOND_TOLERANCE_M = 1e-9
+
+
+# ---------------------------------------------------------------------------------------------
+# Errors
+# ---------------------------------------------------------------------------------------------
+
+
+class CaseError(Exception):
+    """An invalid case file or override.
+
+    ``messages`` holds one readable line per problem, each starting with the field path
+    (``joint.d_spring: got 1.2; ...``) or with the file when the problem is the file itself.
+    ``str(error)`` is the messages joined by newlines.
+    """
+
+    def __init__(self, messages: str | Sequence[str]):
+        if isinstance(messages, str):
+            messages = [messages]
+        self.messages: list[str] = [str(m) for m in messages] or ["invalid case"]
+        super().__init__("\n".join(self.messages))
+
+
+# ---------------------------------------------------------------------------------------------
+# Field types
+# ---------------------------------------------------------------------------------------------
+
+
+def _reject_bool(value: Any) -> Any:
+    """Refuse ``true``/``false`` where a number is expected (pydantic would read them as 1/0)."""
+    if isinstance(value, bool):
+        raise PydanticCustomError("number_type", "a number is expected, not true/false")
+    return value
+
+
+#: A real number (lax: ints and numeric text are converted; booleans are refused).
+Real = Annotated[float, BeforeValidator(_reject_bool)]
+#: A whole number (lax: 3.0 and "3" are converted; 3.5 and booleans are refused).
+Whole = Annotated[int, BeforeValidator(_reject_bool)]
+#: Number of hexahedra of one unit along one direction.
+ElementCount = Annotated[int, BeforeValidator(_reject_bool), Field(ge=1, le=8)]
+
+_SQRT3 = math.sqrt(3.0)
+
+
+class _Section(BaseModel):
+    """Common configuration: unknown keys are errors, assignments are validated, no inf/nan.
+
+    An assignment that breaks a field's own bounds is refused (pydantic ``ValidationError``) and
+    leaves the model unchanged; one that breaks a cross-field check of the section (e.g. the
+    running-bond identity) raises too, but pydantic has already stored the value. To change
+    several related values, build a new case: ``case_from_dict(case.model_dump() | {...})``.
+    """
+
+    model_config = ConfigDict(extra="forbid", validate_assignment=True, allow_inf_nan=False)
+
+
+def _problems(problems: list[tuple[str, str]]) -> None:
+    """Raise the consistency problems of one section as one pydantic error.
+
+    Each problem is ``(field, text)``, the field relative to the section; the formatter of
+    :class:`CaseError` turns each into a message with the full path.
+    """
+    if problems:
+        summary = "; ".join(f"{field}: {text}" for field, text in problems)
+        raise PydanticCustomError(
+            "case_consistency", "{summary}", {"summary": summary, "problems": problems}
+        )
+
+
+# ---------------------------------------------------------------------------------------------
+# Wall
+# ---------------------------------------------------------------------------------------------
+
+
+class Wall(_Section):
+    """Geometry of the wall: units, joints, bond and mesh (lengths in m).
+
+    The wall lies in the x-y plane (x along the wall, y up, z through the thickness). Courses are
+    counted from the bottom, the first (bottom) course is odd. Between two units, along a course
+    (head joint) and between courses (bed joint), there is a joint of ``joint_thickness_m``; the
+    mortar and the unit-mortar interface are one contact interface with an initial gap equal to
+    the joint thickness.
+
+    Bond:
+
+    - ``stack``: every course has ``units_per_course`` whole units, head joints aligned.
+    - ``running``: odd courses (1st, 3rd, ...) have ``units_per_course`` whole units; even courses
+      (2nd, 4th, ...) have ``units_per_course - 1`` whole units and one half unit at each end.
+      Both courses must have the same length::
+
+          2 half + (n - 1) length + n joint = n length + (n - 1) joint
+          =>  half = (length - joint) / 2        (0.145 m for 0.300 m units and 10 mm joints)
+
+    Overall size: ``wall_length_m = n length + (n - 1) joint`` (1.85 m by default),
+    ``wall_height_m = courses height + (courses - 1) joint`` (1.20 m by default).
+    """
+
+    unit_length_m: Real = Field(
+        0.300, gt=0.0, le=10.0, description="length of one whole unit along the wall (m)"
+    )
+    unit_height_m: Real = Field(0.100, gt=0.0, le=10.0, description="height of one unit (m)")
+    thickness_m: Real = Field(
+        0.150, gt=0.0, le=10.0, description="thickness of the wall and of the units (m)"
+    )
+    joint_thickness_m: Real = Field(
+        0.010,
+        ge=0.0,
+        le=0.5,
+        description="thickness of the bed and head joints = initial contact gap (m)",
+    )
+    courses: Whole = Field(11, ge=1, le=200, description="number of courses (count)")
+    units_per_course: Whole = Field(
+        6, ge=1, le=500, description="number of whole units in a full (odd) course (count)"
+    )
+    bond: Literal["running", "stack"] = Field(
+        "running", description="running: even courses offset by half a unit; stack: aligned"
+    )
+    half_unit_length_m: Real = Field(
+        0.145,
+        gt=0.0,
+        le=10.0,
+        description="length of the half units at both ends of even courses, running bond (m)",
+    )
+    elements_per_unit: tuple[ElementCount, ElementCount, ElementCount] = Field(
+        (2, 2, 1),
+        description="hexahedra per unit along length, height, thickness (counts, 1..8 each)",
+    )
+    contact_points_per_face: Whole = Field(
+        2,
+        ge=1,
+        le=4,
+        description="Gauss points per direction on each element face in contact (count)",
+    )
+
+    @property
+    def wall_length_m(self) -> float:
+        """Length of the wall along x (m): ``n * unit_length + (n - 1) * joint``."""
+        n = self.units_per_course
+        return n * self.unit_length_m + (n - 1) * self.joint_thickness_m
+
+    @property
+    def wall_height_m(self) -> float:
+        """Height of the wall, without the steel beams (m)."""
+        c = self.courses
+        return c * self.unit_height_m + (c - 1) * self.joint_thickness_m
+
+    @model_validator(mode="after")
+    def _check_bond(self) -> Wall:
+        problems: list[tuple[str, str]] = []
+        if self.bond == "running":
+            half, joint = self.half_unit_length_m, self.joint_thickness_m
+            expected = (self.unit_length_m - joint) / 2.0
+            if not half > joint:
+                problems.append(
+                    (
+                        "half_unit_length_m",
+                        (
+                            f"got {half:.9g} m; a half unit must be longer than the joint, "
+                            f"joint_thickness_m = {joint:.9g} m"
+                        ),
+                    )
+                )
+            if abs(half - expected) > BOND_TOLERANCE_M:
+                problems.append(
+                    (
+                        "half_unit_length_m",
+                        (
+                            f"got {half:.9g} m; with a running bond the even courses "
+                            "(2 half units, units_per_course - 1 whole units, units_per_course "
+                            "head joints) must be as long as the odd ones, so "
+                            "half_unit_length_m must be "
+                            f"(unit_length_m - joint_thickness_m) / 2 = {expected:.9g} m"
+                        ),
+                    )
+                )
+        _problems(problems)
+        return self
+
+
+# ---------------------------------------------------------------------------------------------
+# Blocks
+# ---------------------------------------------------------------------------------------------
+
+
+class Endo3d(_Section):
+    """Parameters of the ENDO3D damage-plasticity law of the stone (docs/model.md section 3).
+
+    Strengths in Pa, strains dimensionless, fracture energies in J/m^2. ``eps_pic_t`` is the
+    study's peak tensile strain; the law of model.md reaches its tensile peak at ``R_t / E``
+    (9.009e-5 with the defaults, the same number), so the value is kept for the record.
+    """
+
+    R_t_Pa: Real = Field(
+        1.0e6, gt=0.0, le=1e9, description="tensile strength R_t (Pa), Rankine criterion"
+    )
+    eps_pic_t: Real = Field(
+        0.9009e-4, gt=0.0, lt=1.0, description="strain at the tensile peak (dimensionless)"
+    )
+    G_ft_J_m2: Real = Field(
+        60.0, gt=0.0, le=1e6, description="tensile fracture energy G_ft (J/m^2), Hillerborg"
+    )
+    R_c_Pa: Real = Field(9.46e6, gt=0.0, le=1e10, description="compressive strength R_c (Pa)")
+    eps_pic_c: Real = Field(
+        0.13e-1, gt=0.0, lt=1.0, description="strain at the compressive peak (dimensionless)"
+    )
+    delta: Real = Field(
+        0.4,
+        ge=0.0,
+        lt=_SQRT3,
+        description="Drucker-Prager confinement coefficient (dimensionless, < sqrt 3)",
+    )
+    beta: Real = Field(
+        0.2,
+        ge=0.0,
+        lt=_SQRT3,
+        description="Drucker-Prager dilatancy coefficient (dimensionless, < sqrt 3)",
+    )
+    eps_kdc: Real = Field(
+        0.18e-1,
+        gt=0.0,
+        lt=1.0,
+        description="post-peak compressive damage strain scale (dimensionless)",
+    )
+    DCPK: Real = Field(
+        1.0, ge=0.0, le=1.0, description="cap on the pre-peak compressive damage (dimensionless)"
+    )
+    REF_Pa: Real = Field(0.3e6, gt=0.0, le=1e9, description="crack reclosure stress REF (Pa)")
+    GFR_J_m2: Real = Field(4.5, gt=0.0, le=1e6, description="crack reclosure energy GFR (J/m^2)")
+
+    @model_validator(mode="after")
+    def _check_strengths(self) -> Endo3d:
+        problems: list[tuple[str, str]] = []
+        if not self.R_t_Pa < self.R_c_Pa:
+            problems.append(
+                (
+                    "R_t_Pa",
+                    (
+                        f"got {self.R_t_Pa:.9g} Pa; the tensile strength must be lower than the "
+                        f"compressive strength R_c_Pa = {self.R_c_Pa:.9g} Pa"
+                    ),
+                )
+            )
+        _problems(problems)
+        return self
+
+
+class Blocks(_Section):
+    """The units (blocks): material model, density, elasticity.
+
+    ``material``: ``endo3d`` (damage-plasticity, the study), ``elastic`` (linear elastic, the
+    study's counter-example, same E and nu) or ``rigid`` (rigid bodies, for fast studies where
+    block deformation does not matter; E and nu unused). The ``endo3d`` section is used only
+    with ``material: endo3d``.
+    """
+
+    material: Literal["elastic", "endo3d", "rigid"] = Field(
+        "endo3d", description="block material model: elastic, endo3d or rigid"
+    )
+    density_kg_m3: Real = Field(2000.0, gt=0.0, le=1e5, description="density (kg/m^3)")
+    E_Pa: Real = Field(11.1e9, gt=0.0, le=1e13, description="Young's modulus E (Pa)")
+    nu: Real = Field(
+        0.2, gt=-1.0, lt=0.5, description="Poisson's ratio (dimensionless, -1 < nu < 0.5)"
+    )
+    endo3d: Endo3d = Field(
+        default_factory=Endo3d, description="ENDO3D parameters (used when material is endo3d)"
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# Joint
+# ---------------------------------------------------------------------------------------------
+
+
+class Joint(_Section):
+    """The joint law, per unit area of interface (docs/model.md section 2).
+
+    ``law``:
+
+    - ``fczm``: frictional cohesive zone in series with an elastic spring (the study). Spring
+      ``T = (1 - d_spring) K^spring u_s``; cohesion with one integrity shared by both modes,
+      initial integrity ``1 - d_coh_initial``, exponential softening to ``eta``; Coulomb
+      friction in compression with ``mu_eff = mu (1 - beta b)^p``.
+    - ``coulomb``: dry Signorini-Coulomb contact with friction ``mu``; no cohesion, no spring
+      (the spring and cohesive parameters are then unused).
+
+    Stiffnesses in Pa/m (traction per opening), stresses in Pa, fracture energies in J/m^2.
+    Mode I is normal opening, mode II tangential sliding. The softening slope
+    ``phi = sigma_e / (G - sigma_e^2 / (2 K_coh))`` needs ``G_f > sigma_e^2 / (2 K_coh)`` in each
+    mode; it is checked here for the pure modes and for mixed modes.
+    """
+
+    law: Literal["fczm", "coulomb"] = Field(
+        "fczm", description="fczm: cohesive zone + friction + spring; coulomb: dry friction only"
+    )
+    K_I_spring_Pa_m: Real = Field(
+        4.3e11, gt=0.0, le=1e16, description="normal stiffness of the series spring (Pa/m)"
+    )
+    K_II_spring_Pa_m: Real = Field(
+        1.8e11, gt=0.0, le=1e16, description="tangential stiffness of the series spring (Pa/m)"
+    )
+    d_spring: Real = Field(
+        0.953, ge=0.0, lt=1.0, description="constant damage of the spring (dimensionless)"
+    )
+    sigma_I_e_Pa: Real = Field(
+        0.05e6, gt=0.0, le=1e9, description="mode I elastic limit (tensile strength) (Pa)"
+    )
+    K_I_coh_Pa_m: Real = Field(
+        1.21e11, gt=0.0, le=1e16, description="mode I cohesive stiffness (Pa/m)"
+    )
+    G_fI_J_m2: Real = Field(3.0, gt=0.0, le=1e6, description="mode I fracture energy (J/m^2)")
+    sigma_II_e_Pa: Real = Field(
+        0.27e6, gt=0.0, le=1e9, description="mode II elastic limit (shear strength) (Pa)"
+    )
+    K_II_coh_Pa_m: Real = Field(
+        2.8e11, gt=0.0, le=1e16, description="mode II cohesive stiffness (Pa/m)"
+    )
+    G_fII_J_m2: Real = Field(206.0, gt=0.0, le=1e6, description="mode II fracture energy (J/m^2)")
+    d_coh_initial: Real = Field(
+        0.99944,
+        ge=0.0,
+        lt=1.0,
+        description="initial cohesive damage, b = 1 - d_coh_initial (dimensionless)",
+    )
+    mu: Real = Field(0.7, ge=0.0, le=2.0, description="friction coefficient (dimensionless)")
+    p: Real = Field(
+        1.0,
+        gt=0.0,
+        le=100.0,
+        description="friction growth exponent in mu (1 - beta b)^p (dimensionless)",
+    )
+    eta: Real = Field(
+        1e-4,
+        gt=0.0,
+        lt=0.5,
+        description="residual integrity at which the joint is fully broken (dimensionless)",
+    )
+    compression_spring: Literal["damaged", "undamaged"] = Field(
+        "damaged",
+        description="normal spring in compression: damaged (the study) or undamaged (LMGC90)",
+    )
+
+    @model_validator(mode="after")
+    def _check_fracture_energies(self) -> Joint:
+        if self.law != "fczm":
+            return self
+        problems: list[tuple[str, str]] = []
+        modes = (
+            ("G_fI_J_m2", self.G_fI_J_m2, "sigma_I_e_Pa", self.sigma_I_e_Pa,
+             "K_I_coh_Pa_m", self.K_I_coh_Pa_m),
+            ("G_fII_J_m2", self.G_fII_J_m2, "sigma_II_e_Pa", self.sigma_II_e_Pa,
+             "K_II_coh_Pa_m", self.K_II_coh_Pa_m),
+        )  # fmt: skip
+        for g_name, g, s_name, s, k_name, k in modes:
+            elastic = s * s / (2.0 * k)
+            if not g > elastic:
+                problems.append(
+                    (
+                        g_name,
+                        (
+                            f"got {g:.6g} J/m^2; it must exceed the elastic energy "
+                            f"{s_name}^2 / (2 {k_name}) = {elastic:.6g} J/m^2, else the softening "
+                            f"slope is undefined (raise {g_name} or {k_name}, or lower {s_name})"
+                        ),
+                    )
+                )
+        if not problems:
+            m_bad = self._worst_mixed_mode()
+            if m_bad is not None:
+                problems.append(
+                    (
+                        "G_fII_J_m2",
+                        (
+                            f"with G_fI_J_m2 = {self.G_fI_J_m2:.6g} and G_fII_J_m2 = "
+                            f"{self.G_fII_J_m2:.6g} J/m^2 the mixed-mode fracture energy is below "
+                            f"the mixed-mode elastic energy at mode mixity m = {m_bad:.3g} (the "
+                            "softening slope is undefined there): raise G_fI_J_m2 or G_fII_J_m2"
+                        ),
+                    )
+                )
+        _problems(problems)
+        return self
+
+    def _worst_mixed_mode(self) -> float | None:
+        """Mode mixity m where G(m) <= sigma_e(m) delta_e(m) / 2, or None if there is none."""
+        d1 = self.sigma_I_e_Pa / self.K_I_coh_Pa_m
+        d2 = self.sigma_II_e_Pa / self.K_II_coh_Pa_m
+        k1, k2 = self.K_I_coh_Pa_m, self.K_II_coh_Pa_m
+        for i in range(-120, 121):
+            m = 10.0 ** (i / 10.0)
+            w1, w2 = d2 * d2, m * d1 * d1
+            g = (w1 * self.G_fI_J_m2 + w2 * self.G_fII_J_m2) / (w1 + w2)
+            delta_e_sq = d1 * d1 * d2 * d2 * (1.0 + m) / (w1 + w2)
+            k = math.sqrt((k1 * k1 + m * k2 * k2) / (1.0 + m))
+            if not g > 0.5 * k * delta_e_sq:
+                return m
+        return None
+
+
+# ---------------------------------------------------------------------------------------------
+# Supports and loading
+# ---------------------------------------------------------------------------------------------
+
+
+class Supports(_Section):
+    """Boundary conditions. The wall is glued to a clamped steel beam below and to a rigid steel
+    beam above; the top beam's out-of-plane displacement and rotations are blocked, its x motion
+    is driven by the horizontal stage.
+
+    ``top_vertical``: ``load`` - the top beam is free in y and carries the vertical stress of
+    ``loading.vertical_stress`` (the study); ``fixed`` - the top beam is held in y (then the
+    vertical stress must be 0).
+    """
+
+    top_vertical: Literal["load", "fixed"] = Field(
+        "load", description="top beam in y: load (free, carries sigma_N) or fixed (held)"
+    )
+    top_beam_mass_kg: Real = Field(
+        500.0, gt=0.0, le=1e7, description="mass of the rigid top steel beam (kg)"
+    )
+
+
+class GravityStage(_Section):
+    """Gravity, ramped from 0 to ``value_m_s2`` (acceleration, m/s^2, acting in -y)."""
+
+    value_m_s2: Real = Field(
+        9.81, ge=0.0, le=1000.0, description="gravitational acceleration, downwards (m/s^2)"
+    )
+    start_s: Real = Field(0.0, ge=0.0, le=1e6, description="time at which the ramp starts (s)")
+    ramp_s: Real = Field(0.05, gt=0.0, le=1e6, description="duration of the ramp (s)")
+
+
+class StressStage(_Section):
+    """Vertical compressive stress sigma_N on the top beam, ramped from 0 to ``value_Pa``.
+
+    ``value_Pa`` is a magnitude (>= 0): the force pushing the top beam down is
+    ``value_Pa * wall_length_m * thickness_m`` (138.75 kN for 0.5 MPa over 1.85 x 0.15 m).
+    """
+
+    value_Pa: Real = Field(
+        0.5e6,
+        ge=0.0,
+        le=1e9,
+        description="compressive stress sigma_N over wall length x thickness, magnitude (Pa)",
+    )
+    start_s: Real = Field(0.05, ge=0.0, le=1e6, description="time at which the ramp starts (s)")
+    ramp_s: Real = Field(0.15, gt=0.0, le=1e6, description="duration of the ramp (s)")
+
+
+class HorizontalStage(_Section):
+    """Imposed horizontal displacement U_x of the top beam.
+
+    The beam's x velocity ramps smoothly (tanh form) from 0 to ``rate_m_s`` over ``ramp_s``
+    from ``start_s``, then stays at ``rate_m_s``; the displacement therefore lags the ideal
+    ``rate * (t - start)`` by about ``ramp_s / 2``. The run stops when U_x reaches ``target_m``,
+    at about ``start_s + ramp_s / 2 + target_m / rate_m_s`` (:attr:`Loading.end_time_s`).
+    """
+
+    target_m: Real = Field(
+        0.010, gt=0.0, le=10.0, description="horizontal displacement at which the run stops (m)"
+    )
+    rate_m_s: Real = Field(
+        0.002, gt=0.0, le=100.0, description="horizontal velocity after the ramp (m/s)"
+    )
+    start_s: Real = Field(0.25, ge=0.0, le=1e6, description="time at which the ramp starts (s)")
+    ramp_s: Real = Field(0.05, gt=0.0, le=1e6, description="duration of the velocity ramp (s)")
+
+
+class Loading(_Section):
+    """The three load stages, each ramped smoothly: gravity, then the vertical stress, then the
+    horizontal displacement (the stages may overlap; the study applies them one after the other).
+    """
+
+    gravity: GravityStage = Field(default_factory=GravityStage, description="gravity stage")
+    vertical_stress: StressStage = Field(
+        default_factory=StressStage, description="vertical compressive stress on the top beam"
+    )
+    horizontal: HorizontalStage = Field(
+        default_factory=HorizontalStage, description="imposed horizontal displacement"
+    )
+
+    @property
+    def end_time_s(self) -> float:
+        """Expected end of the run (s): ``start + ramp / 2 + target / rate`` of the horizontal
+        stage. The velocity ramps to ``rate_m_s`` over ``ramp_s``, so the displacement lags by
+        about ``ramp_s / 2``; the solver itself stops when U_x reaches ``target_m``, so this is
+        an estimate (exact for a ramp symmetric about its middle, when ``target_m`` is reached
+        after the ramp)."""
+        h = self.horizontal
+        return h.start_s + h.ramp_s / 2.0 + h.target_m / h.rate_m_s
+
+
+# ---------------------------------------------------------------------------------------------
+# Solver and output
+# ---------------------------------------------------------------------------------------------
+
+
+class Solver(_Section):
+    """Time integration (Moreau-Jean theta scheme) and the contact solver.
+
+    ``tolerance`` bounds the relative change of the contact impulses between two convergence
+    checks of the non-linear Gauss-Seidel (NLGS), made every ``check_every`` sweeps. It matters:
+    a loose tolerance lowers the apparent initial stiffness of the wall (docs/model.md section 4).
+    """
+
+    time_step_s: Real = Field(2e-3, gt=0.0, le=1.0, description="time step h (s)")
+    theta: Real = Field(
+        1.0, ge=0.5, le=1.0, description="theta of the theta-method (dimensionless, 0.5..1)"
+    )
+    method: Literal["nlgs"] = Field(
+        "nlgs", description="contact solver: nlgs (non-linear Gauss-Seidel)"
+    )
+    tolerance: Real = Field(
+        1e-6,
+        gt=0.0,
+        lt=1.0,
+        description="convergence: relative change of the impulses (dimensionless)",
+    )
+    max_iterations: Whole = Field(
+        20000, ge=1, le=1_000_000_000, description="maximum NLGS sweeps per step (count)"
+    )
+    check_every: Whole = Field(
+        5, ge=1, le=1_000_000, description="NLGS sweeps between convergence checks (count)"
+    )
+
+    @model_validator(mode="after")
+    def _check_iterations(self) -> Solver:
+        problems: list[tuple[str, str]] = []
+        if self.check_every > self.max_iterations:
+            problems.append(
+                (
+                    "check_every",
+                    (
+                        f"got {self.check_every}; convergence would never be checked: it must not "
+                        f"exceed max_iterations = {self.max_iterations}"
+                    ),
+                )
+            )
+        _problems(problems)
+        return self
+
+
+class Output(_Section):
+    """What the run writes (the force-displacement CSV is always written, every step)."""
+
+    every_steps: Whole = Field(
+        10, ge=1, le=1_000_000_000, description="write fields every this many steps (count)"
+    )
+    vtu: bool = Field(True, description="write VTU/PVD fields for ParaView (true/false)")
+    hdf5: bool = Field(True, description="write results.h5 (true/false)")
+
+
+# ---------------------------------------------------------------------------------------------
+# Case
+# ---------------------------------------------------------------------------------------------
+
+
+class Case(_Section):
+    """One simulation: a wall, its materials, supports, loading, solver settings and outputs.
+
+    Every section has defaults (the reference study), so ``{}`` is a valid case.
+    """
+
+    name: str = Field(
+        "case",
+        min_length=1,
+        max_length=200,
+        description="name of the run, used for the output folder (default: the file's stem)",
+    )
+    description: str = Field("", max_length=10_000, description="free text")
+    wall: Wall = Field(default_factory=Wall, description="geometry, bond and mesh")
+    blocks: Blocks = Field(default_factory=Blocks, description="block material")
+    joint: Joint = Field(default_factory=Joint, description="joint law")
+    supports: Supports = Field(default_factory=Supports, description="supports of the top beam")
+    loading: Loading = Field(default_factory=Loading, description="load stages")
+    solver: Solver = Field(default_factory=Solver, description="time step and contact solver")
+    output: Output = Field(default_factory=Output, description="outputs")
+
+    @field_validator("name")
+    @classmethod
+    def _check_name(cls, value: str) -> str:
+        if any(c in value for c in "/\\\x00") or value.strip() != value or value in (".", ".."):
+            raise PydanticCustomError(
+                "name_text",
+                "a name is used as a folder name: no '/', '\\' or NUL character, no leading "
+                "or trailing spaces, not '.' or '..'",
+            )
+        return value
+
+    @property
+    def vertical_force_N(self) -> float:
+        """Vertical force on the top beam (N): sigma_N x wall length x thickness."""
+        return (
+            self.loading.vertical_stress.value_Pa
+            * self.wall.wall_length_m
+            * (self.wall.thickness_m)
+        )
+
+    @property
+    def step_count(self) -> int:
+        """Expected number of time steps, ``ceil(end_time_s / time_step_s)``."""
+        return max(1, math.ceil(self.loading.end_time_s / self.solver.time_step_s - 1e-9))
+
+    @model_validator(mode="after")
+    def _check_supports(self) -> Case:
+        problems: list[tuple[str, str]] = []
+        stress = self.loading.vertical_stress.value_Pa
+        if self.supports.top_vertical == "fixed" and stress != 0.0:
+            problems.append(
+                (
+                    "supports.top_vertical",
+                    (
+                        f"got 'fixed' with loading.vertical_stress.value_Pa = {stress:.6g} "
+                        "Pa; a top beam held in y cannot carry a vertical stress: use "
+                        "top_vertical 'load' or set loading.vertical_stress.value_Pa to 0"
+                    ),
+                )
+            )
+        _problems(problems)
+        return self
+
+
+# ---------------------------------------------------------------------------------------------
+# YAML: a YAML 1.2 core-schema loader on top of PyYAML
+# ---------------------------------------------------------------------------------------------
+
+_TAG = "tag:yaml.org,2002:"
+
+_RESOLVERS_1_2: list[tuple[str, re.Pattern[str], list[str | None]]] = [
+    (_TAG + "null", re.compile(r"^(?:~|null|Null|NULL|)$"), ["~", "n", "N", ""]),
+    (_TAG + "bool", re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$"), list("tTfF")),
+    (
+        _TAG + "int",
+        re.compile(r"^(?:[-+]?[0-9]+|0o[0-7]+|0x[0-9a-fA-F]+)$"),
+        list("-+0123456789"),
+    ),
+    (
+        _TAG + "float",
+        re.compile(
+            r"^(?:[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?"
+            r"|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$"
+        ),
+        list("-+0123456789."),
+    ),
+    (_TAG + "merge", re.compile(r"^(?:<<)$"), ["<"]),
+]
+
+
+class _CaseLoader(yaml.SafeLoader):
+    """PyYAML's safe loader with the YAML 1.2 core schema for plain scalars and with duplicate
+    keys refused."""
+
+    yaml_implicit_resolvers: ClassVar[dict] = {}  # filled below, not inherited (YAML 1.1)
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
+        if isinstance(node, yaml.MappingNode):
+            seen: dict[Any, yaml.Node] = {}
+            for key_node, _ in node.value:
+                if key_node.tag == _TAG + "merge":
+                    continue
+                key = self.construct_object(key_node, deep=True)
+                try:
+                    hash(key)
+                except TypeError:
+                    raise yaml.constructor.ConstructorError(
+                        "while constructing a mapping",
+                        node.start_mark,
+                        "found a key that is not a scalar (a list or a mapping)",
+                        key_node.start_mark,
+                    ) from None
+                if key in seen:
+                    raise yaml.constructor.ConstructorError(
+                        "while constructing a mapping",
+                        node.start_mark,
+                        f"found duplicate key {key!r}",
+                        key_node.start_mark,
+                    )
+                seen[key] = key_node
+        return super().construct_mapping(node, deep=deep)
+
+
+def _clip(text: str, size: int = 40) -> str:
+    return repr(text) if len(text) <= size else repr(text[: size - 3] + "...")
+
+
+def _construct_int(loader: yaml.SafeLoader, node: yaml.ScalarNode) -> int:
+    text = str(loader.construct_scalar(node)).strip()
+    try:
+        if text.lower().startswith("0o"):
+            return int(text, 0)
+        if text.lower().startswith("0x"):
+            return int(text, 0)
+        return int(text, 10)
+    except ValueError:
+        raise yaml.constructor.ConstructorError(
+            None, None, f"{_clip(text)} is not an integer", node.start_mark
+        ) from None
+
+
+def _construct_float(loader: yaml.SafeLoader, node: yaml.ScalarNode) -> float:
+    text = str(loader.construct_scalar(node)).strip()
+    low = text.lower()
+    if low in (".inf", "+.inf"):
+        return math.inf
+    if low == "-.inf":
+        return -math.inf
+    if low == ".nan":
+        return math.nan
+    try:
+        return float(text)
+    except ValueError:
+        raise yaml.constructor.ConstructorError(
+            None, None, f"{_clip(text)} is not a number", node.start_mark
+        ) from None
+
+
+def _construct_bool(loader: yaml.SafeLoader, node: yaml.ScalarNode) -> bool:
+    text = str(loader.construct_scalar(node)).strip().lower()
+    if text in ("true", "false"):
+        return text == "true"
+    raise yaml.constructor.ConstructorError(
+        None, None, f"{_clip(text)} is not true or false", node.start_mark
+    )
+
+
+for _tag, _regexp, _first in _RESOLVERS_1_2:
+    _CaseLoader.add_implicit_resolver(_tag, _regexp, _first)
+_CaseLoader.add_constructor(_TAG + "int", _construct_int)
+_CaseLoader.add_constructor(_TAG + "float", _construct_float)
+_CaseLoader.add_constructor(_TAG + "bool", _construct_bool)
+
+
+class _CaseDumper(yaml.SafeDumper):
+    """A dumper that quotes every string that either YAML 1.1 or YAML 1.2 would read as
+    something else than a string, so that the output reads back the same with both."""
+
+    yaml_implicit_resolvers: ClassVar[dict] = {}
+
+
+for _first_char, _resolvers in yaml.SafeDumper.yaml_implicit_resolvers.items():
+    _CaseDumper.yaml_implicit_resolvers[_first_char] = list(_resolvers)
+for _tag, _regexp, _first in _RESOLVERS_1_2:
+    _CaseDumper.add_implicit_resolver(_tag, _regexp, _first)
+
+
+def read_yaml(text: str, source: str = "<text>") -> Any:
+    """Parse YAML text as case files are read (YAML 1.2 core schema: ``0.3e6`` is a float,
+    duplicate keys refused). Any problem becomes a :class:`CaseError` naming ``source`` and,
+    for syntax errors, the line and column."""
+    try:
+        return yaml.load(text, Loader=_CaseLoader)  # a SafeLoader subclass
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        kind = "error" if isinstance(exc, yaml.constructor.ConstructorError) else "syntax error"
+        what = str(exc.problem or exc.context or "invalid YAML")
+        if exc.problem and exc.context:
+            cmark = exc.context_mark
+            what += f" ({exc.context}" + (f" at line {cmark.line + 1})" if cmark else ")")
+        raise CaseError(f"{source}: YAML {kind}{where}: {what}") from None
+    except yaml.YAMLError as exc:
+        raise CaseError(f"{source}: cannot read the YAML: {exc}") from None
+    except RecursionError:
+        raise CaseError(f"{source}: the YAML is nested too deeply") from None
+    except (ValueError, TypeError, AttributeError, OverflowError) as exc:
+        # PyYAML's own constructors (e.g. !!timestamp with a bad value) can raise these
+        raise CaseError(f"{source}: cannot read the YAML: {exc}") from None
+
+
+# ---------------------------------------------------------------------------------------------
+# Schema helpers (for messages and overrides)
+# ---------------------------------------------------------------------------------------------
+
+_UNIT_SUFFIXES = (
+    ("_kg_m3", "kg/m^3"),
+    ("_J_m2", "J/m^2"),
+    ("_m_s2", "m/s^2"),
+    ("_Pa_m", "Pa/m"),
+    ("_m_s", "m/s"),
+    ("_Pa", "Pa"),
+    ("_kg", "kg"),
+    ("_s", "s"),
+    ("_m", "m"),
+)
+
+
+def _unit_of(name: str) -> str | None:
+    for suffix, unit in _UNIT_SUFFIXES:
+        if name.endswith(suffix):
+            return unit
+    return None
+
+
+def _is_model(annotation: Any) -> bool:
+    return isinstance(annotation, type) and issubclass(annotation, BaseModel)
+
+
+def _split_annotated(annotation: Any) -> tuple[Any, list[Any]]:
+    """``Annotated[T, FieldInfo(...), ...]`` -> ``(T, metadata of the FieldInfo parts)``."""
+    metadata: list[Any] = []
+    if get_origin(annotation) is Annotated:
+        base, *extras = get_args(annotation)
+        for extra in extras:
+            metadata.extend(getattr(extra, "metadata", [extra]))
+        return base, metadata
+    return annotation, metadata
+
+
+def _fmt_bound(value: Any) -> str:
+    if isinstance(value, float) and value == _SQRT3:
+        return "sqrt(3)"
+    return f"{value:g}" if isinstance(value, (int, float)) else str(value)
+
+
+def _describe(annotation: Any, metadata: Sequence[Any], name: str = "") -> str:
+    """What a field accepts, in words: 'a number, 0 <= value < 1', "one of 'a', 'b'", ..."""
+    annotation, extra = _split_annotated(annotation)
+    metadata = list(metadata) + extra
+    if get_origin(annotation) is Literal:
+        return "one of " + ", ".join(repr(a) for a in get_args(annotation))
+    if annotation is bool:
+        return "true or false"
+    if annotation is str:
+        return "text"
+    if _is_model(annotation):
+        return "a mapping with the keys " + ", ".join(annotation.model_fields)
+    if get_origin(annotation) is tuple:
+        args = get_args(annotation)
+        return f"a list of {len(args)} items, each " + _describe(args[0], [])
+    if annotation in (int, float):
+        low = high = ""
+        for m in metadata:
+            if getattr(m, "gt", None) is not None:
+                low = f"{_fmt_bound(m.gt)} < "
+            if getattr(m, "ge", None) is not None:
+                low = f"{_fmt_bound(m.ge)} <= "
+            if getattr(m, "lt", None) is not None:
+                high = f" < {_fmt_bound(m.lt)}"
+            if getattr(m, "le", None) is not None:
+                high = f" <= {_fmt_bound(m.le)}"
+        text = "a whole number" if annotation is int else "a number"
+        if low or high:
+            text += f", {low}value{high}"
+        unit = _unit_of(name)
+        if unit:
+            text += f" (in {unit})"
+        return text
+    return str(annotation)
+
+
+def _lookup(loc: Sequence[Any]) -> tuple[Any, list[Any], str] | None:
+    """The annotation, constraints and name of the schema node at ``loc`` (None if unknown)."""
+    annotation: Any = Case
+    metadata: list[Any] = []
+    name = ""
+    for part in loc:
+        annotation, _ = _split_annotated(annotation)
+        if _is_model(annotation):
+            if not isinstance(part, str) or part not in annotation.model_fields:
+                return None
+            info = annotation.model_fields[part]
+            annotation, metadata, name = info.annotation, list(info.metadata), part
+        elif get_origin(annotation) is tuple and isinstance(part, int):
+            args = get_args(annotation)
+            if not 0 <= part < len(args):
+                return None
+            annotation, metadata = args[part], []
+        else:
+            return None
+    return annotation, metadata, name
+
+
+def _path(loc: Sequence[Any]) -> str:
+    text = ""
+    for part in loc:
+        if isinstance(part, int) and not isinstance(part, bool):
+            text += f"[{part}]"
+        else:
+            text += ("." if text else "") + str(part)
+    return text
+
+
+def _show(value: Any) -> str:
+    """A short rendering of a value given by the user."""
+    text = repr(value)
+    if len(text) > 60:
+        text = text[:57] + "..."
+    if value is None:
+        return "null (no value)"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, Mapping):
+        return "a mapping " + text
+    if isinstance(value, (list, tuple)):
+        return "a list " + text
+    return text
+
+
+def _allowed_keys(loc: Sequence[Any]) -> list[str]:
+    node = _lookup(loc)
+    if node is None:
+        return []
+    annotation, _ = _split_annotated(node[0])
+    return list(annotation.model_fields) if _is_model(annotation) else []
+
+
+def _suggest(key: Any, allowed: Sequence[str]) -> str:
+    close = difflib.get_close_matches(str(key), allowed, n=1, cutoff=0.6)
+    return f" (did you mean '{close[0]}'?)" if close else ""
+
+
+_RANGE_ERRORS = frozenset(
+    {"greater_than", "greater_than_equal", "less_than", "less_than_equal", "finite_number"}
+)
+
+
+def _messages(error: ValidationError, prefix: Sequence[Any] = ()) -> list[str]:
+    """Readable messages from a pydantic error: field path, value given, what is allowed."""
+    messages: list[str] = []
+    for err in error.errors():
+        loc = tuple(prefix) + tuple(err.get("loc", ()))
+        kind = err.get("type", "")
+        value = err.get("input")
+        ctx = err.get("ctx") or {}
+        if kind == "case_consistency":
+            for field, text in ctx.get("problems", []):
+                messages.append(f"{_path(loc + (field,))}: {text}")
+            continue
+        if kind in ("extra_forbidden", "invalid_key"):
+            parent, key = loc[:-1], (loc[-1] if loc else "?")
+            allowed = _allowed_keys(parent)
+            where = _path(parent) or "the top level"
+            if kind == "extra_forbidden":
+                what, shown = "unknown field", _path(loc)
+            else:
+                what, shown = (
+                    "a key must be text",
+                    ".".join(filter(None, [_path(parent), repr(value)])),
+                )
+            messages.append(
+                f"{shown}: {what}{_suggest(key, allowed)}; the keys allowed in {where} "
+                f"are: {', '.join(allowed)}"
+            )
+            continue
+        node = _lookup(loc)
+        allowed = _describe(*node) if node is not None else ""
+        if kind in _RANGE_ERRORS and allowed:
+            reason = "out of range"
+        elif kind == "literal_error" and allowed:
+            reason = "not a valid choice"
+        else:
+            reason = str(err.get("msg", "invalid value"))
+            reason = reason[:1].lower() + reason[1:]
+        text = f"{_path(loc) or 'the case'}: got {_show(value)}; {reason}"
+        if allowed:
+            text += f"; allowed: {allowed}"
+        messages.append(text)
+    return messages or [str(error)]
+
+
+# ---------------------------------------------------------------------------------------------
+# Public functions
+# ---------------------------------------------------------------------------------------------
+
+
+def case_from_dict(data: Any) -> Case:
+    """Validate a mapping (as read from a case file) into a :class:`Case`.
+
+    Raises :class:`CaseError` with one message per problem.
+    """
+    if not isinstance(data, Mapping):
+        raise CaseError(
+            f"the case: got {_show(data)}; a case must be a mapping with the keys "
+            + ", ".join(Case.model_fields)
+        )
+    try:
+        return Case.model_validate(dict(data))
+    except ValidationError as exc:
+        raise CaseError(_messages(exc)) from None
+    except RecursionError:
+        raise CaseError(
+            "the case: the data is nested too deeply (a recursive YAML alias?)"
+        ) from None
+
+
+def _apply_override(data: dict, override: str) -> None:
+    """Apply one ``dotted.path=value`` override to raw case data (in place)."""
+    if not isinstance(override, str) or "=" not in override:
+        raise CaseError(
+            f"--set {override}: an override must be PATH=VALUE, e.g. joint.mu=0.5 or "
+            "wall.elements_per_unit=[1,1,1]"
+        )
+    path_text, value_text = override.split("=", 1)
+    parts = [p.strip() for p in path_text.strip().split(".")]
+    if not path_text.strip() or any(not p for p in parts):
+        raise CaseError(f"--set {override}: the path before '=' is empty or has an empty part")
+    annotation: Any = Case
+    for i, part in enumerate(parts):
+        annotation, _ = _split_annotated(annotation)
+        here = ".".join(parts[:i]) or "the top level"
+        if not _is_model(annotation):
+            raise CaseError(
+                f"--set {override}: {'.'.join(parts[:i])} is a value, not a section; it has "
+                f"no key '{part}'"
+            )
+        fields = annotation.model_fields
+        if part not in fields:
+            raise CaseError(
+                f"--set {override}: unknown path {'.'.join(parts[: i + 1])}"
+                f"{_suggest(part, list(fields))}; the keys allowed in {here} are: "
+                + ", ".join(fields)
+            )
+        annotation = fields[part].annotation
+    if annotation is str:
+        value: Any = value_text  # text fields take the text as given
+    else:
+        value = read_yaml(value_text, f"--set {override}")
+    target = data
+    for i, part in enumerate(parts[:-1]):
+        child = target.get(part)
+        if child is None:
+            child = target[part] = {}
+        if not isinstance(child, dict):
+            raise CaseError(
+                f"--set {override}: {'.'.join(parts[: i + 1])} in the case file is "
+                f"{_show(child)}, not a mapping"
+            )
+        target = child
+    target[parts[-1]] = value
+
+
+def load_case(path: str | Path, overrides: Sequence[str] = ()) -> Case:
+    """Read, override and validate a case file.
+
+    ``overrides`` are ``dotted.path=value`` strings (the CLI's ``--set``), applied in order; the
+    value is parsed as YAML (``0.3e6`` is a float, ``[2,2,1]`` a list, ``true`` a boolean; a
+    text field such as ``name`` takes the text as given) and the path must exist in the schema.
+    ``name`` defaults to the file's stem. Raises :class:`CaseError` for every problem.
+    """
+    path = Path(path)
+    source = str(path)
+    if not path.exists():
+        raise CaseError(f"{source}: case file not found")
+    if path.is_dir():
+        raise CaseError(f"{source}: is a directory, not a case file")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise CaseError(
+            f"{source}: not a UTF-8 text file ({exc.reason} at byte {exc.start})"
+        ) from None
+    except OSError as exc:
+        raise CaseError(f"{source}: cannot read the file: {exc.strerror or exc}") from None
+    data = read_yaml(text, source)
+    if data is None:
+        raise CaseError(
+            f"{source}: the file is empty; a case file is a mapping (use '{{}}' for all defaults)"
+        )
+    if not isinstance(data, dict):
+        raise CaseError(
+            f"{source}: the top level must be a mapping with the keys "
+            f"{', '.join(Case.model_fields)}; got {_show(data)}"
+        )
+    data = copy.deepcopy(data) if overrides else data
+    for override in overrides:
+        _apply_override(data, override)
+    data.setdefault("name", path.stem)
+    return case_from_dict(data)
+
+
+# ---------------------------------------------------------------------------------------------
+# Writing
+# ---------------------------------------------------------------------------------------------
+
+
+def _format_float(x: float) -> str:
+    """The shortest text that reads back as the same float in YAML 1.1 and 1.2."""
+    if math.isnan(x):
+        return ".nan"
+    if math.isinf(x):
+        return ".inf" if x > 0 else "-.inf"
+    if x == 0.0 or 1e-3 <= abs(x) < 1e4:
+        text = repr(x)
+        if "e" not in text:
+            return text
+    for digits in range(18):
+        text = f"{x:.{digits}e}"
+        if float(text) == x:
+            break
+    mantissa, exponent = text.split("e")
+    if "." not in mantissa:
+        mantissa += ".0"
+    sign = exponent[0]
+    return f"{mantissa}e{sign}{exponent[1:].lstrip('0') or '0'}"
+
+
+def _reads_back(text: str, value: Any) -> bool:
+    """Whether ``text`` reads back as ``value`` with this module's reader and with PyYAML's."""
+    try:
+        return read_yaml(text) == value and yaml.safe_load(text) == value
+    except (CaseError, yaml.YAMLError):
+        return False
+
+
+def _format_scalar(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return _format_float(value)
+    if isinstance(value, (tuple, list)):
+        return "[" + ", ".join(_format_scalar(v) for v in value) + "]"
+    text = yaml.dump(
+        value, Dumper=_CaseDumper, width=float("inf"), allow_unicode=True, explicit_end=False
+    )
+    text = text.removesuffix("\n").removesuffix("\n...").removesuffix("...")
+    if "\n" in text or not _reads_back(text, value):
+        text = yaml.dump(
+            value, Dumper=_CaseDumper, width=float("inf"), allow_unicode=True, default_style='"'
+        ).strip()
+    return text
+
+
+def _emit(model: BaseModel, indent: int, lines: list[str], comments: bool) -> None:
+    pad = "  " * indent
+    for name, info in type(model).model_fields.items():
+        value = getattr(model, name)
+        comment = f"  # {info.description}" if comments and info.description else ""
+        if isinstance(value, BaseModel):
+            lines.append(f"{pad}{name}:{comment}")
+            _emit(value, indent + 1, lines, comments)
+        else:
+            lines.append(f"{pad}{name}: {_format_scalar(value)}{comment}")
+
+
+def case_to_yaml(case: Case, *, comments: bool = True) -> str:
+    """The full case as YAML, every default filled in, in schema order.
+
+    Floats are written so that they read back as floats with any YAML reader (``1.1e+10``,
+    ``0.3``); with ``comments`` each line carries the field's description and unit.
+    ``load_case`` of the text gives back an equal :class:`Case`.
+    """
+    lines = ["# masonry_nscd case file; SI units (m, Pa, N, J, s, kg)"] if comments else []
+    _emit(case, 0, lines, comments)
+    return "\n".join(lines) + "\n"
