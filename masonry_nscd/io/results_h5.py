@@ -1,0 +1,323 @@
+r"""Results of a run in one HDF5 file (h5py): the case, the mesh, output steps and curves.
+
+Layout
+------
+::
+
+    /                      attrs: format="masonry_nscd.results", format_version=1, + caller's attrs
+    /case/yaml             the case file as given (UTF-8 string dataset)
+    /mesh/<name>           arrays given once (nodes, hexes, block_of_element, contact_points, ...)
+    /steps/000123          one group per output step, attrs step (int) and time (s)
+    /steps/000123/<field>  the step's arrays (displacement, velocity, damage, d_coh, tractions ...)
+    /curve/<column>        1-D columns (e.g. time, imposed displacement, reaction force),
+                           rewritten in place by each ``write_curve``
+
+Step groups are named with at least six digits; read them back sorted by their ``step``
+attribute (``read_results`` does). Datasets keep the caller's dtype (floating point as given,
+integers as given, booleans as HDF5 enums).
+
+Units
+-----
+Nothing is converted: give SI arrays (m, m/s, Pa, N, s, kg) and say the unit in the field name
+or in the root attrs when it is not obvious.
+
+Guarantees (tested in tests/test_io.py)
+---------------------------------------
+- Every array, attribute and the time is checked before the file is touched: numeric dtype,
+  no NaN or infinity (``ValueError`` naming the field, e.g. ``fields['displacement']``), no
+  duplicate step. A refused step leaves the file as it was.
+- The file is not kept open between calls. The constructor writes the case and mesh to a
+  temporary file beside ``path`` and renames it onto ``path`` (an older results file there is
+  replaced only once the new one is complete); ``write_step`` and ``write_curve`` each open
+  the file, write, close it and fsync it. Hence, between two calls:
+  * the file is a complete, closed HDF5 file: a process killed at any moment outside a call
+    (``os._exit``, SIGKILL, an exception that never reaches ``close``) leaves every step
+    written so far readable by a plain ``h5py.File(path, "r")``;
+  * other processes can open and read it with default h5py options while the run goes on;
+  * a reader that keeps the file open does not block the writer (the writer opens it with
+    ``locking=False``); such a reader may see stale or, during a write, inconsistent data:
+    reopen the file to see new steps.
+- The file uses ``libver="latest"`` (superblock v3). While a call is writing (typically
+  milliseconds per step), the superblock carries the "open for write" flag and readers get
+  ``OSError: ... file is already open for write``: ``read_results`` retries for ``wait_s``
+  seconds. If the process is killed *during* a call, the flag stays set and the file may be
+  inconsistent: readers refuse it; ``h5clear -s results.h5`` (HDF5 tools) clears the flag and
+  the steps written before are usually readable. HDF5 offers no stronger guarantee for a
+  write that is cut in the middle.
+- Not guarded: two writers on the same path (the second one replaces the file).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+import time as _time
+from collections.abc import Mapping
+from pathlib import Path
+from types import TracebackType
+from typing import Any, NamedTuple, Self
+
+import h5py
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+PathLike = str | os.PathLike[str]
+
+FORMAT = "masonry_nscd.results"
+FORMAT_VERSION = 1
+LIBVER = "latest"
+_CURVE_CHUNK = 1024
+_UMASK = os.umask(0)
+os.umask(_UMASK)
+
+
+class StepRecord(NamedTuple):
+    """One output step read back: step number, time (s), fields by name."""
+
+    step: int
+    time: float
+    fields: dict[str, NDArray]
+
+
+def _check_name(name: object, where: str) -> str:
+    if not isinstance(name, str) or not name or "/" in name or name in (".", ".."):
+        raise ValueError(f"{where}: names must be non-empty strings without '/', got {name!r}")
+    return name
+
+
+def _checked(label: str, a: ArrayLike) -> NDArray:
+    arr = np.asarray(a)
+    if arr.dtype.kind not in "biuf":
+        raise ValueError(f"{label}: numeric array expected, got dtype {arr.dtype}")
+    if arr.dtype.kind == "f" and arr.size and not np.isfinite(arr).all():
+        bad = np.flatnonzero(~np.isfinite(arr.ravel()))
+        raise ValueError(
+            f"{label}: {bad.size} non-finite value(s) (NaN or inf), first at flat index {bad[0]}"
+        )
+    return np.ascontiguousarray(arr)
+
+
+def _checked_dict(where: str, data: Mapping[str, ArrayLike] | None) -> dict[str, NDArray]:
+    if data is not None and not isinstance(data, Mapping):
+        raise TypeError(f"{where}: a mapping name -> array expected")
+    return {
+        _check_name(k, where): _checked(f"{where}[{k!r}]", v) for k, v in (data or {}).items()
+    }
+
+
+def _checked_attrs(attrs: Mapping[str, Any] | None) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in (attrs or {}).items():
+        if not isinstance(k, str) or not k:
+            raise ValueError(f"attrs: names must be non-empty strings, got {k!r}")
+        if isinstance(v, str):
+            out[k] = v
+        else:
+            out[k] = _checked(f"attrs[{k!r}]", v)
+    return out
+
+
+def _fsync(path: PathLike) -> None:
+    fd = os.open(path, os.O_RDWR)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _create_dataset(group: h5py.Group, name: str, arr: NDArray, compression: str | None) -> None:
+    if compression is not None and arr.ndim >= 1 and arr.size > 0:
+        group.create_dataset(name, data=arr, compression=compression, shuffle=True)
+    else:
+        group.create_dataset(name, data=arr)
+
+
+class ResultsFile:
+    """Writer of a results file; see the module docstring for the layout and guarantees.
+
+    ``ResultsFile(path, case_yaml, mesh, attrs)`` creates the file (replacing an older one);
+    use it as a context manager or call ``close()``. ``compression`` ("gzip", "lzf" or None)
+    applies to the mesh and step arrays.
+    """
+
+    def __init__(
+        self,
+        path: PathLike,
+        case_yaml: str,
+        mesh: Mapping[str, ArrayLike],
+        attrs: Mapping[str, Any] | None = None,
+        *,
+        compression: str | None = None,
+    ) -> None:
+        if not isinstance(case_yaml, str):
+            raise TypeError("case_yaml: the text of the case file (str) expected")
+        mesh_arrays = _checked_dict("mesh", mesh)
+        root_attrs = _checked_attrs(attrs)
+        self.path = Path(path)
+        self.compression = compression
+        self._closed = False
+        self._steps: set[int] = set()
+
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(
+            prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent
+        )
+        os.close(fd)
+        try:
+            os.chmod(tmp, 0o666 & ~_UMASK)
+            with h5py.File(tmp, "w", libver=LIBVER) as f:
+                f.attrs["format"] = FORMAT
+                f.attrs["format_version"] = FORMAT_VERSION
+                for k, v in root_attrs.items():
+                    f.attrs[k] = v
+                f.create_group("case").create_dataset(
+                    "yaml", data=case_yaml, dtype=h5py.string_dtype("utf-8")
+                )
+                g = f.create_group("mesh")
+                for k, v in mesh_arrays.items():
+                    _create_dataset(g, k, v, compression)
+                f.create_group("steps")
+                f.create_group("curve")
+            _fsync(tmp)
+            os.replace(tmp, self.path)
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+            raise
+
+    # -- context manager -------------------------------------------------------------------
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    def close(self) -> None:
+        """Mark the writer closed (the file itself is closed after every call already)."""
+        self._closed = True
+
+    def _open(self) -> h5py.File:
+        if self._closed:
+            raise RuntimeError(f"{self.path}: ResultsFile is closed")
+        return h5py.File(self.path, "r+", libver=LIBVER, locking=False)
+
+    # -- writing ---------------------------------------------------------------------------
+    def write_step(self, step: int, time: float, fields: Mapping[str, ArrayLike]) -> None:
+        """Append output step ``step`` (int >= 0, not yet written) at ``time`` (s)."""
+        if isinstance(step, bool) or not isinstance(step, int | np.integer) or step < 0:
+            raise ValueError(f"step must be a non-negative int, got {step!r}")
+        step = int(step)
+        t = float(time)
+        if not np.isfinite(t):
+            raise ValueError(f"time: {t} is not finite")
+        arrays = _checked_dict("fields", fields)
+        name = f"{step:06d}"
+        if step in self._steps:
+            raise ValueError(f"step {step} already written")
+        with self._open() as f:
+            steps = f["steps"]
+            if name in steps:
+                raise ValueError(f"step {step} already written")
+            g = steps.create_group(name)
+            try:
+                for k, v in arrays.items():
+                    _create_dataset(g, k, v, self.compression)
+                # the attrs go last: a group without them is an unfinished step
+                g.attrs["step"] = step
+                g.attrs["time"] = t
+            except BaseException:
+                with contextlib.suppress(Exception):
+                    del steps[name]
+                raise
+        _fsync(self.path)
+        self._steps.add(step)
+
+    def write_curve(self, columns: Mapping[str, ArrayLike]) -> None:
+        """Write or replace the 1-D columns ``/curve/<name>`` (same length within one call).
+
+        Columns not named are kept. A column is rewritten in place (resizable dataset), so
+        calling this after every step does not grow the file beyond the data.
+        """
+        arrays = _checked_dict("columns", columns)
+        lengths = {k: v.shape for k, v in arrays.items()}
+        if any(len(s) != 1 for s in lengths.values()):
+            raise ValueError(f"columns: 1-D arrays expected, got shapes {lengths}")
+        if len({s[0] for s in lengths.values()}) > 1:
+            raise ValueError(f"columns: all columns of one call must have one length: {lengths}")
+        with self._open() as f:
+            curve = f["curve"]
+            for k, v in arrays.items():
+                if v.dtype.kind == "f":
+                    v = v.astype(np.float64)
+                elif v.dtype.kind in "iu":
+                    v = v.astype(np.int64)
+                ds = curve.get(k)
+                if ds is not None and (ds.dtype != v.dtype or ds.maxshape != (None,)):
+                    del curve[k]
+                    ds = None
+                if ds is None:
+                    curve.create_dataset(
+                        k, data=v, maxshape=(None,), chunks=(_CURVE_CHUNK,)
+                    )
+                else:
+                    ds.resize((len(v),))
+                    ds[...] = v
+        _fsync(self.path)
+
+
+# -- reading -------------------------------------------------------------------------------
+def _open_for_reading(path: PathLike, wait_s: float) -> h5py.File:
+    deadline = _time.monotonic() + wait_s
+    while True:
+        try:
+            return h5py.File(path, "r")
+        except OSError as e:
+            if "already open for write" not in str(e) or _time.monotonic() >= deadline:
+                if "already open for write" in str(e):
+                    raise OSError(
+                        f"{path}: still flagged as open for write after {wait_s} s; if the "
+                        "writer was killed during a write, `h5clear -s` clears the flag"
+                    ) from e
+                raise
+            _time.sleep(0.01)
+
+
+def _attr(value: Any) -> Any:
+    if isinstance(value, bytes):
+        return value.decode()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def read_results(path: PathLike, *, wait_s: float = 2.0) -> dict[str, Any]:
+    """Read a whole results file into memory (for tests and post-processing).
+
+    Returns ``{"case_yaml": str, "mesh": {name: array}, "steps": [StepRecord(step, time,
+    fields)] sorted by step, "curve": {name: array}, "attrs": {name: value}}``. Step groups
+    without their step/time attributes (an interrupted write) are skipped. If the file is
+    being written, retries for ``wait_s`` seconds.
+    """
+    with _open_for_reading(path, wait_s) as f:
+        attrs = {k: _attr(v) for k, v in f.attrs.items()}
+        case_yaml = f["case/yaml"].asstr()[()]
+        mesh = {k: ds[()] for k, ds in f["mesh"].items()}
+        steps = []
+        for g in f["steps"].values():
+            if "step" not in g.attrs or "time" not in g.attrs:
+                continue
+            fields = {k: ds[()] for k, ds in g.items()}
+            steps.append(StepRecord(int(g.attrs["step"]), float(g.attrs["time"]), fields))
+        steps.sort(key=lambda s: s.step)
+        curve = {k: ds[()] for k, ds in f["curve"].items()}
+    return {"case_yaml": case_yaml, "mesh": mesh, "steps": steps, "curve": curve, "attrs": attrs}

@@ -1,0 +1,255 @@
+r"""VTK output for ParaView: blocks and joint contact points as ``.vtu``, time series as ``.pvd``.
+
+This is the only module of the package that imports meshio (barely maintained): anything else
+that needs VTK files calls the functions below, so that meshio can be swapped for another
+writer here without touching the rest.
+
+What is written
+---------------
+``write_blocks_vtu``
+    an UnstructuredGrid of VTK_HEXAHEDRON cells (VTK type 12). The node order of a cell is the
+    VTK one, which is also the order of ``masonry_nscd.fe.hex8``: the bottom face
+    (``zeta = -1``) counter-clockwise seen from above, then the top face in the same order.
+    Point data are nodal fields (displacement, velocity, ...), cell data element fields
+    (block id, damage per Gauss point as ``(ne, 8)``, ...).
+``write_points_vtu``
+    an UnstructuredGrid of VTK_VERTEX cells, one per point: the joint contact points with
+    their fields (d_coh, opening, slip, normal and shear tractions, status, ...).
+``write_pvd``
+    a ParaView collection (``VTKFile type="Collection"``) listing ``(time, file)`` or
+    ``(time, file, part)`` entries; entries sharing a time with different ``part`` numbers are
+    shown together (e.g. part 0 the blocks, part 1 the joints).
+
+Units
+-----
+The writers do not convert anything: give SI arrays (coordinates and displacements in m,
+velocities in m/s, tractions and stresses in Pa, times in s) and name the fields accordingly.
+Floating arrays are written as Float64 (float32 is kept as Float32), integer arrays with their
+own width, boolean arrays as UInt8 (0/1).
+
+Guarantees
+----------
+- Every array is checked before anything touches the disk: shapes, numeric dtype, and no NaN
+  or infinity (``ValueError`` naming the field, e.g. ``point_data['displacement']``).
+- Every file is written atomically: to a temporary file ``.<name>.<random>.tmp`` in the same
+  folder, flushed to disk (fsync), then renamed over the target with ``os.replace``. A failing
+  or interrupted write leaves the previous version of the target untouched; on an exception
+  the temporary file is removed. Only a process killed during the write (SIGKILL, power loss)
+  can leave a stray ``.*.tmp`` file, never a truncated ``.vtu``/``.pvd``.
+- The parent folder is created if missing; files get the usual permissions (0666 minus the
+  umask read when this module is imported).
+
+Limitations: meshio builds the whole XML in memory (a few times the size of the arrays), and
+meshio cannot read back a file with zero points or cells (VTK/ParaView can; such files are
+written uncompressed because meshio's compressed header is wrong for empty arrays).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+import xml.etree.ElementTree as ET
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+
+import meshio
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+PathLike = str | os.PathLike[str]
+
+# Read once: os.umask can only be read by setting it, which is not thread-safe.
+_UMASK = os.umask(0)
+os.umask(_UMASK)
+
+_NUMERIC_KINDS = "biuf"
+
+
+def atomic_write(path: PathLike, write: Callable[[str], None]) -> None:
+    """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it onto ``path``.
+
+    The temporary file is fsynced before ``os.replace`` so that the target is always either
+    the previous complete file or the new complete one. On any exception (including
+    KeyboardInterrupt) the temporary file is removed and the exception re-raised.
+    """
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    os.close(fd)
+    try:
+        os.chmod(tmp, 0o666 & ~_UMASK)
+        write(tmp)
+        fd = os.open(tmp, os.O_RDWR)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def checked_array(name: str, a: ArrayLike) -> NDArray:
+    """``a`` as a contiguous, native-endian numeric array; ValueError on NaN/inf or bad dtype."""
+    arr = np.asarray(a)
+    if arr.dtype.kind not in _NUMERIC_KINDS:
+        raise ValueError(f"{name}: numeric array expected, got dtype {arr.dtype}")
+    if arr.dtype.kind == "f" and arr.size and not np.isfinite(arr).all():
+        bad = np.flatnonzero(~np.isfinite(arr.ravel()))
+        raise ValueError(
+            f"{name}: {bad.size} non-finite value(s) (NaN or inf), first at flat index {bad[0]}"
+        )
+    if arr.dtype.kind == "b":
+        arr = arr.astype(np.uint8)
+    elif arr.dtype.kind == "f" and arr.dtype != np.float32:
+        arr = arr.astype(np.float64)  # VTK knows Float32 and Float64 only
+    if not arr.dtype.isnative:
+        arr = arr.astype(arr.dtype.newbyteorder("="))
+    return np.ascontiguousarray(arr)
+
+
+def _check_name(name: object, where: str) -> str:
+    if not isinstance(name, str) or not name.strip():
+        raise ValueError(f"{where}: field names must be non-empty strings, got {name!r}")
+    return name
+
+
+def _data_arrays(
+    where: str, data: Mapping[str, ArrayLike] | None, n: int, what: str
+) -> dict[str, NDArray]:
+    out: dict[str, NDArray] = {}
+    for name, value in (data or {}).items():
+        label = f"{where}[{_check_name(name, where)!r}]"
+        arr = checked_array(label, value)
+        if arr.ndim not in (1, 2) or arr.shape[0] != n:
+            raise ValueError(f"{label}: shape ({n},) or ({n}, k) expected ({what}), got {arr.shape}")
+        if arr.ndim == 2 and arr.shape[1] == 0:
+            raise ValueError(f"{label}: zero components")
+        out[name] = arr
+    return out
+
+
+def _points_array(points: ArrayLike) -> NDArray[np.float64]:
+    pts = checked_array("points", points)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise ValueError(f"points: shape (n, 3) expected, got {pts.shape}")
+    return np.ascontiguousarray(pts, dtype=np.float64)
+
+
+def _write_mesh(
+    path: PathLike,
+    points: NDArray[np.float64],
+    cell_type: str,
+    cells: NDArray[np.int64],
+    point_data: dict[str, NDArray],
+    cell_data: dict[str, NDArray],
+    compression: str | None,
+) -> None:
+    mesh = meshio.Mesh(
+        points,
+        [(cell_type, cells)],
+        point_data=point_data,
+        cell_data={k: [v] for k, v in cell_data.items()},
+    )
+    if len(points) == 0 or len(cells) == 0:
+        compression = None  # meshio writes a wrong compressed header for empty arrays
+
+    def write(tmp: str) -> None:
+        meshio.write(tmp, mesh, file_format="vtu", binary=True, compression=compression)
+
+    atomic_write(path, write)
+
+
+def write_blocks_vtu(
+    path: PathLike,
+    points: ArrayLike,
+    hexes: ArrayLike,
+    point_data: Mapping[str, ArrayLike] | None = None,
+    cell_data: Mapping[str, ArrayLike] | None = None,
+    *,
+    compression: str | None = "zlib",
+) -> None:
+    """Write hexahedral blocks to ``path`` (.vtu), atomically.
+
+    points: (n, 3) node coordinates, m (current or reference configuration, the caller's
+    choice; give the displacement as point data so that ParaView's "Warp By Vector" works).
+    hexes: (ne, 8) node indices in VTK_HEXAHEDRON order (that of ``fe.hex8``), 0-based.
+    point_data: name -> (n,) or (n, k) arrays; cell_data: name -> (ne,) or (ne, k) arrays.
+    compression: "zlib" (default), "lzma" or None.
+    """
+    pts = _points_array(points)
+    h = checked_array("hexes", hexes)
+    if h.dtype.kind not in "iu" or h.ndim != 2 or h.shape[1] != 8:
+        raise ValueError(f"hexes: integer array of shape (ne, 8) expected, got {h.dtype} {h.shape}")
+    if h.size and (h.min() < 0 or h.max() >= len(pts)):
+        raise ValueError(f"hexes: node indices must lie in [0, {len(pts)}), got {h.min()}..{h.max()}")
+    pd = _data_arrays("point_data", point_data, len(pts), "one row per node")
+    cd = _data_arrays("cell_data", cell_data, len(h), "one row per hexahedron")
+    _write_mesh(path, pts, "hexahedron", h.astype(np.int64), pd, cd, compression)
+
+
+def write_points_vtu(
+    path: PathLike,
+    points: ArrayLike,
+    point_data: Mapping[str, ArrayLike] | None = None,
+    *,
+    compression: str | None = "zlib",
+) -> None:
+    """Write a cloud of points (one VTK_VERTEX cell each) to ``path`` (.vtu), atomically.
+
+    points: (m, 3) coordinates, m. point_data: name -> (m,) or (m, k) arrays (e.g. d_coh,
+    opening and slip in m, normal and shear tractions in Pa, status as integers).
+    """
+    pts = _points_array(points)
+    pd = _data_arrays("point_data", point_data, len(pts), "one row per point")
+    vertices = np.arange(len(pts), dtype=np.int64).reshape(-1, 1)
+    _write_mesh(path, pts, "vertex", vertices, pd, {}, compression)
+
+
+def write_pvd(path: PathLike, entries: Sequence[tuple[float, str] | tuple[float, str, int]]) -> None:
+    """Write a ParaView collection ``path`` (.pvd) listing the entries, atomically.
+
+    entries: ``(time, file)`` or ``(time, file, part)``; time in s (finite), file relative to
+    the folder of ``path`` (an absolute file name is made relative to it, so the output folder
+    can be moved), part a non-negative int (0 when omitted). The order is kept; ParaView sorts
+    by time. Call it again with the grown list after each output step: the collection on disk
+    is complete and valid at all times.
+    """
+    target = Path(path)
+    root = ET.Element(
+        "VTKFile", type="Collection", version="0.1", byte_order="LittleEndian"
+    )
+    collection = ET.SubElement(root, "Collection")
+    for i, entry in enumerate(entries):
+        if len(entry) not in (2, 3):
+            raise ValueError(f"entries[{i}]: (time, file) or (time, file, part) expected")
+        time, file = entry[0], entry[1]
+        part = entry[2] if len(entry) == 3 else 0
+        t = float(time)
+        if not np.isfinite(t):
+            raise ValueError(f"entries[{i}]: time is {t}")
+        if isinstance(part, bool) or not isinstance(part, int | np.integer) or part < 0:
+            raise ValueError(f"entries[{i}]: part must be a non-negative int, got {part!r}")
+        name = os.fspath(file)
+        if not name:
+            raise ValueError(f"entries[{i}]: empty file name")
+        if os.path.isabs(name):
+            name = os.path.relpath(name, os.path.abspath(target.parent))
+        ET.SubElement(
+            collection,
+            "DataSet",
+            timestep=repr(t),
+            group="",
+            part=str(int(part)),
+            file=Path(name).as_posix(),
+        )
+    ET.indent(root)
+    tree = ET.ElementTree(root)
+
+    def write(tmp: str) -> None:
+        tree.write(tmp, encoding="utf-8", xml_declaration=True)
+
+    atomic_write(target, write)
