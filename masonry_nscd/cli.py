@@ -8,7 +8,7 @@ converged, divergence), 2 invalid input (bad case file, bad option).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, List, Optional
+from typing import Annotated
 
 import typer
 
@@ -79,6 +79,81 @@ def validate(
         typer.echo(f"# {summary}\n{case_to_yaml(case)}", nl=False)
     else:
         typer.echo(f"ok {summary}")
+
+
+SetOption = Annotated[
+    list[str] | None,
+    typer.Option("--set", metavar="PATH=VALUE",
+                 help="Override one field of the case (VALUE read as YAML; repeatable)."),
+]
+
+
+@app.command()
+def run(
+    case_file: Annotated[Path, typer.Argument(metavar="CASE.yaml", help="The case file (YAML).")],
+    output: Annotated[Path | None, typer.Option("-o", "--output",
+                      help="Run folder (default results/<case name>/).")] = None,
+    overrides: SetOption = None,
+    overwrite: Annotated[bool, typer.Option("--overwrite",
+                         help="Write into a run folder that is not empty.")] = False,
+) -> None:
+    """Run a wall case to its target displacement and write CSV, HDF5 and VTU results."""
+    case = _load_case_or_exit(case_file, overrides)
+    from masonry_nscd.run import RunFailure, RunInputError, run_case
+
+    outdir = output or Path("results") / case.name
+    try:
+        res = run_case(case, outdir, overwrite=overwrite, echo=typer.echo)
+    except RunInputError as exc:
+        _fail(str(exc), 2)
+    except RunFailure as exc:
+        _fail(f"the solver failed: {exc} (results up to the last output step are kept in "
+              f"{outdir})", 1)
+    except KeyboardInterrupt:
+        _fail(f"interrupted; results up to the last output step are kept in {outdir}", 130)
+    typer.echo(f"results in {res.outdir}")
+
+
+@point_app.command("joint")
+def point_joint(
+    case_file: Annotated[Path, typer.Argument(metavar="CASE.yaml", help="Case file (joint part).")],
+    path: Annotated[str, typer.Option("--path", help="opening | sliding | mixed")],
+    to: Annotated[float, typer.Option("--to", help="Final displacement, m.")],
+    output: Annotated[Path, typer.Option("-o", "--output", help="CSV file to write.")],
+    normal_stress: Annotated[float, typer.Option("--normal-stress",
+                             help="Held normal traction for sliding, Pa (negative: compression).")
+                             ] = 0.0,
+    steps: Annotated[int, typer.Option("--steps", min=1, help="Number of steps.")] = 2000,
+    overrides: SetOption = None,
+) -> None:
+    """Drive one joint contact point of unit area and write step,u_n_m,u_t_m,T_n_Pa,T_t_Pa,d_coh."""
+    from masonry_nscd.contact.point_driver import PATHS, drive_joint_point
+
+    if path not in PATHS:
+        _fail(f"--path must be one of {', '.join(PATHS)}, got {path!r}", 2)
+    case = _load_case_or_exit(case_file, overrides)
+    from masonry_nscd.scenes.wall import joint_params_from_case
+
+    try:
+        curve = drive_joint_point(joint_params_from_case(case), path, to, steps=steps,
+                                  normal_stress=normal_stress)
+    except ValueError as exc:
+        _fail(str(exc), 1)
+    curve.write_csv(output)
+    i = int(abs(curve.T_t if path == "sliding" else curve.T_n).argmax())
+    typer.echo(f"wrote {output}: {steps + 1} rows; peak |T| = "
+               f"{max(abs(curve.T_n[i]), abs(curve.T_t[i])):.6g} Pa at step {i}")
+
+
+@app.command("cache-clear")
+def cache_clear() -> None:
+    """Remove the compiled-kernel (numba) caches of every version of the sources."""
+    import shutil
+
+    from masonry_nscd import cache_root
+
+    shutil.rmtree(cache_root(), ignore_errors=True)
+    typer.echo(f"removed {cache_root()}")
 
 
 @point_app.command("block")

@@ -1,0 +1,210 @@
+"""Run one wall case: build the scene, step it to the target displacement, record the results.
+
+Outputs in the run folder (SI units unless the column name says otherwise):
+
+* ``case.yaml``: the case as run, every default filled in;
+* ``force_displacement.csv``: one row per step, ``step,time_s,ux_mm,fx_kN,uy_mm,fy_kN,
+  fx_bottom_kN,fy_bottom_kN,iterations,residual,converged,max_joint_damage,max_block_damage``;
+  ``ux``/``uy`` are the upper beam's displacements, ``fx``/``fy`` the force of the upper beam on
+  the wall, ``fx_bottom``/``fy_bottom`` the force of the lower beam on the wall;
+* ``results.h5``: the case, the mesh, per output step the displacements and the joint states,
+  and the curve;
+* ``wall.pvd`` with ``vtu/blocks_NNNNNN.vtu`` and ``vtu/joints_NNNNNN.vtu`` per output step;
+* ``run.log``.
+
+The CSV is flushed every output step, and the VTU, PVD and HDF5 files are written atomically,
+so an interrupted run keeps valid results up to its last output step.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+CSV_COLUMNS = [
+    "step", "time_s", "ux_mm", "fx_kN", "uy_mm", "fy_kN", "fx_bottom_kN", "fy_bottom_kN",
+    "iterations", "residual", "converged", "max_joint_damage", "max_block_damage",
+]
+
+
+class RunInputError(ValueError):
+    """A problem with what the user asked for (exit code 2)."""
+
+
+class RunFailure(RuntimeError):
+    """The computation failed (exit code 1)."""
+
+
+@dataclass
+class RunResult:
+    steps: int
+    ux_mm: float
+    fx_kN: float
+    seconds: float
+    unconverged_steps: int
+    outdir: Path
+
+
+def prepare_outdir(outdir: Path, overwrite: bool) -> None:
+    """Create the run folder; refuse a non-empty one unless ``overwrite``."""
+    if outdir.exists() and not outdir.is_dir():
+        raise RunInputError(f"output path {outdir} exists and is not a folder")
+    if outdir.exists() and any(outdir.iterdir()) and not overwrite:
+        raise RunInputError(f"output folder {outdir} exists and is not empty: "
+                            "use --overwrite or another -o")
+    try:
+        (outdir / "vtu").mkdir(parents=True, exist_ok=True)
+        probe = outdir / ".write_test"
+        probe.write_text("")
+        probe.unlink()
+    except OSError as exc:
+        raise RunInputError(f"cannot write to output folder {outdir}: {exc.strerror}") from exc
+
+
+def run_case(case, outdir: Path, *, overwrite: bool = False,
+             echo: Callable[[str], None] = print, progress_every: int | None = None) -> RunResult:
+    """Run ``case`` into ``outdir``; see the module docstring for what is written."""
+    from masonry_nscd.case import case_to_yaml
+    from masonry_nscd.contact import joint_law as jl
+    from masonry_nscd.io.results_h5 import ResultsFile
+    from masonry_nscd.io.vtu import atomic_write, write_blocks_vtu, write_points_vtu, write_pvd
+    from masonry_nscd.nscd.integrator import DivergenceError
+    from masonry_nscd.scenes.wall import GROUP_GLUE_BOTTOM, GROUP_GLUE_TOP, build_wall
+
+    outdir = Path(outdir)
+    prepare_outdir(outdir, overwrite)
+    case_yaml = case_to_yaml(case)
+    atomic_write(outdir / "case.yaml", lambda p: Path(p).write_text(case_yaml))
+    logf = open(outdir / "run.log", "w")
+
+    def log(msg: str, show: bool = True) -> None:
+        logf.write(f"{time.strftime('%H:%M:%S')} {msg}\n")
+        logf.flush()
+        if show:
+            echo(msg)
+
+    t_start = time.perf_counter()
+    scene = build_wall(case)
+    integ = scene.integrator
+    s = integ.sys
+    log(f"case {case.name}: {len(scene.units)} units, {s.npt} contact points, {s.ndof} dofs, "
+        f"blocks {case.blocks.material}, sigma_N {case.loading.vertical_stress.value_Pa:.4g} Pa")
+    if case.blocks.material == "endo3d":
+        log("WARNING: ENDO3D is not yet coupled to the NSCD step (issue 4): the blocks of this "
+            "run are linear elastic; the material-point driver `masonry point block` has ENDO3D")
+    # mesh for the outputs: all block nodes (deformable blocks only carry nodal displacements)
+    deformable = [i for i in range(len(scene.units)) if s.body_deformable[i]]
+    nodes = np.concatenate([scene.units[i].X for i in range(len(scene.units))])
+    offs = np.cumsum([0] + [len(u.X) for u in scene.units])
+    hexes = np.concatenate([u.conn + offs[i] for i, u in enumerate(scene.units)])
+    elem_block = np.concatenate([np.full(len(u.conn), i) for i, u in enumerate(scene.units)])
+    pts_x = np.array([p.x for p in integ.points])
+    b_init = integ.params[0, jl.P_B]
+    joint_mask = np.isin(scene.group, (GROUP_GLUE_BOTTOM, GROUP_GLUE_TOP), invert=True)
+
+    def nodal_displacement() -> np.ndarray:
+        d = np.zeros_like(nodes)
+        for i, u in enumerate(scene.units):
+            sl = integ.body_dofs(i)
+            if i in deformable:
+                d[offs[i]:offs[i + 1]] = integ.u[sl].reshape(-1, 3)
+            else:  # rigid unit: small rotation about its centre
+                q = integ.u[sl]
+                r = u.X - integ.bodies[i].center
+                d[offs[i]:offs[i + 1]] = q[:3] + np.cross(q[3:], r)
+        return d
+
+    h5 = ResultsFile(outdir / "results.h5", case_yaml,
+                     {"nodes_m": nodes, "hexes": hexes, "block_of_element": elem_block,
+                      "contact_points_m": pts_x, "contact_group": scene.group,
+                      "contact_area_m2": s.area, "contact_frame": s.frame}) \
+        if case.output.hdf5 else None
+    pvd: list = []
+    f_csv = open(outdir / "force_displacement.csv", "w", newline="")
+    wr = csv.writer(f_csv)
+    wr.writerow(CSV_COLUMNS)
+    curve = {c: [] for c in CSV_COLUMNS}
+    target = case.loading.horizontal.target_m
+    t_end = case.loading.end_time_s
+    h = case.solver.time_step_s
+    n_est = int(math.ceil(t_end / h))
+    every = progress_every or max(1, n_est // 40)
+    unconverged = 0
+    worst = 0.0
+    try:
+        while True:
+            try:
+                rep = integ.step()
+            except DivergenceError as exc:
+                raise RunFailure(str(exc)) from exc
+            worst = max(worst, rep.residual)
+            if not rep.converged:
+                unconverged += 1
+                log(f"step {rep.step} (t = {rep.time:.4f} s): Gauss-Seidel not converged after "
+                    f"{rep.sweeps} sweeps, residual {rep.residual:.3e} > "
+                    f"{case.solver.tolerance:.1e}", show=unconverged <= 5)
+            f = integ.point_forces()
+            top = f[scene.group == GROUP_GLUE_TOP].sum(axis=0)
+            bot = f[scene.group == GROUP_GLUE_BOTTOM].sum(axis=0)
+            ux = integ.u[scene.top_dof_x]
+            uy = integ.u[scene.top_dof_y]
+            dj = float((1.0 - integ.joints.beta[joint_mask] * b_init).max()) \
+                if joint_mask.any() else 0.0
+            row = [rep.step, rep.time, 1e3 * ux, 1e-3 * top[0], 1e3 * uy, 1e-3 * top[1],
+                   1e-3 * bot[0], 1e-3 * bot[1], rep.sweeps, rep.residual, int(rep.converged),
+                   dj, 0.0]
+            wr.writerow([f"{v:.9g}" if isinstance(v, float) else v for v in row])
+            for c, v in zip(CSV_COLUMNS, row):
+                curve[c].append(v)
+            done = ux >= target or rep.time >= t_end + 0.5 * case.loading.horizontal.ramp_s
+            if rep.step % case.output.every_steps == 0 or done:
+                f_csv.flush()
+                j = integ.joints
+                if case.output.vtu:
+                    tag = f"{rep.step:06d}"
+                    write_blocks_vtu(outdir / "vtu" / f"blocks_{tag}.vtu", nodes, hexes,
+                                     point_data={"displacement_m": nodal_displacement()},
+                                     cell_data={"block": elem_block.astype(float)})
+                    write_points_vtu(
+                        outdir / "vtu" / f"joints_{tag}.vtu", pts_x,
+                        point_data={"d_coh": 1.0 - j.beta * b_init, "opening_m": j.u[:, 0],
+                                    "slip_m": np.hypot(j.u[:, 1], j.u[:, 2]),
+                                    "T_n_Pa": j.T[:, 0], "T_t_Pa": np.hypot(j.T[:, 1], j.T[:, 2]),
+                                    "status": j.status.astype(float),
+                                    "group": scene.group.astype(float)})
+                    pvd += [(rep.time, f"vtu/blocks_{tag}.vtu", 0),
+                            (rep.time, f"vtu/joints_{tag}.vtu", 1)]
+                    write_pvd(outdir / "wall.pvd", pvd)
+                if h5 is not None:
+                    h5.write_step(rep.step, rep.time, {
+                        "u": integ.u, "v": integ.v, "joint_u_m": j.u, "joint_uc_m": j.uc,
+                        "joint_beta": j.beta, "joint_T_Pa": j.T, "joint_status": j.status})
+                    h5.write_curve({c: np.asarray(v, dtype=float) for c, v in curve.items()})
+            if rep.step % every == 0 or done:
+                stage = ("gravity" if rep.time < case.loading.vertical_stress.start_s else
+                         "vertical" if rep.time < case.loading.horizontal.start_s else
+                         "horizontal")
+                log(f"[{stage:10s}] step {rep.step:6d}/{n_est} t {rep.time:7.4f} s  "
+                    f"Ux {1e3 * ux:8.4f} mm  Fx {1e-3 * top[0]:9.3f} kN  "
+                    f"Fy {1e-3 * top[1]:9.3f} kN  sweeps {rep.sweeps:6d}  res {rep.residual:.2e}")
+            if done:
+                break
+    except KeyboardInterrupt:
+        log(f"interrupted at step {integ.step_index}: results kept up to the last output step")
+        raise
+    finally:
+        f_csv.close()
+        if h5 is not None:
+            h5.close()
+    secs = time.perf_counter() - t_start
+    log(f"done: {integ.step_index} steps in {secs:.1f} s, Ux {1e3 * ux:.4f} mm, "
+        f"Fx {1e-3 * top[0]:.3f} kN; {unconverged} steps not converged "
+        f"(worst residual {worst:.2e})")
+    logf.close()
+    return RunResult(integ.step_index, 1e3 * ux, 1e-3 * top[0], secs, unconverged, outdir)

@@ -1,0 +1,132 @@
+"""The wall generator and `masonry run` on the smoke case: counts, outputs, equilibrium."""
+
+import csv
+
+import h5py
+import meshio
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from masonry_nscd.case import load_case
+from masonry_nscd.cli import app
+from masonry_nscd.run import CSV_COLUMNS
+from masonry_nscd.scenes.wall import GROUP_NAMES, unit_boxes
+
+
+def test_running_bond_of_the_reference_wall():
+    wall = load_case("cases/wall_0.5MPa.yaml").wall
+    boxes = unit_boxes(wall)
+    per_course = [sum(1 for k, *_ in boxes if k == c) for c in range(11)]
+    assert per_course == [6, 7] * 5 + [6]
+    for c in range(11):
+        row = sorted((x0, length) for k, x0, _, length in boxes if k == c)
+        # every course spans 1.85 m with 10 mm head joints between units
+        assert row[-1][0] + row[-1][1] == pytest.approx(1.85, abs=1e-12)
+        for (x0, l0), (x1, _) in zip(row, row[1:]):
+            assert x1 - (x0 + l0) == pytest.approx(0.010, abs=1e-12)
+        if c % 2:
+            assert row[0][1] == row[-1][1] == pytest.approx(0.145)
+    tops = {k: y0 for k, _, y0, _ in boxes}
+    assert tops[10] + 0.1 == pytest.approx(1.20, abs=1e-12)  # 11 x 100 + 10 x 10 mm
+
+
+def test_contact_points_of_the_reference_wall():
+    from masonry_nscd.scenes.wall import build_wall
+
+    case = load_case("cases/wall_0.5MPa_elastic.yaml")
+    scene = build_wall(case)
+    count = {n: int((scene.group == i).sum()) for i, n in enumerate(GROUP_NAMES)}
+    # 2 x 2 element faces x 2 x 2 Gauss points = 8 points per bed face of a unit and per head
+    # face. Bed joints: points on the bottom face of every unit above course 0 (5 courses of 7
+    # units, 5 of 6); head joints: 5 per full course (6 courses), 6 per bonded one (5 courses).
+    assert count == {"bed": 8 * (5 * 7 + 5 * 6), "head": 8 * (6 * 5 + 5 * 6),
+                     "glue_bottom": 48, "glue_top": 48}
+    gaps = {p.gap for p in scene.integrator.points}
+    assert gaps == {0.0, 0.010}
+    assert np.sum(scene.integrator.sys.area[scene.group == 2]) == pytest.approx(1.8 * 0.15)
+
+
+@pytest.fixture(scope="module")
+def smoke_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("smoke") / "run"
+    res = CliRunner().invoke(app, ["run", "cases/smoke.yaml", "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    return out, res.output
+
+
+def _curve(out):
+    with open(out / "force_displacement.csv") as f:
+        rows = list(csv.DictReader(f))
+    return {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
+
+
+def test_smoke_run_writes_the_curve_with_units(smoke_run):
+    out, text = smoke_run
+    with open(out / "force_displacement.csv") as f:
+        header = next(csv.reader(f))
+    assert header == CSV_COLUMNS
+    c = _curve(out)
+    assert c["ux_mm"][-1] >= 0.5  # the target, 0.5 mm
+    assert np.all(np.isfinite(np.column_stack(list(c.values()))))
+    assert "done:" in text and "Ux" in text
+
+
+def test_smoke_run_equilibrium(smoke_run):
+    out, _ = smoke_run
+    c = _curve(out)
+    case = load_case("cases/smoke.yaml")
+    sigma_force_kN = case.loading.vertical_stress.value_Pa * case.wall.wall_length_m * \
+        case.wall.thickness_m / 1e3
+    before = c["time_s"] < case.loading.horizontal.start_s
+    # before the horizontal loading, no horizontal force (a converged contact solve)
+    assert np.abs(c["fx_kN"][before]).max() < 0.01 * sigma_force_kN
+    # the vertical load is carried: the beam pushes down with sigma_N x plan area
+    settled = (c["time_s"] > 0.09) & before
+    assert np.allclose(c["fy_kN"][settled], -sigma_force_kN, rtol=1e-2)
+    # the bottom carries the load plus the weight of the wall
+    units = unit_boxes(case.wall)
+    weight_kN = sum(length * case.wall.unit_height_m * case.wall.thickness_m
+                    for _, _, _, length in units) * 2000 * 9.81 / 1e3
+    assert np.allclose(c["fy_bottom_kN"][settled], sigma_force_kN + weight_kN, rtol=1e-2)
+    # once loaded horizontally, the top force balances the bottom reaction
+    last = c["fx_kN"][-1]
+    assert abs(last) > 1.0
+    assert c["fx_bottom_kN"][-1] == pytest.approx(-last, rel=1e-2)
+
+
+def test_smoke_run_vtu_pvd_and_hdf5_read_back(smoke_run):
+    out, _ = smoke_run
+    import xml.etree.ElementTree as ET
+
+    files = [d.get("file") for d in ET.parse(out / "wall.pvd").getroot().iter("DataSet")]
+    assert files and all((out / f).exists() for f in files)
+    blocks = meshio.read(out / [f for f in files if "blocks" in f][-1])
+    assert blocks.cells[0].type == "hexahedron"
+    assert "displacement_m" in blocks.point_data
+    joints = meshio.read(out / [f for f in files if "joints" in f][-1])
+    for name in ("d_coh", "opening_m", "slip_m", "T_n_Pa", "T_t_Pa", "status"):
+        assert name in joints.point_data
+    with h5py.File(out / "results.h5", "r") as f:
+        assert "nodes_m" in f["mesh"] and len(f["steps"]) >= 10
+        assert f["curve"]["ux_mm"][-1] >= 0.5
+    assert load_case(out / "case.yaml").wall.courses == 3
+
+
+def test_run_refuses_a_non_empty_output_folder(smoke_run, tmp_path):
+    out, _ = smoke_run
+    res = CliRunner().invoke(app, ["run", "cases/smoke.yaml", "-o", str(out)])
+    assert res.exit_code == 2
+    assert "--overwrite" in res.output
+
+
+def test_point_joint_cli_writes_the_curve(tmp_path):
+    out = tmp_path / "c.csv"
+    res = CliRunner().invoke(app, ["point", "joint", "cases/smoke.yaml", "--path", "sliding",
+                                   "--to", "2e-3", "--normal-stress", "-0.5e6", "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    with open(out) as f:
+        rows = list(csv.DictReader(f))
+    assert list(rows[0]) == ["step", "u_n_m", "u_t_m", "T_n_Pa", "T_t_Pa", "d_coh"]
+    peak = max(float(r["T_t_Pa"]) for r in rows)
+    assert peak == pytest.approx(0.4586e6, rel=2e-3)
