@@ -590,17 +590,21 @@ class Solver(_Section):
     theta: Real = Field(
         1.0, ge=0.5, le=1.0, description="theta of the theta-method (dimensionless, 0.5..1)"
     )
-    method: Literal["nlgs"] = Field(
-        "nlgs", description="contact solver: nlgs (non-linear Gauss-Seidel)"
+    method: Literal["newton", "nlgs"] = Field(
+        "newton",
+        description="contact solver: newton (semi-smooth Newton, sparse LU) or nlgs "
+        "(non-linear Gauss-Seidel)",
     )
     tolerance: Real = Field(
-        1e-6,
+        1e-8,
         gt=0.0,
         lt=1.0,
-        description="convergence: relative change of the impulses (dimensionless)",
+        description="convergence: relative change of the contact forces (dimensionless)",
     )
     max_iterations: Whole = Field(
-        20000, ge=1, le=1_000_000_000, description="maximum NLGS sweeps per step (count)"
+        20000, ge=1, le=1_000_000_000,
+        description="maximum iterations per step (count; Newton stops at 30 and hands over to "
+        "NLGS sweeps)",
     )
     check_every: Whole = Field(
         5, ge=1, le=1_000_000, description="NLGS sweeps between convergence checks (count)"
@@ -688,6 +692,14 @@ class Case(_Section):
     def _check_supports(self) -> Case:
         problems: list[tuple[str, str]] = []
         stress = self.loading.vertical_stress.value_Pa
+        if self.solver.method == "newton" and self.joint.law == "coulomb":
+            problems.append(
+                (
+                    "solver.method",
+                    "got 'newton' with joint.law = 'coulomb'; the Newton solver needs joints "
+                    "with a spring in series (law 'fczm'): use method 'nlgs' for dry contacts",
+                )
+            )
         if self.supports.top_vertical == "fixed" and stress != 0.0:
             problems.append(
                 (

@@ -24,6 +24,14 @@ from masonry_nscd.model import ContactPoint, Loads, RigidBody
 from masonry_nscd.nscd import kernels
 from masonry_nscd.nscd.system import build_system
 
+NEWTON_MAX_ITERATIONS = 30  # beyond this, the step is finished by Gauss-Seidel sweeps
+
+
+def jl_ambiguous() -> int:
+    from masonry_nscd.contact import joint_law as jl
+
+    return jl.ST_AMBIGUOUS
+
 
 class DivergenceError(RuntimeError):
     """The state became NaN or infinite."""
@@ -67,6 +75,7 @@ class Integrator:
         max_iterations: int = 10000,
         check_every: int = 5,
         beta0: float | np.ndarray = 1.0,
+        method: str = "nlgs",
     ):
         self.bodies = bodies
         self.points = points
@@ -95,6 +104,21 @@ class Integrator:
         )
         self._F0 = loads.at(0.0, n)
         self._dv = np.zeros(n)
+        if method not in ("nlgs", "newton"):
+            raise ValueError(f"solver method must be 'nlgs' or 'newton', got {method!r}")
+        self.method = method
+        self.newton = None
+        if method == "newton":
+            from masonry_nscd.contact import joint_law as jl
+            from masonry_nscd.nscd.newton import NewtonSolver
+
+            joints = s.kind == jl.KIND_JOINT
+            used = self.params[np.unique(s.law[joints])] if joints.any() else self.params[:0]
+            if np.any(used[:, [jl.P_CN_C, jl.P_CT]] <= 0.0):
+                raise ValueError("the Newton solver needs joints with a spring in series "
+                                 "(dry Signorini-Coulomb contacts: use method 'nlgs')")
+            self.newton = NewtonSolver(s, s.minv_off, s.mhat, tolerance,
+                                       min(max_iterations, NEWTON_MAX_ITERATIONS))
 
     # --- one step -----------------------------------------------------------------------
     def internal_forces(self) -> np.ndarray:
@@ -117,17 +141,27 @@ class Integrator:
         U_free = np.empty((s.npt, 3))
         kernels.local_velocities(s.side_dofs, s.side_coef, v_free, U_free)
         j = self.joints
-        T = j.T.copy()
-        uc = np.empty_like(j.uc)
-        beta = np.empty_like(j.beta)
-        status = np.empty_like(j.status)
-        sweeps, residual, amb = kernels.nlgs(
-            U_free, j.u, j.U, s.kind, s.law, self.params, s.area, s.W, s.side_dofs,
-            s.side_coef, s.side_body, s.body_dof0, s.y_off, s.y, h, theta, j.uc, j.beta,
-            T, uc, beta, status, self._dv, self.tolerance, self.max_iterations,
-            self.check_every,
-        )
-        v1 = v_free + self._dv
+        if self.newton is not None:
+            v1, T, uc, beta, status, sweeps, residual = self.newton.solve(
+                v_free, j.u, j.U, self.params, j.uc, j.beta, j.T, self._dv)
+            self._dv = v1 - v_free
+            amb = int(np.sum(status == jl_ambiguous()))
+        if self.newton is None or residual > self.tolerance:
+            # Gauss-Seidel sweeps: the solver of the case, or the end of a step that Newton
+            # did not finish (warm-started from its last tractions)
+            newton_its = sweeps if self.newton is not None else 0
+            T = j.T.copy() if self.newton is None else T
+            uc = np.empty_like(j.uc)
+            beta = np.empty_like(j.beta)
+            status = np.empty_like(j.status)
+            sweeps, residual, amb = kernels.nlgs(
+                U_free, j.u, j.U, s.kind, s.law, self.params, s.area, s.W, s.side_dofs,
+                s.side_coef, s.side_body, s.body_dof0, s.y_off, s.y, h, theta, j.uc, j.beta,
+                T, uc, beta, status, self._dv, self.tolerance, self.max_iterations,
+                self.check_every,
+            )
+            sweeps += newton_its
+            v1 = v_free + self._dv
         u1 = self.u + h * (theta * v1 + (1.0 - theta) * self.v)
         U1 = np.empty((s.npt, 3))
         kernels.local_velocities(s.side_dofs, s.side_coef, v1, U1)

@@ -40,6 +40,7 @@ class System:
     body_deformable: np.ndarray  # (nb,) bool
     minv_off: np.ndarray  # (nb,) offsets into minv
     minv: np.ndarray  # flat, dense M_hat^-1 per body (row-major)
+    mhat: np.ndarray  # flat, dense M_hat per body (same offsets as minv)
     k_off: np.ndarray  # (nb,) offsets into k (-1 for rigid bodies)
     k: np.ndarray  # flat, dense K per deformable block
     mass: np.ndarray  # (ndof,) lumped mass (translations kg, rotations kg m^2)
@@ -63,19 +64,22 @@ class System:
         return len(self.area)
 
 
-def body_matrices(body, h: float, theta: float):
-    """Stiffness K (or None), lumped mass per dof, and M_hat^-1 of one body."""
+def body_matrices(body, h: float, theta: float, with_mhat: bool = False):
+    """Stiffness K (or None), lumped mass per dof, and M_hat^-1 (and M_hat) of one body."""
     if isinstance(body, Block):
         C = hex8.elastic_matrix(body.E, body.nu)
         K, m = hex8.assemble_block(body.X, body.conn, C, body.density)
         Mhat = np.diag(m) + (theta * h) ** 2 * K
-        return K, m, np.linalg.inv(Mhat)
-    assert isinstance(body, RigidBody)
-    m = np.concatenate([np.full(3, body.mass), body.inertia])
-    free = body.dof_mode != DOF_IMPOSED
-    minv = np.zeros((6, 6))
-    minv[free, free] = 1.0 / m[free]
-    return None, m, minv
+        out = K, m, np.linalg.inv(Mhat)
+    else:
+        assert isinstance(body, RigidBody)
+        m = np.concatenate([np.full(3, body.mass), body.inertia])
+        free = body.dof_mode != DOF_IMPOSED
+        minv = np.zeros((6, 6))
+        minv[free, free] = 1.0 / m[free]
+        Mhat = np.diag(m)
+        out = None, m, minv
+    return (*out, Mhat) if with_mhat else out
 
 
 def build_system(bodies, points: list[ContactPoint], h: float, theta: float) -> System:
@@ -85,13 +89,14 @@ def build_system(bodies, points: list[ContactPoint], h: float, theta: float) -> 
     for i, b in enumerate(bodies):
         body_dof0[i + 1] = body_dof0[i] + b.ndof
     ndof = int(body_dof0[-1])
-    minvs, ks, mass = [], [], np.zeros(ndof)
+    minvs, mhats, ks, mass = [], [], [], np.zeros(ndof)
     minv_off = np.zeros(nb, dtype=np.int64)
     k_off = np.full(nb, -1, dtype=np.int64)
     off = koff = 0
     imposed = []
     for i, b in enumerate(bodies):
-        K, m, minv = body_matrices(b, h, theta)
+        K, m, minv, mhat = body_matrices(b, h, theta, with_mhat=True)
+        mhats.append(mhat.ravel())
         mass[body_dof0[i]:body_dof0[i + 1]] = m
         minv_off[i] = off
         off += minv.size
@@ -139,11 +144,11 @@ def build_system(bodies, points: list[ContactPoint], h: float, theta: float) -> 
                 W[a, i, :] = 0.0
                 W[a, :, i] = 0.0
                 W[a, i, i] = dmax if dmax > 0 else 1.0
-    cat = lambda xs: np.concatenate(xs) if xs else np.zeros(0)  # noqa: E731
+    cat = lambda xs: np.concatenate(xs) if xs else np.zeros(0)
     return System(
         ndof=ndof, body_dof0=body_dof0,
         body_deformable=np.array([isinstance(b, Block) for b in bodies]),
-        minv_off=minv_off, minv=cat(minvs), k_off=k_off, k=cat(ks), mass=mass,
+        minv_off=minv_off, minv=cat(minvs), mhat=cat(mhats), k_off=k_off, k=cat(ks), mass=mass,
         imposed_dofs=np.array(imposed, dtype=np.int64),
         kind=np.array([p.kind for p in points], dtype=np.int64),
         law=np.array([p.law for p in points], dtype=np.int64),

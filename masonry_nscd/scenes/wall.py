@@ -153,7 +153,7 @@ def build_wall(case) -> WallScene:
         loads.add(Fv, Ramp(1.0, vs.start_s, vs.ramp_s))
     integ = Integrator(bodies, pts, P, loads, h=sol.time_step_s, theta=sol.theta,
                        tolerance=sol.tolerance, max_iterations=sol.max_iterations,
-                       check_every=sol.check_every)
+                       check_every=sol.check_every, method=sol.method)
     return WallScene(
         integrator=integ, units=units, course_of_unit=course, top_beam=i_up,
         top_dof_x=int(dof0[i_up] + X), top_dof_y=int(dof0[i_up] + Y),

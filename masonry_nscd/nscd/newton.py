@@ -1,0 +1,345 @@
+r"""A semi-smooth Newton solver for the Moreau-Jean step (primal form, same discrete equations).
+
+The step of ``kernels.py`` is, with body velocities ``v`` at the end of the step as unknowns,
+
+    R_v = M_hat (v - v_free) - sum_joints H_a r_a(v) - sum_glue H_g r_g = 0
+    R_g = H_g^T v - w_g + eps r_g = 0    (glue: u_g,n+1 = 0, w_g = -(u_g,n + h (1 - theta) U_g,n) / (h theta))
+
+where a joint point's impulse follows from its law, ``r_a = -h S_a T_a(u_a)``, with the relative
+displacement ``u_a = u_a,n + h (1 - theta) U_a,n + h theta H_a^T v`` and ``T_a(u)`` the joint law
+driven by its total relative displacement (the ``A = 0`` form of ``joint_law.local_solve_implicit``,
+integrity consistent with the end of the step). These are exactly the equations that the
+Gauss-Seidel sweeps solve in their dual form (impulses as unknowns); only the way to the
+solution differs. Glue impulses stay unknowns (Lagrange multipliers), so the glue is exact.
+
+Newton matrix, with ``K_a = dT_a/du_a`` the tangent of the law for the current status (the
+integrity frozen, i.e. secant in the damage, which keeps it positive)::
+
+    J = [[ M_hat + h^2 theta sum_a S_a H_a K_a H_a^T ,  -H_g ],
+         [ H_g^T                                     ,   0   ]]
+
+restricted to the dofs that are not imposed, with ``eps I`` (a glue compliance of 1e-9 of the
+point's own Delassus diagonal) in the lower right block: glue points can outnumber the dofs they
+hold, and the tiny compliance keeps the matrix non-singular. It is factorised (sparse LU) only when the
+iterations slow down (chord method otherwise): while the joints keep their statuses the
+factorisation of an earlier step serves, and a step costs one or two solves.
+
+The law needs a spring in series (finite ``T(u)``); for dry Signorini-Coulomb contacts use the
+Gauss-Seidel solver.
+
+Tangent per status (A = 0, spring compliances ``c``, cohesive stiffness ``kappa``):
+open ``K = diag(kappa / (1 + c kappa))``; stick ``K = diag(1 / c)``; slide
+``K_nn = 1 / c_n``, ``K_tt = (kappa_t I + mu_eff N (I - e e^T) / |q|) / (1 + c_t kappa_t)``,
+``K_tn = -mu_eff e / (c_n (1 + c_t kappa_t))`` with ``q = u_t - (1 + c_t kappa_t) u_c,t,old``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from numba import njit
+
+from masonry_nscd.contact import joint_law as jl
+
+
+@njit(cache=True)
+def joint_tangent(u, T, uc_old, beta, status, P, K):
+    """Tangent ``K = dT/du`` (3x3, Pa/m) of the law at the solution (u, T) for its status."""
+    b = P[jl.P_B]
+    kn = beta * b * P[jl.P_KI]
+    kt = beta * b * P[jl.P_KII]
+    cnt = P[jl.P_CN_T]
+    cnc = P[jl.P_CN_C]
+    ct = P[jl.P_CT]
+    for i in range(3):
+        for j in range(3):
+            K[i, j] = 0.0
+    if status == jl.ST_OPEN:
+        K[0, 0] = kn / (1.0 + cnt * kn)
+        K[1, 1] = kt / (1.0 + ct * kt)
+        K[2, 2] = K[1, 1]
+        return
+    K[0, 0] = 1.0 / cnc
+    if status == jl.ST_SLIDE:
+        mu_eff = P[jl.P_MU] * (1.0 - beta * b) ** P[jl.P_P]
+        N = -T[0]
+        f = 1.0 + ct * kt
+        q1 = u[1] - f * uc_old[1]
+        q2 = u[2] - f * uc_old[2]
+        qn = math.sqrt(q1 * q1 + q2 * q2)
+        if qn > 0.0:
+            e1 = q1 / qn
+            e2 = q2 / qn
+            g = mu_eff * N / qn
+            K[1, 1] = (kt + g * (1.0 - e1 * e1)) / f
+            K[2, 2] = (kt + g * (1.0 - e2 * e2)) / f
+            K[1, 2] = -g * e1 * e2 / f
+            K[2, 1] = K[1, 2]
+            K[1, 0] = -mu_eff * e1 / (cnc * f)
+            K[2, 0] = -mu_eff * e2 / (cnc * f)
+            return
+    K[1, 1] = 1.0 / ct
+    K[2, 2] = 1.0 / ct
+
+
+@njit(cache=True)
+def evaluate_joints(u_pred, Hv, h, theta, kind, law, params, uc_old, beta_old,
+                    T, uc, beta, status, K):
+    """Law and tangent at every joint point for ``u = u_pred + h theta H^T v`` (Hv = H^T v)."""
+    npt = u_pred.shape[0]
+    A = np.zeros((3, 3))
+    u = np.empty(3)
+    t = np.empty(3)
+    c = np.empty(3)
+    co = np.empty(3)
+    Ka = np.empty((3, 3))
+    for a in range(npt):
+        if kind[a] != jl.KIND_JOINT:
+            continue
+        for i in range(3):
+            u[i] = u_pred[a, i] + h * theta * Hv[a, i]
+            co[i] = uc_old[a, i]
+        st, bn = jl.local_solve_implicit(u, A, co, beta_old[a], params[law[a]], jl.KIND_JOINT,
+                                         t, c)
+        joint_tangent(u, t, co, bn, st, params[law[a]], Ka)
+        for i in range(3):
+            T[a, i] = t[i]
+            uc[a, i] = c[i]
+            for j in range(3):
+                K[a, i, j] = Ka[i, j]
+        beta[a] = bn
+        status[a] = st
+
+
+@njit(cache=True)
+def residual(body_dof0, mhat_off, mhat, v, v_free, side_dofs, side_coef, kind, area, T, r_glue,
+             glue_of, h, R):
+    """``R_v = M_hat (v - v_free) - H r`` over all dofs (imposed ones included)."""
+    nb = body_dof0.shape[0] - 1
+    for b in range(nb):
+        d0 = body_dof0[b]
+        n = body_dof0[b + 1] - d0
+        mo = mhat_off[b]
+        for i in range(n):
+            s = 0.0
+            for j in range(n):
+                s += mhat[mo + i * n + j] * (v[d0 + j] - v_free[d0 + j])
+            R[d0 + i] = s
+    for a in range(side_dofs.shape[0]):
+        if kind[a] == jl.KIND_JOINT:
+            f = -h * area[a]
+            r0 = f * T[a, 0]
+            r1 = f * T[a, 1]
+            r2 = f * T[a, 2]
+        else:
+            g = glue_of[a]
+            r0 = r_glue[3 * g]
+            r1 = r_glue[3 * g + 1]
+            r2 = r_glue[3 * g + 2]
+        for s in range(2):
+            for j in range(side_dofs.shape[2]):
+                d = side_dofs[a, s, j]
+                if d < 0:
+                    break
+                R[d] -= side_coef[a, s, j, 0] * r0 + side_coef[a, s, j, 1] * r1 \
+                    + side_coef[a, s, j, 2] * r2
+
+
+@njit(cache=True)
+def jacobian_coo(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_coef, kind,
+                 area, K, glue_of, glue_eps, h, theta):
+    """COO triplets of the Newton matrix (free dofs, then 3 glue multipliers per glue point)."""
+    nb = body_dof0.shape[0] - 1
+    cap = 0
+    for b in range(nb):
+        n = body_dof0[b + 1] - body_dof0[b]
+        cap += n * n
+    npt = side_dofs.shape[0]
+    ms = 2 * side_dofs.shape[2]
+    cap += npt * ms * ms + npt * 2 * ms * 3 + 3 * glue_eps.shape[0]
+    rows = np.empty(cap, dtype=np.int64)
+    cols = np.empty(cap, dtype=np.int64)
+    vals = np.empty(cap)
+    k = 0
+    for b in range(nb):
+        d0 = body_dof0[b]
+        n = body_dof0[b + 1] - d0
+        mo = mhat_off[b]
+        for i in range(n):
+            fi = free_index[d0 + i]
+            if fi < 0:
+                continue
+            for j in range(n):
+                fj = free_index[d0 + j]
+                if fj < 0:
+                    continue
+                val = mhat[mo + i * n + j]
+                if val != 0.0:
+                    rows[k] = fi
+                    cols[k] = fj
+                    vals[k] = val
+                    k += 1
+    dofs = np.empty(ms, dtype=np.int64)
+    coef = np.empty((ms, 3))
+    for a in range(npt):
+        m = 0
+        for s in range(2):
+            for j in range(side_dofs.shape[2]):
+                d = side_dofs[a, s, j]
+                if d < 0:
+                    break
+                if free_index[d] < 0:
+                    continue
+                dofs[m] = free_index[d]
+                for c in range(3):
+                    coef[m, c] = side_coef[a, s, j, c]
+                m += 1
+        if kind[a] == jl.KIND_JOINT:
+            w = h * h * theta * area[a]
+            for i in range(m):
+                # row_i = coef_i . K
+                k0 = coef[i, 0] * K[a, 0, 0] + coef[i, 1] * K[a, 1, 0] + coef[i, 2] * K[a, 2, 0]
+                k1 = coef[i, 0] * K[a, 0, 1] + coef[i, 1] * K[a, 1, 1] + coef[i, 2] * K[a, 2, 1]
+                k2 = coef[i, 0] * K[a, 0, 2] + coef[i, 1] * K[a, 1, 2] + coef[i, 2] * K[a, 2, 2]
+                for j in range(m):
+                    val = w * (k0 * coef[j, 0] + k1 * coef[j, 1] + k2 * coef[j, 2])
+                    if val != 0.0:
+                        rows[k] = dofs[i]
+                        cols[k] = dofs[j]
+                        vals[k] = val
+                        k += 1
+        else:
+            g = nfree + 3 * glue_of[a]
+            for i in range(m):
+                for c in range(3):
+                    if coef[i, c] != 0.0:
+                        rows[k] = dofs[i]
+                        cols[k] = g + c
+                        vals[k] = -coef[i, c]
+                        k += 1
+                        rows[k] = g + c
+                        cols[k] = dofs[i]
+                        vals[k] = coef[i, c]
+                        k += 1
+    for gi in range(glue_eps.shape[0]):
+        for c in range(3):
+            rows[k] = nfree + 3 * gi + c
+            cols[k] = nfree + 3 * gi + c
+            vals[k] = glue_eps[gi]
+            k += 1
+    return rows[:k], cols[:k], vals[:k]
+
+
+class NewtonSolver:
+    """Semi-smooth Newton (chord) solver of one step; keeps its factorisation between steps."""
+
+    def __init__(self, sys, mhat_off, mhat, tolerance: float, max_iterations: int = 50):
+        self.sys = sys
+        self.mhat_off = mhat_off
+        self.mhat = mhat
+        self.tolerance = tolerance
+        self.max_iterations = max_iterations
+        free = np.ones(sys.ndof, dtype=bool)
+        free[sys.imposed_dofs] = False
+        self.free = np.flatnonzero(free)
+        self.free_index = np.full(sys.ndof, -1, dtype=np.int64)
+        self.free_index[self.free] = np.arange(len(self.free))
+        self.glue = np.flatnonzero(sys.kind == jl.KIND_GLUED)
+        self.glue_of = np.full(sys.npt, -1, dtype=np.int64)
+        self.glue_of[self.glue] = np.arange(len(self.glue))
+        # Glue compliance (1/kg): 1e-9 of the point's own Delassus diagonal. It makes the Newton
+        # matrix quasi-definite when glue points outnumber the dofs of the face they hold (8
+        # points on the 6 nodes of a 2 x 1 face quad pair), and moves the glue by 1e-9 of the
+        # relative displacement it resists.
+        self.glue_eps = 1e-9 * np.trace(sys.W[self.glue], axis1=1, axis2=2) / 3.0
+        self.lu = None
+        self.factorisations = 0
+
+    def _factorise(self, K):
+        s = self.sys
+        nf = len(self.free)
+        n = nf + 3 * len(self.glue)
+        r, c, v = jacobian_coo(s.body_dof0, self.mhat_off, self.mhat, self.free_index, nf,
+                               s.side_dofs, s.side_coef, s.kind, s.area, K, self.glue_of,
+                               self.glue_eps, s.h, s.theta)
+        J = sp.csc_matrix((v, (r, c)), shape=(n, n))
+        self.lu = spla.splu(J)
+        self.factorisations += 1
+
+    def solve(self, v_free, u_old, U_old, params, uc_old, beta_old, T, dv_guess):
+        """Solve the step. Returns (v, T, uc, beta, status, iterations, residual).
+
+        Each iteration: the law and its tangent at every joint point, the residual, a solve
+        with the current factorisation (refactorised when the iterations slow down), and a
+        backtracking line search on the residual norm (glue rows scaled to impulse units), which
+        stops the cycling between open and closed statuses that full steps show when the
+        loads are tiny (the open joint is some 300 times softer than the closed one).
+        """
+        from masonry_nscd.nscd import kernels
+
+        s = self.sys
+        h, th = s.h, s.theta
+        npt = s.npt
+        u_pred = u_old + h * (1.0 - th) * U_old
+        g = self.glue
+        w_glue = (-u_pred[g] / (h * th)).ravel()
+        nf = len(self.free)
+        glue_scale = float(np.mean(np.abs(self.mhat))) * 10.0 if len(self.mhat) else 1.0
+        Hv = np.empty((npt, 3))
+        R = np.empty(s.ndof)
+
+        def evaluate(v, r_glue):
+            out_T = T.copy()
+            out_uc = np.zeros((npt, 3))
+            out_beta = beta_old.copy()
+            out_status = np.full(npt, jl.ST_GLUED, dtype=np.int64)
+            K = np.zeros((npt, 3, 3))
+            kernels.local_velocities(s.side_dofs, s.side_coef, v, Hv)
+            evaluate_joints(u_pred, Hv, h, th, s.kind, s.law, params, uc_old, beta_old, out_T,
+                            out_uc, out_beta, out_status, K)
+            out_T[g] = -r_glue.reshape(-1, 3) / (h * s.area[g, None])
+            residual(s.body_dof0, self.mhat_off, self.mhat, v, v_free, s.side_dofs,
+                     s.side_coef, s.kind, s.area, out_T, r_glue, self.glue_of, h, R)
+            F = np.concatenate([R[self.free],
+                                Hv[g].ravel() - w_glue + np.repeat(self.glue_eps, 3) * r_glue])
+            norm = math.sqrt(np.sum(F[:nf] ** 2) + glue_scale ** 2 * np.sum(F[nf:] ** 2))
+            return F, norm, (out_T, out_uc, out_beta, out_status, K)
+
+        v = v_free + dv_guess
+        v[s.imposed_dofs] = v_free[s.imposed_dofs]
+        r_glue = (-h * s.area[g, None] * T[g]).ravel()
+        F, norm, state = evaluate(v, r_glue)
+        T_prev = T
+        res = math.inf
+        prev = math.inf
+        it = 0
+        for it in range(1, self.max_iterations + 1):
+            Tn = state[0]
+            num = np.sum((s.area[:, None] * (Tn - T_prev)) ** 2)
+            den = np.sum((s.area[:, None] * Tn) ** 2)
+            res = math.sqrt(num / den) if den > 0 else (0.0 if num == 0 else math.inf)
+            if it > 1 and res <= self.tolerance:
+                break
+            if self.lu is None or (it > 2 and res > 0.25 * prev):
+                self._factorise(state[4])
+            prev = res
+            dx = self.lu.solve(-F)
+            if not np.all(np.isfinite(dx)):
+                self._factorise(state[4])
+                dx = self.lu.solve(-F)
+            alpha = 1.0
+            for _ in range(8):
+                v_try = v.copy()
+                v_try[self.free] += alpha * dx[:nf]
+                r_try = r_glue + alpha * dx[nf:]
+                F_try, norm_try, state_try = evaluate(v_try, r_try)
+                if norm_try <= (1.0 - 1e-4 * alpha) * norm or alpha < 0.01:
+                    break
+                alpha *= 0.5
+            T_prev = Tn
+            v, r_glue, F, norm, state = v_try, r_try, F_try, norm_try, state_try
+        Tn, uc, beta, status, _ = state
+        return v, Tn, uc, beta, status, it, res
