@@ -7,8 +7,8 @@ Outputs in the run folder (SI units unless the column name says otherwise):
   fx_bottom_kN,fy_bottom_kN,iterations,residual,converged,max_joint_damage,max_block_damage``;
   ``ux``/``uy`` are the upper beam's displacements, ``fx``/``fy`` the force of the upper beam on
   the wall, ``fx_bottom``/``fy_bottom`` the force of the lower beam on the wall;
-* ``results.h5``: the case, the mesh, per output step the displacements and the joint states,
-  and the curve;
+* ``results.h5``: the case, the mesh, per output step the dofs, the element stresses and the
+  joint states, and the curve;
 * ``wall.pvd`` with ``vtu/blocks_NNNNNN.vtu`` and ``vtu/joints_NNNNNN.vtu`` per output step;
 * ``run.log``.
 
@@ -108,6 +108,32 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     b_init = integ.params[0, jl.P_B]
     joint_mask = np.isin(scene.group, (GROUP_GLUE_BOTTOM, GROUP_GLUE_TOP), invert=True)
 
+    from masonry_nscd.fe import hex8
+
+    C0 = hex8.elastic_matrix(case.blocks.E_Pa, case.blocks.nu)
+
+    def element_stress() -> np.ndarray:
+        """Mean stress of each element (nel, 6), Pa, Voigt [xx, yy, zz, yz, xz, xy].
+
+        Linear elastic blocks: C0 times the Gauss-point strains, averaged over the 8 points;
+        rigid units carry no stress field (zeros).
+        """
+        out = []
+        for i, u in enumerate(scene.units):
+            if i in deformable:
+                eps = np.empty((8 * len(u.conn), 6))
+                hex8.gauss_strains(u.X, u.conn, np.ascontiguousarray(integ.u[integ.body_dofs(i)]),
+                                   eps)
+                out.append((eps @ C0.T).reshape(-1, 8, 6).mean(axis=1))
+            else:
+                out.append(np.zeros((len(u.conn), 6)))
+        return np.concatenate(out)
+
+    def von_mises(sig: np.ndarray) -> np.ndarray:
+        sxx, syy, szz, syz, sxz, sxy = sig.T
+        return np.sqrt(0.5 * ((sxx - syy) ** 2 + (syy - szz) ** 2 + (szz - sxx) ** 2)
+                       + 3.0 * (syz ** 2 + sxz ** 2 + sxy ** 2))
+
     def nodal_displacement() -> np.ndarray:
         d = np.zeros_like(nodes)
         for i, u in enumerate(scene.units):
@@ -166,11 +192,14 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
             if rep.step % case.output.every_steps == 0 or done:
                 f_csv.flush()
                 j = integ.joints
+                sig = element_stress()
                 if case.output.vtu:
                     tag = f"{rep.step:06d}"
                     write_blocks_vtu(outdir / "vtu" / f"blocks_{tag}.vtu", nodes, hexes,
                                      point_data={"displacement_m": nodal_displacement()},
-                                     cell_data={"block": elem_block.astype(float)})
+                                     cell_data={"block": elem_block.astype(float),
+                                                "stress_Pa": sig,
+                                                "von_mises_Pa": von_mises(sig)})
                     write_points_vtu(
                         outdir / "vtu" / f"joints_{tag}.vtu", pts_x,
                         point_data={"d_coh": 1.0 - j.beta * b_init, "opening_m": j.u[:, 0],
@@ -183,7 +212,8 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
                     write_pvd(outdir / "wall.pvd", pvd)
                 if h5 is not None:
                     h5.write_step(rep.step, rep.time, {
-                        "u": integ.u, "v": integ.v, "joint_u_m": j.u, "joint_uc_m": j.uc,
+                        "u": integ.u, "v": integ.v, "element_stress_Pa": sig,
+                        "joint_u_m": j.u, "joint_uc_m": j.uc,
                         "joint_beta": j.beta, "joint_T_Pa": j.T, "joint_status": j.status})
                     h5.write_curve({c: np.asarray(v, dtype=float) for c, v in curve.items()})
             if rep.step % every == 0 or done:

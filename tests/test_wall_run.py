@@ -104,6 +104,10 @@ def test_smoke_run_vtu_pvd_and_hdf5_read_back(smoke_run):
     blocks = meshio.read(out / [f for f in files if "blocks" in f][-1])
     assert blocks.cells[0].type == "hexahedron"
     assert "displacement_m" in blocks.point_data
+    sig = blocks.cell_data["stress_Pa"][0]
+    assert sig.shape[1] == 6 and np.all(np.isfinite(sig))
+    # the wall is compressed: mean vertical stress of the elements about -(sigma_N + weight)
+    assert -0.7e6 < float(np.mean(sig[:, 1])) < -0.3e6
     joints = meshio.read(out / [f for f in files if "joints" in f][-1])
     for name in ("d_coh", "opening_m", "slip_m", "T_n_Pa", "T_t_Pa", "status"):
         assert name in joints.point_data

@@ -1,0 +1,83 @@
+"""The contact solvers on the reference wall (1096 contact points): converged, and alike.
+
+The wall (elastic blocks, the study's joint law) is brought under its vertical load and 0.2 mm
+of horizontal displacement with Newton at a tight tolerance; then the next step is solved from
+that state with each solver at a tolerance and at a tenfold tighter one. Tightening must change
+the contact forces by less than 0.1 %, and the two solvers must agree to that level.
+
+What is compared is what the equations determine: the force of every joint point, and the
+resultant of the glue forces on each unit. How the glue force of a unit splits among its glue
+points is not unique (8 glue points hold the 6 nodes of a unit's face), and the two solvers
+split it differently (Gauss-Seidel by its sweep order, Newton by its tiny glue compliance).
+"""
+
+import copy
+
+import numpy as np
+import pytest
+
+from masonry_nscd.case import load_case
+from masonry_nscd.nscd.integrator import Integrator
+from masonry_nscd.scenes.wall import build_wall
+
+
+@pytest.fixture(scope="module")
+def loaded_wall():
+    case = load_case("cases/wall_0.5MPa_elastic.yaml",
+                     ["solver.tolerance=1e-10", "loading.horizontal.start_s=0.2",
+                      "loading.horizontal.rate_m_s=0.01"])
+    scene = build_wall(case)
+    integ = scene.integrator
+    while integ.u[scene.top_dof_x] < 0.2e-3:
+        assert integ.step().converged
+    return integ
+
+
+def _next_step(integ: Integrator, method: str, tol: float):
+    other = copy.copy(integ)
+    other.joints = copy.deepcopy(integ.joints)
+    other.u, other.v, other._dv = integ.u.copy(), integ.v.copy(), integ._dv.copy()
+    other.method = method
+    other.tolerance = tol
+    if method == "nlgs":
+        other.newton = None
+    else:
+        other.newton = copy.copy(integ.newton)
+        other.newton.tolerance = tol
+        other.newton.lu = None
+    rep = other.step()
+    return other.point_forces(), rep
+
+
+def _unique_forces(integ, f):
+    """Joint point forces, then the glue resultant on each unit (N), stacked."""
+    joint = integ.sys.kind == 0
+    glue = ~joint
+    units = np.array([p.bodies[0] for p in integ.points])
+    res = [f[glue & (units == u)].sum(axis=0) for u in np.unique(units[glue])]
+    return np.concatenate([f[joint], np.array(res)])
+
+
+def _rel(integ, a, b):
+    a, b = _unique_forces(integ, a), _unique_forces(integ, b)
+    return np.linalg.norm(a - b) / np.linalg.norm(b)
+
+
+@pytest.mark.parametrize("method,tol", [("newton", 1e-8), ("nlgs", 1e-6)])
+def test_tightening_the_tolerance_tenfold_changes_forces_by_less_than_0_1_percent(
+        loaded_wall, method, tol):
+    f1, r1 = _next_step(loaded_wall, method, tol)
+    f2, r2 = _next_step(loaded_wall, method, tol / 10)
+    assert r1.converged and r2.converged
+    assert r1.sweeps > 0 and r2.sweeps >= r1.sweeps
+    change = _rel(loaded_wall, f1, f2)
+    assert change < 1e-3
+    print(f"{method}: tol {tol:g}: {r1.sweeps} iterations; tol {tol / 10:g}: {r2.sweeps}; "
+          f"change {change:.2e}")
+
+
+def test_newton_and_gauss_seidel_give_the_same_contact_forces(loaded_wall):
+    fn, _ = _next_step(loaded_wall, "newton", 1e-10)
+    fg, rg = _next_step(loaded_wall, "nlgs", 1e-7)
+    assert rg.converged
+    assert _rel(loaded_wall, fg, fn) < 1e-3
