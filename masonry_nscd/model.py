@@ -11,8 +11,8 @@ rigid dof is either free, or imposed (its velocity follows a history).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
@@ -113,7 +113,7 @@ class RigidBody:
         return 6
 
     @staticmethod
-    def box(origin, size, density: float, **kw) -> "RigidBody":
+    def box(origin, size, density: float, **kw) -> RigidBody:
         """A rigid box of uniform density (kg/m^3)."""
         size = np.asarray(size, dtype=float)
         m = density * float(np.prod(size))

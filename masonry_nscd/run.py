@@ -29,7 +29,7 @@ import numpy as np
 
 CSV_COLUMNS = [
     "step", "time_s", "ux_mm", "fx_kN", "uy_mm", "fy_kN", "fx_bottom_kN", "fy_bottom_kN",
-    "iterations", "residual", "converged", "max_joint_damage", "max_block_damage",
+    "iterations", "residual", "converged", "max_joint_damage", "max_block_damage", "max_d_cpp",
 ]
 
 
@@ -95,15 +95,13 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     s = integ.sys
     log(f"case {case.name}: {len(scene.units)} units, {s.npt} contact points, {s.ndof} dofs, "
         f"blocks {case.blocks.material}, sigma_N {case.loading.vertical_stress.value_Pa:.4g} Pa")
-    if case.blocks.material == "endo3d":
-        log("WARNING: ENDO3D is not yet coupled to the NSCD step (issue 4): the blocks of this "
-            "run are linear elastic; the material-point driver `masonry point block` has ENDO3D")
     # mesh for the outputs: all block nodes (deformable blocks only carry nodal displacements)
     deformable = [i for i in range(len(scene.units)) if s.body_deformable[i]]
     nodes = np.concatenate([scene.units[i].X for i in range(len(scene.units))])
     offs = np.cumsum([0] + [len(u.X) for u in scene.units])
     hexes = np.concatenate([u.conn + offs[i] for i, u in enumerate(scene.units)])
     elem_block = np.concatenate([np.full(len(u.conn), i) for i, u in enumerate(scene.units)])
+    offs_e = np.cumsum([0] + [len(u.conn) for u in scene.units])
     pts_x = np.array([p.x for p in integ.points])
     b_init = integ.params[0, jl.P_B]
     joint_mask = np.isin(scene.group, (GROUP_GLUE_BOTTOM, GROUP_GLUE_TOP), invert=True)
@@ -112,15 +110,34 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
 
     C0 = hex8.elastic_matrix(case.blocks.E_Pa, case.blocks.nu)
 
+    mat = integ.material
+    endo_elems = np.concatenate([np.arange(offs_e[i], offs_e[i + 1]) for i in mat.index]) \
+        if mat is not None else np.zeros(0, dtype=int)
+
+    def block_fields() -> dict[str, np.ndarray]:
+        """Per element: ENDO3D damages and crack opening (zeros where the blocks are elastic)."""
+        nel = len(hexes)
+        out = {k: np.zeros(nel) for k in ("d_c", "d_cpp", "d_t", "crack_opening_m")}
+        if mat is not None:
+            f = mat.element_fields()
+            for k in out:
+                out[k][endo_elems] = f[k]
+        return out
+
     def element_stress() -> np.ndarray:
         """Mean stress of each element (nel, 6), Pa, Voigt [xx, yy, zz, yz, xz, xy].
 
         Linear elastic blocks: C0 times the Gauss-point strains, averaged over the 8 points;
-        rigid units carry no stress field (zeros).
+        ENDO3D blocks: the apparent (damaged) stress; rigid units: zeros.
         """
         out = []
+        endo = mat.element_fields()["stress_Pa"] if mat is not None else None
+        pos = 0
         for i, u in enumerate(scene.units):
-            if i in deformable:
+            if mat is not None and i in mat.index:
+                out.append(endo[pos:pos + len(u.conn)])
+                pos += len(u.conn)
+            elif i in deformable:
                 eps = np.empty((8 * len(u.conn), 6))
                 hex8.gauss_strains(u.X, u.conn, np.ascontiguousarray(integ.u[integ.body_dofs(i)]),
                                    eps)
@@ -182,9 +199,11 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
             uy = integ.u[scene.top_dof_y]
             dj = float((1.0 - integ.joints.beta[joint_mask] * b_init).max()) \
                 if joint_mask.any() else 0.0
+            bf = block_fields()
+            db = float(np.maximum(bf["d_c"], bf["d_t"]).max()) if len(hexes) else 0.0
             row = [rep.step, rep.time, 1e3 * ux, 1e-3 * top[0], 1e3 * uy, 1e-3 * top[1],
                    1e-3 * bot[0], 1e-3 * bot[1], rep.sweeps, rep.residual, int(rep.converged),
-                   dj, 0.0]
+                   dj, db, float(bf["d_cpp"].max()) if len(hexes) else 0.0]
             wr.writerow([f"{v:.9g}" if isinstance(v, float) else v for v in row])
             for c, v in zip(CSV_COLUMNS, row):
                 curve[c].append(v)
@@ -199,7 +218,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
                                      point_data={"displacement_m": nodal_displacement()},
                                      cell_data={"block": elem_block.astype(float),
                                                 "stress_Pa": sig,
-                                                "von_mises_Pa": von_mises(sig)})
+                                                "von_mises_Pa": von_mises(sig), **bf})
                     write_points_vtu(
                         outdir / "vtu" / f"joints_{tag}.vtu", pts_x,
                         point_data={"d_coh": 1.0 - j.beta * b_init, "opening_m": j.u[:, 0],
@@ -213,6 +232,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
                 if h5 is not None:
                     h5.write_step(rep.step, rep.time, {
                         "u": integ.u, "v": integ.v, "element_stress_Pa": sig,
+                        **{f"element_{k}": v for k, v in bf.items()},
                         "joint_u_m": j.u, "joint_uc_m": j.uc,
                         "joint_beta": j.beta, "joint_T_Pa": j.T, "joint_status": j.status})
                     h5.write_curve({c: np.asarray(v, dtype=float) for c, v in curve.items()})

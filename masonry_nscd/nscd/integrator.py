@@ -76,6 +76,7 @@ class Integrator:
         check_every: int = 5,
         beta0: float | np.ndarray = 1.0,
         method: str = "nlgs",
+        endo3d_params: np.ndarray | None = None,
     ):
         self.bodies = bodies
         self.points = points
@@ -108,6 +109,16 @@ class Integrator:
             raise ValueError(f"solver method must be 'nlgs' or 'newton', got {method!r}")
         self.method = method
         self.newton = None
+        from masonry_nscd.materials.blocks import Endo3dBlocks
+
+        self.material = Endo3dBlocks(bodies, s.body_dof0, endo3d_params) \
+            if endo3d_params is not None else None
+        if self.material is not None and not self.material:
+            self.material = None
+        self._secant = None
+        if self.material is not None and method != "newton":
+            raise ValueError("ENDO3D blocks need the Newton solver (method 'newton'): the "
+                             "material enters its residual")
         if method == "newton":
             from masonry_nscd.contact import joint_law as jl
             from masonry_nscd.nscd.newton import NewtonSolver
@@ -119,13 +130,68 @@ class Integrator:
                                  "(dry Signorini-Coulomb contacts: use method 'nlgs')")
             self.newton = NewtonSolver(s, s.minv_off, s.mhat, tolerance,
                                        min(max_iterations, NEWTON_MAX_ITERATIONS))
+            self.newton.on_slow = self._on_slow
 
     # --- one step -----------------------------------------------------------------------
     def internal_forces(self) -> np.ndarray:
         """Internal forces at the current displacements (N). Linear elastic blocks: K u."""
         s = self.sys
         kernels.elastic_forces(s.body_dof0, s.k_off, s.k, self.u, self.fint)
+        if self.material is not None:
+            self.material.internal_forces(self.u, self.fint, trial=False)
         return self.fint
+
+    def _update_secant(self, trial: bool = False) -> None:
+        """Secant iteration matrix of the ENDO3D blocks, rebuilt when their damage has moved.
+
+        The Newton matrix then holds ``M + (theta h)^2 K_sec`` for those blocks, with
+        ``K_sec`` the stiffness of C0 scaled per element by ``(1 - d_c)(1 - max(d_cpp, d_t))``
+        (committed states): K0 alone converges slowly once the stone has lost most of its
+        stiffness before its peak (d_cpp ~ 0.7 under 0.5 MPa). Rebuilt when a scale moved by
+        more than 0.02 since the last build (from the trial states when the Newton iterations
+        of a step slow down); the residual is exact whatever the matrix.
+        """
+        from masonry_nscd.fe import hex8
+        from masonry_nscd.nscd.system import body_matrices
+
+        scales = self.material.secant_scale(trial)
+        if self._secant is not None and all(
+                np.abs(a - b).max() <= 0.02 for a, b in zip(scales, self._secant)):
+            return
+        self._secant = scales
+        s = self.sys
+        mhat = s.mhat.copy()
+        h, th = s.h, s.theta
+        for k, i in enumerate(self.material.index):
+            blk = self.bodies[i]
+            C = hex8.elastic_matrix(blk.E, blk.nu)
+            Ks = hex8.assemble_block_scaled(blk.X, blk.conn, C, scales[k])
+            _, m, _ = body_matrices(blk, h, th)
+            n = blk.ndof
+            mhat[s.minv_off[i]:s.minv_off[i] + n * n] = (np.diag(m) + (th * h) ** 2 * Ks).ravel()
+        self.newton.set_iteration_mhat(mhat)
+
+    def _on_slow(self) -> None:
+        if self.material is not None:
+            self._update_secant(trial=True)
+
+    def _material_correction(self, fint_n: np.ndarray):
+        """``c(v) = h theta [F_int(u) - F_int(u_n) - K0 (u - u_n)]`` for the ENDO3D blocks."""
+        s = self.sys
+        h, th = s.h, s.theta
+        f_trial = np.zeros(s.ndof)
+        k0du = np.zeros(s.ndof)
+
+        def correction(v):
+            du = h * (th * v + (1.0 - th) * self.v)
+            self.material.internal_forces(self.u + du, f_trial, trial=True)
+            kernels.elastic_forces(s.body_dof0, s.k_off, s.k, du, k0du)
+            c = np.zeros(s.ndof)
+            for d in self.material.dofs:
+                c[d] = h * th * (f_trial[d] - fint_n[d] - k0du[d])
+            return c, h * th * float(np.linalg.norm(f_trial)) + 1e-300
+
+        return correction
 
     def step(self) -> StepReport:
         s = self.sys
@@ -142,13 +208,18 @@ class Integrator:
         kernels.local_velocities(s.side_dofs, s.side_coef, v_free, U_free)
         j = self.joints
         if self.newton is not None:
+            corr = None
+            if self.material is not None:
+                corr = self._material_correction(fint.copy())
+                self._update_secant()
             v1, T, uc, beta, status, sweeps, residual = self.newton.solve(
-                v_free, j.u, j.U, self.params, j.uc, j.beta, j.T, self._dv)
+                v_free, j.u, j.U, self.params, j.uc, j.beta, j.T, self._dv, correction=corr)
             self._dv = v1 - v_free
             amb = int(np.sum(status == jl_ambiguous()))
-        if self.newton is None or residual > self.tolerance:
+        if self.newton is None or (residual > self.tolerance and self.material is None):
             # Gauss-Seidel sweeps: the solver of the case, or the end of a step that Newton
-            # did not finish (warm-started from its last tractions)
+            # did not finish (warm-started from its last tractions; not with ENDO3D blocks,
+            # whose material correction only the Newton residual carries)
             newton_its = sweeps if self.newton is not None else 0
             T = j.T.copy() if self.newton is None else T
             uc = np.empty_like(j.uc)
@@ -171,6 +242,8 @@ class Integrator:
             what = "body velocities" if not np.isfinite(v1).all() else "contact tractions"
             raise DivergenceError(f"step {self.step_index} (t = {t1:.6g} s): {what} not finite")
         self.u, self.v, self.t, self._F0 = u1, v1, t1, F1
+        if self.material is not None:
+            self.material.commit()
         self.joints = JointState(u=ul1, U=U1, uc=uc, beta=beta, T=T, status=status)
         return StepReport(self.step_index, t1, int(sweeps), float(residual),
                           bool(residual <= self.tolerance), int(amb))

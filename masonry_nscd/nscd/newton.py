@@ -257,19 +257,35 @@ class NewtonSolver:
         self.glue_eps = 1e-9 * np.trace(sys.W[self.glue], axis1=1, axis2=2) / 3.0
         self.lu = None
         self.factorisations = 0
+        self._K_factorised = None
+        # the body blocks of the Newton matrix; a secant iteration matrix may replace the
+        # elastic one (``set_iteration_mhat``), the residual keeps the elastic decomposition
+        self.mhat_jac = mhat
+        # called when the iterations slow down, before refactorising (a secant matrix refresh)
+        self.on_slow = None
+
+    def set_iteration_mhat(self, mhat_jac: np.ndarray) -> None:
+        """Use other body blocks (same layout as ``mhat``) in the Newton matrix."""
+        self.mhat_jac = mhat_jac
+        self.lu = None
 
     def _factorise(self, K):
+        if self.lu is not None and self._K_factorised is not None and \
+                np.array_equal(K, self._K_factorised):
+            return  # the same matrix: refactorising would not help
+        self._K_factorised = K.copy()
         s = self.sys
         nf = len(self.free)
         n = nf + 3 * len(self.glue)
-        r, c, v = jacobian_coo(s.body_dof0, self.mhat_off, self.mhat, self.free_index, nf,
+        r, c, v = jacobian_coo(s.body_dof0, self.mhat_off, self.mhat_jac, self.free_index, nf,
                                s.side_dofs, s.side_coef, s.kind, s.area, K, self.glue_of,
                                self.glue_eps, s.h, s.theta)
         J = sp.csc_matrix((v, (r, c)), shape=(n, n))
         self.lu = spla.splu(J)
         self.factorisations += 1
 
-    def solve(self, v_free, u_old, U_old, params, uc_old, beta_old, T, dv_guess):
+    def solve(self, v_free, u_old, U_old, params, uc_old, beta_old, T, dv_guess,
+              correction=None):
         """Solve the step. Returns (v, T, uc, beta, status, iterations, residual).
 
         Each iteration: the law and its tangent at every joint point, the residual, a solve
@@ -277,6 +293,10 @@ class NewtonSolver:
         backtracking line search on the residual norm (glue rows scaled to impulse units), which
         stops the cycling between open and closed statuses that full steps show when the
         loads are tiny (the open joint is some 300 times softer than the closed one).
+
+        ``correction(v) -> (c, scale)``: a material correction of the body residual (N s), for
+        blocks whose internal forces are not linear (ENDO3D), and the size of the internal
+        impulses it corrects; its relative change between iterates joins the convergence test.
         """
         from masonry_nscd.nscd import kernels
 
@@ -303,16 +323,20 @@ class NewtonSolver:
             out_T[g] = -r_glue.reshape(-1, 3) / (h * s.area[g, None])
             residual(s.body_dof0, self.mhat_off, self.mhat, v, v_free, s.side_dofs,
                      s.side_coef, s.kind, s.area, out_T, r_glue, self.glue_of, h, R)
+            cvec, cscale = (None, 0.0) if correction is None else correction(v)
+            if cvec is not None:
+                R[:] += cvec
             F = np.concatenate([R[self.free],
                                 Hv[g].ravel() - w_glue + np.repeat(self.glue_eps, 3) * r_glue])
             norm = math.sqrt(np.sum(F[:nf] ** 2) + glue_scale ** 2 * np.sum(F[nf:] ** 2))
-            return F, norm, (out_T, out_uc, out_beta, out_status, K)
+            return F, norm, (out_T, out_uc, out_beta, out_status, K, cvec, cscale)
 
         v = v_free + dv_guess
         v[s.imposed_dofs] = v_free[s.imposed_dofs]
         r_glue = (-h * s.area[g, None] * T[g]).ravel()
         F, norm, state = evaluate(v, r_glue)
         T_prev = T
+        c_prev = None
         res = math.inf
         prev = math.inf
         it = 0
@@ -321,13 +345,20 @@ class NewtonSolver:
             num = np.sum((s.area[:, None] * (Tn - T_prev)) ** 2)
             den = np.sum((s.area[:, None] * Tn) ** 2)
             res = math.sqrt(num / den) if den > 0 else (0.0 if num == 0 else math.inf)
+            cvec, cscale = state[5], state[6]
+            if cvec is not None and c_prev is not None:
+                dc = float(np.linalg.norm(cvec - c_prev))
+                res = max(res, dc / cscale if cscale > 0 else (0.0 if dc == 0 else math.inf))
             if it > 1 and res <= self.tolerance:
                 break
             if self.lu is None or (it > 2 and res > 0.25 * prev):
+                if self.lu is not None and self.on_slow is not None:
+                    self.on_slow()
                 self._factorise(state[4])
             prev = res
             dx = self.lu.solve(-F)
             if not np.all(np.isfinite(dx)):
+                self.lu = None
                 self._factorise(state[4])
                 dx = self.lu.solve(-F)
             alpha = 1.0
@@ -340,6 +371,7 @@ class NewtonSolver:
                     break
                 alpha *= 0.5
             T_prev = Tn
+            c_prev = cvec
             v, r_glue, F, norm, state = v_try, r_try, F_try, norm_try, state_try
-        Tn, uc, beta, status, _ = state
+        Tn, uc, beta, status = state[:4]
         return v, Tn, uc, beta, status, it, res

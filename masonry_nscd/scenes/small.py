@@ -19,7 +19,7 @@ X, Y, Z = 0, 1, 2
 
 def _fixed(center, **kw) -> RigidBody:
     """A rigid body with every dof imposed at zero velocity (a fixed support)."""
-    zero = lambda t: 0.0  # noqa: E731
+    zero = lambda t: 0.0
     return RigidBody(center=center, mass=1.0, inertia=np.ones(3),
                      imposed_velocity={d: zero for d in range(6)}, **kw)
 
@@ -52,7 +52,7 @@ def block_between_plates(size=(0.2, 0.1, 0.15), divisions=(2, 2, 1), E=11.1e9, n
     its points nearly rank one, and the sweeps slow down accordingly.
     """
     block = Block(origin=(0, 0, 0), size=size, divisions=divisions, E=E, nu=nu, density=2000.0)
-    zero = lambda t: 0.0  # noqa: E731
+    zero = lambda t: 0.0
     bottom = _fixed(center=(size[0] / 2, -0.05, size[2] / 2), label="bottom plate")
     top = RigidBody(center=(size[0] / 2, size[1] + 0.05, size[2] / 2), mass=plate_mass,
                     inertia=np.ones(3),
@@ -87,7 +87,7 @@ def block_on_support(*, law: str = "coulomb", mu: float = 0.6, normal_force: flo
     P = jl.joint_params(law=law, mu=mu, **joint_kw)
     support = _fixed(center=(size[0] / 2, -0.05, size[2] / 2), label="support")
     if rigid:
-        zero = lambda t: 0.0  # noqa: E731
+        zero = lambda t: 0.0
         imposed = {d: zero for d in (2, 3, 4, 5)}
         if shear_velocity is not None:
             imposed[0] = Ramp(shear_velocity, shear_start, shear_ramp)

@@ -27,7 +27,7 @@ import numpy as np
 from masonry_nscd.contact import joint_law as jl
 from masonry_nscd.contact.points import dof_offsets, face_contacts
 from masonry_nscd.loading import Ramp
-from masonry_nscd.model import Block, Loads, RigidBody
+from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, Loads, RigidBody
 from masonry_nscd.nscd.integrator import Integrator
 from masonry_nscd.nscd.system import body_matrices
 
@@ -87,7 +87,8 @@ def build_wall(case) -> WallScene:
     units = [
         Block(origin=(x0, y0, 0.0), size=(length, w.unit_height_m, w.thickness_m),
               divisions=tuple(w.elements_per_unit), E=blk.E_Pa, nu=blk.nu,
-              density=blk.density_kg_m3, label=f"course {k} x {x0:.3f}")
+              density=blk.density_kg_m3, label=f"course {k} x {x0:.3f}",
+              material=MAT_ENDO3D if material == "endo3d" else MAT_ELASTIC)
         for k, x0, y0, length in unit_boxes(w)
     ]
     course = np.array([k for k, *_ in unit_boxes(w)])
@@ -151,12 +152,17 @@ def build_wall(case) -> WallScene:
         Fv = np.zeros(ndof)
         Fv[dof0[i_up] + Y] = -vs.value_Pa * width * t
         loads.add(Fv, Ramp(1.0, vs.start_s, vs.ramp_s))
+    endo = None
+    if material == "endo3d":
+        from masonry_nscd.materials.point_driver import params_from_case
+
+        endo = params_from_case(case)
     integ = Integrator(bodies, pts, P, loads, h=sol.time_step_s, theta=sol.theta,
                        tolerance=sol.tolerance, max_iterations=sol.max_iterations,
-                       check_every=sol.check_every, method=sol.method)
+                       check_every=sol.check_every, method=sol.method, endo3d_params=endo)
     return WallScene(
         integrator=integ, units=units, course_of_unit=course, top_beam=i_up,
         top_dof_x=int(dof0[i_up] + X), top_dof_y=int(dof0[i_up] + Y),
         group=np.array([p.group for p in pts], dtype=np.int64),
-        material="elastic" if material == "endo3d" else material,
+        material=material,
     )

@@ -1,0 +1,63 @@
+"""ENDO3D inside the NSCD step: a cube between frictionless plates follows the point driver.
+
+One hexahedron of side 0.1 m (ENDO3D, the study's stone), on a fixed plate, shortened by an
+upper plate whose vertical velocity is imposed; joints frictionless with very stiff springs, so
+the stress is uniaxial and uniform. The plate force over the area against the shortening over
+the height must be the uniaxial curve of the material-point driver (same element size).
+"""
+
+import numpy as np
+
+from masonry_nscd.contact import joint_law as jl
+from masonry_nscd.contact.points import dof_offsets, face_contacts
+from masonry_nscd.materials.endo3d import endo3d_params
+from masonry_nscd.materials.point_driver import drive_block_path
+from masonry_nscd.model import MAT_ENDO3D, Block, Loads, RigidBody
+from masonry_nscd.nscd.integrator import Integrator
+
+H = 0.1
+E, NU = 11.1e9, 0.2
+
+
+def _params():
+    return endo3d_params(E=E, nu=NU, R_t=1.0e6, eps_pic_t=1.0e6 / E, G_ft=60.0, R_c=9.46e6,
+                         eps_pic_c=0.13e-1, delta=0.4, beta=0.2, eps_kdc=0.18e-1, DCPK=1.0,
+                         REF=0.3e6, GFR=4.5)
+
+
+def test_endo3d_cube_in_compression_follows_the_point_driver():
+    rate = 2e-3 * H  # shortening velocity, m/s: strain rate 2e-3 /s
+    zero = lambda t: 0.0
+    cube = Block(origin=(0, 0, 0), size=(H, H, H), divisions=(1, 1, 1), E=E, nu=NU,
+                 density=2000.0, material=MAT_ENDO3D)
+    bottom = RigidBody(center=(H / 2, -0.05, H / 2), mass=1.0, inertia=np.ones(3),
+                       imposed_velocity={d: zero for d in range(6)})
+    top = RigidBody(center=(H / 2, H + 0.05, H / 2), mass=1.0, inertia=np.ones(3),
+                    imposed_velocity={0: zero, 1: lambda t: -rate, 2: zero, 3: zero, 4: zero,
+                                      5: zero})
+    bodies = [cube, bottom, top]
+    dof0 = dof_offsets(bodies)
+    kw = dict(gap=0.0, tangent=(1, 0, 0), kind=jl.KIND_JOINT, law=0, group=0)
+    pts = face_contacts(bodies, dof0, 0, cube, 1, False, [(1, None)], **kw)
+    pts += face_contacts(bodies, dof0, 0, cube, 1, True, [(2, None)], **kw)
+    # frictionless joints with springs 100 times stiffer than the cube (the strain is read on
+    # the cube itself, so the spring's share of the shortening does not matter)
+    P = jl.joint_params(mu=0.0, d_spring=0.0, K_I_spring=100 * E / H, K_II_spring=100 * E / H)
+    integ = Integrator(bodies, pts, P, Loads(), h=1e-2, theta=1.0, tolerance=1e-7,
+                       max_iterations=50, method="newton", endo3d_params=_params())
+    strain, stress = [], []
+    for _ in range(250):  # to about 5e-3 of shortening
+        rep = integ.step()
+        assert rep.converged, rep
+        f = integ.point_forces()
+        top_force = f[[p.bodies[1] == 2 for p in pts], 1].sum()  # on the cube, from the plate
+        top_nodes = cube.X[:, 1] > H / 2
+        strain.append(integ.u[dof0[0] + 1:dof0[1]:3][top_nodes].mean() / H)
+        stress.append(top_force / (H * H))
+    strain, stress = np.array(strain), np.array(stress)
+    ref = drive_block_path(_params(), strain, H, "free")
+    expected = np.asarray(ref["sigma_axial_Pa"])
+    # the cube is in compression, and the pre-peak damage of the study's stone shows
+    assert stress[-1] < -5e6
+    assert abs(stress[-1]) < 0.8 * E * abs(strain[-1])
+    assert np.allclose(stress[10:], expected[10:], rtol=2e-3, atol=2e3)
