@@ -189,9 +189,9 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
             worst = max(worst, rep.residual)
             if not rep.converged:
                 unconverged += 1
-                log(f"step {rep.step} (t = {rep.time:.4f} s): Gauss-Seidel not converged after "
-                    f"{rep.sweeps} sweeps, residual {rep.residual:.3e} > "
-                    f"{case.solver.tolerance:.1e}", show=unconverged <= 5)
+                log(f"step {rep.step} (t = {rep.time:.4f} s): contact solver ({case.solver.method}) "
+                    f"not converged after {rep.sweeps} iterations, residual "
+                    f"{rep.residual:.3e} > {case.solver.tolerance:.1e}", show=unconverged <= 5)
             f = integ.point_forces()
             top = f[scene.group == GROUP_GLUE_TOP].sum(axis=0)
             bot = f[scene.group == GROUP_GLUE_BOTTOM].sum(axis=0)
