@@ -190,6 +190,50 @@ def internal_forces(X: np.ndarray, conn: np.ndarray, sigma: np.ndarray, f: np.nd
                 f[3 * conn[e, i] + d] += fe[3 * i + d]
 
 
+@njit(cache=True)
+def precompute_b(xe_all: np.ndarray):
+    """B matrices (nel, 8, 6, 24) and weights det J (nel, 8) of many elements (nel, 8, 3)."""
+    nel = xe_all.shape[0]
+    B = np.empty((nel, 8, 6, 24))
+    w = np.empty((nel, 8))
+    for e in range(nel):
+        Bs, we = element_b_all(xe_all[e])
+        B[e] = Bs
+        w[e] = we
+    return B, w
+
+
+@njit(cache=True)
+def strains_from_b(B: np.ndarray, edofs: np.ndarray, u: np.ndarray, eps: np.ndarray) -> None:
+    """Gauss-point strains (nel * 8, 6) from global displacements with precomputed B.
+
+    ``edofs`` (nel, 24): the global dofs of each element's nodes (x, y, z per node).
+    """
+    ue = np.empty(24)
+    for e in range(B.shape[0]):
+        for i in range(24):
+            ue[i] = u[edofs[e, i]]
+        for g in range(8):
+            for c in range(6):
+                s = 0.0
+                for i in range(24):
+                    s += B[e, g, c, i] * ue[i]
+                eps[8 * e + g, c] = s
+
+
+@njit(cache=True)
+def forces_from_b(B: np.ndarray, w: np.ndarray, edofs: np.ndarray, sigma: np.ndarray,
+                  f: np.ndarray) -> None:
+    """Add ``sum_g w B^T sigma`` of every element to the global force vector f (N)."""
+    for e in range(B.shape[0]):
+        for g in range(8):
+            for i in range(24):
+                s = 0.0
+                for c in range(6):
+                    s += B[e, g, c, i] * sigma[8 * e + g, c]
+                f[edofs[e, i]] += w[e, g] * s
+
+
 def box_mesh(origin, size, divisions):
     """Structured hexahedral mesh of the box ``[origin, origin + size]`` (m).
 

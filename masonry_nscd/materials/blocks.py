@@ -26,7 +26,12 @@ from masonry_nscd.model import MAT_ENDO3D, Block
 
 
 class Endo3dBlocks:
-    """The ENDO3D blocks of a scene (body indices ``bodies``) and their Gauss-point states."""
+    """The ENDO3D blocks of a scene (body indices ``index``) and their Gauss-point states.
+
+    All ENDO3D elements are handled in one batch: their B matrices are computed once, and a
+    trial evaluation is three kernel calls (strains, ENDO3D, forces) whatever the number of
+    blocks. Per-block views (``state``, ``trial``) index into the batch.
+    """
 
     def __init__(self, bodies: list, body_dof0: np.ndarray, params: np.ndarray):
         self.params = np.ascontiguousarray(params, dtype=float)
@@ -34,14 +39,25 @@ class Endo3dBlocks:
                       if isinstance(b, Block) and b.material == MAT_ENDO3D]
         self.blocks = [bodies[i] for i in self.index]
         self.dofs = [np.arange(body_dof0[i], body_dof0[i + 1]) for i in self.index]
-        self.xe = [np.ascontiguousarray(b.X[b.conn]) for b in self.blocks]  # (nel, 8, 3)
-        self.elem_of_point = [np.repeat(np.arange(len(b.conn)), 8).astype(np.int64)
-                              for b in self.blocks]
-        init = endo3d.endo3d_initial_state()
-        self.state = [np.tile(init, (8 * len(b.conn), 1)) for b in self.blocks]
-        self.trial = [s.copy() for s in self.state]
-        self.sigma = [np.zeros((8 * len(b.conn), 6)) for b in self.blocks]
-        self.sigma_committed = [s.copy() for s in self.sigma]
+        if not self.blocks:
+            return
+        xe = np.concatenate([b.X[b.conn] for b in self.blocks])  # (nel, 8, 3)
+        self.edofs = np.concatenate([
+            (body_dof0[i] + 3 * b.conn[:, :, None] + np.arange(3)).reshape(len(b.conn), 24)
+            for i, b in zip(self.index, self.blocks)]).astype(np.int64)
+        self.all_dofs = np.unique(self.edofs)
+        self.B, self.w = hex8.precompute_b(np.ascontiguousarray(xe))
+        self.xe = np.ascontiguousarray(xe)
+        nel = len(xe)
+        self.elem_of_point = np.repeat(np.arange(nel), 8).astype(np.int64)
+        self.state_all = np.tile(endo3d.endo3d_initial_state(), (8 * nel, 1))
+        self.trial_all = self.state_all.copy()
+        self.sigma_all = np.zeros((8 * nel, 6))
+        self.sigma_committed_all = self.sigma_all.copy()
+        self._eps = np.zeros((8 * nel, 6))
+        ends = np.cumsum([0] + [8 * len(b.conn) for b in self.blocks])
+        self.state = [self.state_all[ends[k]:ends[k + 1]] for k in range(len(self.blocks))]
+        self.trial = [self.trial_all[ends[k]:ends[k + 1]] for k in range(len(self.blocks))]
         self.failures = 0
 
     def __bool__(self) -> bool:
@@ -53,27 +69,21 @@ class Endo3dBlocks:
         ``trial``: update trial states from the committed ones (inside a step); otherwise the
         committed stresses are used as they are (forces at the start of the step).
         """
-        self.failures = 0
-        for k, b in enumerate(self.blocks):
-            d = self.dofs[k]
-            if trial:
-                eps = np.empty((8 * len(b.conn), 6))
-                hex8.gauss_strains(b.X, b.conn, np.ascontiguousarray(u[d]), eps)
-                self.failures += endo3d.endo3d_update_elements(
-                    eps, self.state[k], self.params, self.xe[k], self.elem_of_point[k],
-                    self.trial[k], self.sigma[k])
-                sig = self.sigma[k]
-            else:
-                sig = self.sigma_committed[k]
-            f = np.empty(len(d))
-            hex8.internal_forces(b.X, b.conn, sig, f)
-            fint[d] = f
+        if trial:
+            hex8.strains_from_b(self.B, self.edofs, u, self._eps)
+            self.failures = endo3d.endo3d_update_elements(
+                self._eps, self.state_all, self.params, self.xe, self.elem_of_point,
+                self.trial_all, self.sigma_all)
+            sig = self.sigma_all
+        else:
+            sig = self.sigma_committed_all
+        fint[self.all_dofs] = 0.0
+        hex8.forces_from_b(self.B, self.w, self.edofs, sig, fint)
 
     def commit(self) -> None:
         """The last trial becomes the state at the end of the step."""
-        for k in range(len(self.blocks)):
-            self.state[k][:] = self.trial[k]
-            self.sigma_committed[k][:] = self.sigma[k]
+        self.state_all[:] = self.trial_all
+        self.sigma_committed_all[:] = self.sigma_all
 
     def secant_scale(self, trial: bool = False) -> list[np.ndarray]:
         """Per element of each block, the scale of C0 in the secant iteration matrix.
@@ -93,13 +103,9 @@ class Endo3dBlocks:
     def element_fields(self) -> dict[str, np.ndarray]:
         """Per element, over its Gauss points: max d_c, max d_cpp, max d_t, max crack opening
         (m), and the mean apparent stress (nel, 6), Pa. Blocks in the order of ``index``."""
-        out = {"d_c": [], "d_cpp": [], "d_t": [], "crack_opening_m": [], "stress_Pa": []}
-        for k, b in enumerate(self.blocks):
-            d_c, d_cpp, d_t, w = endo3d.endo3d_outputs(self.state[k])
-            ne = len(b.conn)
-            out["d_c"].append(d_c.reshape(ne, 8).max(axis=1))
-            out["d_cpp"].append(d_cpp.reshape(ne, 8).max(axis=1))
-            out["d_t"].append(d_t.reshape(ne, 8).max(axis=1))
-            out["crack_opening_m"].append(w.reshape(ne, 8).max(axis=1))
-            out["stress_Pa"].append(self.sigma_committed[k].reshape(ne, 8, 6).mean(axis=1))
-        return {key: (np.concatenate(v) if v else np.zeros(0)) for key, v in out.items()}
+        d_c, d_cpp, d_t, w = endo3d.endo3d_outputs(self.state_all)
+        ne = len(self.xe)
+        return {"d_c": d_c.reshape(ne, 8).max(axis=1), "d_cpp": d_cpp.reshape(ne, 8).max(axis=1),
+                "d_t": d_t.reshape(ne, 8).max(axis=1),
+                "crack_opening_m": w.reshape(ne, 8).max(axis=1),
+                "stress_Pa": self.sigma_committed_all.reshape(ne, 8, 6).mean(axis=1)}

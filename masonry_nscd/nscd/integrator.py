@@ -187,8 +187,8 @@ class Integrator:
             self.material.internal_forces(self.u + du, f_trial, trial=True)
             kernels.elastic_forces(s.body_dof0, s.k_off, s.k, du, k0du)
             c = np.zeros(s.ndof)
-            for d in self.material.dofs:
-                c[d] = h * th * (f_trial[d] - fint_n[d] - k0du[d])
+            d = self.material.all_dofs
+            c[d] = h * th * (f_trial[d] - fint_n[d] - k0du[d])
             return c, h * th * float(np.linalg.norm(f_trial)) + 1e-300
 
         return correction
