@@ -696,16 +696,20 @@ class Case(_Section):
             problems.append(
                 (
                     "solver.method",
-                    "got 'newton' with joint.law = 'coulomb'; the Newton solver needs joints "
-                    "with a spring in series (law 'fczm'): use method 'nlgs' for dry contacts",
+                    (
+                        "got 'newton' with joint.law = 'coulomb'; the Newton solver needs joints "
+                        "with a spring in series (law 'fczm'): use method 'nlgs' for dry contacts"
+                    ),
                 )
             )
         if self.solver.method == "nlgs" and self.blocks.material == "endo3d":
             problems.append(
                 (
                     "solver.method",
-                    "got 'nlgs' with blocks.material = 'endo3d'; ENDO3D enters the residual of "
-                    "the Newton solver only: use method 'newton'",
+                    (
+                        "got 'nlgs' with blocks.material = 'endo3d'; ENDO3D enters the residual "
+                        "of the Newton solver only: use method 'newton'"
+                    ),
                 )
             )
         if self.supports.top_vertical == "fixed" and stress != 0.0:

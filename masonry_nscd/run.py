@@ -81,7 +81,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     prepare_outdir(outdir, overwrite)
     case_yaml = case_to_yaml(case)
     atomic_write(outdir / "case.yaml", lambda p: Path(p).write_text(case_yaml))
-    logf = open(outdir / "run.log", "w")
+    logf = open(outdir / "run.log", "w")  # noqa: SIM115 (open for the whole run, closed below)
 
     def log(msg: str, show: bool = True) -> None:
         logf.write(f"{time.strftime('%H:%M:%S')} {msg}\n")
@@ -120,8 +120,8 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
         out = {k: np.zeros(nel) for k in ("d_c", "d_cpp", "d_t", "crack_opening_m")}
         if mat is not None:
             f = mat.element_fields()
-            for k in out:
-                out[k][endo_elems] = f[k]
+            for k, arr in out.items():
+                arr[endo_elems] = f[k]
         return out
 
     def element_stress() -> np.ndarray:
@@ -169,14 +169,14 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
                       "contact_area_m2": s.area, "contact_frame": s.frame}) \
         if case.output.hdf5 else None
     pvd: list = []
-    f_csv = open(outdir / "force_displacement.csv", "w", newline="")
+    f_csv = open(outdir / "force_displacement.csv", "w", newline="")  # noqa: SIM115
     wr = csv.writer(f_csv)
     wr.writerow(CSV_COLUMNS)
     curve = {c: [] for c in CSV_COLUMNS}
     target = case.loading.horizontal.target_m
     t_end = case.loading.end_time_s
     h = case.solver.time_step_s
-    n_est = int(math.ceil(t_end / h))
+    n_est = math.ceil(t_end / h)
     every = progress_every or max(1, n_est // 40)
     unconverged = 0
     worst = 0.0

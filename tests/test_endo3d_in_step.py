@@ -37,7 +37,7 @@ def test_endo3d_cube_in_compression_follows_the_point_driver():
                                       5: zero})
     bodies = [cube, bottom, top]
     dof0 = dof_offsets(bodies)
-    kw = dict(gap=0.0, tangent=(1, 0, 0), kind=jl.KIND_JOINT, law=0, group=0)
+    kw = {"gap": 0.0, "tangent": (1, 0, 0), "kind": jl.KIND_JOINT, "law": 0, "group": 0}
     pts = face_contacts(bodies, dof0, 0, cube, 1, False, [(1, None)], **kw)
     pts += face_contacts(bodies, dof0, 0, cube, 1, True, [(2, None)], **kw)
     # frictionless joints with springs 100 times stiffer than the cube (the strain is read on

@@ -71,7 +71,7 @@ def test_coulomb_block_slides_above_mu_N_with_newtons_acceleration():
 def test_rigid_block_on_joint_peak_shear_is_law_peak_times_area(sigma):
     size = (0.3, 0.1, 0.15)
     area = size[0] * size[2]
-    integ, info = block_on_support(law="fczm", mu=0.7, normal_force=sigma * area, rigid=True,
+    integ, _info = block_on_support(law="fczm", mu=0.7, normal_force=sigma * area, rigid=True,
                                    size=size, shear_velocity=2e-3, shear_start=0.06,
                                    shear_ramp=0.02, h=2e-4)
     fx = []
@@ -93,7 +93,7 @@ def test_nscd_single_contact_with_free_rigid_partner_equals_standalone_law():
     from masonry_nscd.model import Block, Loads, RigidBody
     from masonry_nscd.nscd.integrator import Integrator
 
-    zero = lambda t: 0.0  # noqa: E731
+    zero = lambda t: 0.0
     body = RigidBody.box((0, 0, 0), size, 2000.0,
                          imposed_velocity={d: zero for d in (2, 3, 4, 5)})
     support = RigidBody(center=(0.05, -0.05, 0.05), mass=1.0, inertia=np.ones(3),

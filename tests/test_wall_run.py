@@ -1,6 +1,7 @@
 """The wall generator and `masonry run` on the smoke case: counts, outputs, equilibrium."""
 
 import csv
+import itertools
 
 import h5py
 import meshio
@@ -23,7 +24,7 @@ def test_running_bond_of_the_reference_wall():
         row = sorted((x0, length) for k, x0, _, length in boxes if k == c)
         # every course spans 1.85 m with 10 mm head joints between units
         assert row[-1][0] + row[-1][1] == pytest.approx(1.85, abs=1e-12)
-        for (x0, l0), (x1, _) in zip(row, row[1:]):
+        for (x0, l0), (x1, _) in itertools.pairwise(row):
             assert x1 - (x0 + l0) == pytest.approx(0.010, abs=1e-12)
         if c % 2:
             assert row[0][1] == row[-1][1] == pytest.approx(0.145)

@@ -60,7 +60,7 @@ def block_between_plates(size=(0.2, 0.1, 0.15), divisions=(2, 2, 1), E=11.1e9, n
     bodies = [block, bottom, top]
     dof0 = dof_offsets(bodies)
     P = jl.joint_params(law="coulomb", mu=0.0)
-    kw = dict(gap=0.0, tangent=(1, 0, 0), kind=jl.KIND_JOINT, law=0, group=0)
+    kw = {"gap": 0.0, "tangent": (1, 0, 0), "kind": jl.KIND_JOINT, "law": 0, "group": 0}
     pts = face_contacts(bodies, dof0, 0, block, Y, False, [(1, None)], **kw)
     pts += face_contacts(bodies, dof0, 0, block, Y, True, [(2, None)], **kw)
     loads = Loads()
