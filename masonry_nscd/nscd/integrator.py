@@ -152,7 +152,6 @@ class Integrator:
         of a step slow down); the residual is exact whatever the matrix.
         """
         from masonry_nscd.fe import hex8
-        from masonry_nscd.nscd.system import body_matrices
 
         scales = self.material.secant_scale(trial)
         if self._secant is not None and all(
@@ -166,7 +165,7 @@ class Integrator:
             blk = self.bodies[i]
             C = hex8.elastic_matrix(blk.E, blk.nu)
             Ks = hex8.assemble_block_scaled(blk.X, blk.conn, C, scales[k])
-            _, m, _ = body_matrices(blk, h, th)
+            m = s.mass[s.body_dof0[i]:s.body_dof0[i + 1]]
             n = blk.ndof
             mhat[s.minv_off[i]:s.minv_off[i] + n * n] = (np.diag(m) + (th * h) ** 2 * Ks).ravel()
         self.newton.set_iteration_mhat(mhat)
