@@ -603,7 +603,7 @@ class Solver(_Section):
     )
     max_iterations: Whole = Field(
         20000, ge=1, le=1_000_000_000,
-        description="maximum iterations per step (count; Newton stops at 30 and hands over to "
+        description="maximum iterations per step (count; Newton stops at 50 and hands over to "
         "NLGS sweeps)",
     )
     check_every: Whole = Field(

@@ -102,6 +102,12 @@ def run(
     from masonry_nscd.run import RunFailure, RunInputError, run_case
 
     outdir = output or Path("results") / case.name
+    import signal
+
+    def _terminate(signum, frame):  # SIGTERM ends the run like Ctrl-C: outputs are kept
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, _terminate)
     try:
         res = run_case(case, outdir, overwrite=overwrite, echo=typer.echo)
     except RunInputError as exc:
@@ -111,6 +117,8 @@ def run(
               f"{outdir})", 1)
     except KeyboardInterrupt:
         _fail(f"interrupted; results up to the last output step are kept in {outdir}", 130)
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
     typer.echo(f"results in {res.outdir}")
 
 

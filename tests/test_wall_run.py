@@ -135,3 +135,34 @@ def test_point_joint_cli_writes_the_curve(tmp_path):
     assert list(rows[0]) == ["step", "u_n_m", "u_t_m", "T_n_Pa", "T_t_Pa", "d_coh"]
     peak = max(float(r["T_t_Pa"]) for r in rows)
     assert peak == pytest.approx(0.4586e6, rel=2e-3)
+
+
+def test_sigterm_keeps_the_results_written_so_far(tmp_path):
+    """A run ended by SIGTERM exits 130 and leaves a readable CSV and HDF5 file behind."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "run"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "masonry_nscd.cli", "run", "cases/smoke.yaml", "-o", str(out),
+         "--set", "loading.horizontal.target_m=0.02"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while time.time() < deadline:
+        csv_path = out / "force_displacement.csv"
+        if csv_path.exists() and len(csv_path.read_text().splitlines()) > 30:
+            break
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "interrupted" in err
+    rows = (out / "force_displacement.csv").read_text().splitlines()
+    assert rows[0].startswith("step,time_s,ux_mm")
+    assert len(rows) > 30 and all(len(r.split(",")) == len(rows[0].split(",")) for r in rows)
+    with h5py.File(out / "results.h5", "r") as f:
+        assert len(f["steps"]) >= 1
+    assert os.path.exists(out / "wall.pvd")

@@ -24,7 +24,7 @@ from masonry_nscd.model import ContactPoint, Loads, RigidBody
 from masonry_nscd.nscd import kernels
 from masonry_nscd.nscd.system import build_system
 
-NEWTON_MAX_ITERATIONS = 30  # beyond this, the step is finished by Gauss-Seidel sweeps
+NEWTON_MAX_ITERATIONS = 50  # beyond this, the step is finished by Gauss-Seidel sweeps
 
 
 def jl_ambiguous() -> int:
