@@ -20,6 +20,11 @@ from masonry_nscd.fe import hex8
 
 History = Callable[[float], float]
 
+
+def at_rest(t: float) -> float:
+    """The history of a dof held still: zero velocity at all times."""
+    return 0.0
+
 DOF_FREE = 0
 DOF_IMPOSED = 1
 
@@ -50,6 +55,10 @@ class Block:
     @property
     def ndof(self) -> int:
         return 3 * len(self.X)
+
+    def lumped_mass(self) -> np.ndarray:
+        """Lumped mass per dof (3n,), kg."""
+        return hex8.lumped_mass(self.X, self.conn, self.density)
 
     def node_id(self, i: int, j: int, k: int) -> int:
         nx, ny, _ = self.divisions
@@ -111,6 +120,12 @@ class RigidBody:
     @property
     def ndof(self) -> int:
         return 6
+
+    @staticmethod
+    def fixed(center, **kw) -> RigidBody:
+        """A support: every dof imposed at zero velocity (its mass never enters)."""
+        return RigidBody(center=center, mass=1.0, inertia=np.ones(3),
+                         imposed_velocity=dict.fromkeys(range(6), at_rest), **kw)
 
     @staticmethod
     def box(origin, size, density: float, **kw) -> RigidBody:

@@ -12,7 +12,7 @@ from masonry_nscd.contact import joint_law as jl
 from masonry_nscd.contact.points import dof_offsets, face_contacts
 from masonry_nscd.materials.endo3d import endo3d_params
 from masonry_nscd.materials.point_driver import drive_block_path
-from masonry_nscd.model import MAT_ENDO3D, Block, Loads, RigidBody
+from masonry_nscd.model import MAT_ENDO3D, Block, Loads, RigidBody, at_rest
 from masonry_nscd.nscd.integrator import Integrator
 
 H = 0.1
@@ -27,14 +27,12 @@ def _params():
 
 def test_endo3d_cube_in_compression_follows_the_point_driver():
     rate = 2e-3 * H  # shortening velocity, m/s: strain rate 2e-3 /s
-    zero = lambda t: 0.0
     cube = Block(origin=(0, 0, 0), size=(H, H, H), divisions=(1, 1, 1), E=E, nu=NU,
                  density=2000.0, material=MAT_ENDO3D)
-    bottom = RigidBody(center=(H / 2, -0.05, H / 2), mass=1.0, inertia=np.ones(3),
-                       imposed_velocity={d: zero for d in range(6)})
+    bottom = RigidBody.fixed(center=(H / 2, -0.05, H / 2))
     top = RigidBody(center=(H / 2, H + 0.05, H / 2), mass=1.0, inertia=np.ones(3),
-                    imposed_velocity={0: zero, 1: lambda t: -rate, 2: zero, 3: zero, 4: zero,
-                                      5: zero})
+                    imposed_velocity={0: at_rest, 1: lambda t: -rate, 2: at_rest, 3: at_rest, 4: at_rest,
+                                      5: at_rest})
     bodies = [cube, bottom, top]
     dof0 = dof_offsets(bodies)
     kw = {"gap": 0.0, "tangent": (1, 0, 0), "kind": jl.KIND_JOINT, "law": 0, "group": 0}

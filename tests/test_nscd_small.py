@@ -90,14 +90,12 @@ def test_nscd_single_contact_with_free_rigid_partner_equals_standalone_law():
     size = (0.1, 0.1, 0.1)
     from masonry_nscd.contact.points import dof_offsets, face_contacts
     from masonry_nscd.loading import Ramp
-    from masonry_nscd.model import Block, Loads, RigidBody
+    from masonry_nscd.model import Block, Loads, RigidBody, at_rest
     from masonry_nscd.nscd.integrator import Integrator
 
-    zero = lambda t: 0.0
     body = RigidBody.box((0, 0, 0), size, 2000.0,
-                         imposed_velocity={d: zero for d in (2, 3, 4, 5)})
-    support = RigidBody(center=(0.05, -0.05, 0.05), mass=1.0, inertia=np.ones(3),
-                        imposed_velocity={d: zero for d in range(6)})
+                         imposed_velocity={d: at_rest for d in (2, 3, 4, 5)})
+    support = RigidBody.fixed(center=(0.05, -0.05, 0.05))
     geom = Block(origin=(0, 0, 0), size=size, divisions=(1, 1, 1), E=1.0, nu=0.0,
                  density=1.0)
     bodies = [body, support]

@@ -118,6 +118,21 @@ def element_lumped_mass(xe: np.ndarray, rho: float) -> np.ndarray:
 
 
 @njit(cache=True)
+def lumped_mass(X: np.ndarray, conn: np.ndarray, rho: float) -> np.ndarray:
+    """Row-sum lumped mass per dof (3n,) of one block mesh, kg (the mass of ``assemble_block``)."""
+    m = np.zeros(3 * X.shape[0])
+    xe = np.empty((8, 3))
+    for e in range(conn.shape[0]):
+        for i in range(8):
+            xe[i] = X[conn[e, i]]
+        me = element_lumped_mass(xe, rho)
+        for i in range(8):
+            for d in range(3):
+                m[3 * conn[e, i] + d] += me[i]
+    return m
+
+
+@njit(cache=True)
 def assemble_block(X: np.ndarray, conn: np.ndarray, C: np.ndarray, rho: float):
     """Dense stiffness (3n, 3n) and lumped mass per dof (3n,) of one block mesh."""
     n = X.shape[0]

@@ -20,17 +20,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from masonry_nscd.contact import joint_law as jl
 from masonry_nscd.model import ContactPoint, Loads, RigidBody
 from masonry_nscd.nscd import kernels
 from masonry_nscd.nscd.system import build_system
 
 NEWTON_MAX_ITERATIONS = 50  # beyond this, the step is finished by Gauss-Seidel sweeps
-
-
-def jl_ambiguous() -> int:
-    from masonry_nscd.contact import joint_law as jl
-
-    return jl.ST_AMBIGUOUS
 
 
 class DivergenceError(RuntimeError):
@@ -120,7 +115,6 @@ class Integrator:
             raise ValueError("ENDO3D blocks need the Newton solver (method 'newton'): the "
                              "material enters its residual")
         if method == "newton":
-            from masonry_nscd.contact import joint_law as jl
             from masonry_nscd.nscd.newton import NewtonSolver
 
             joints = s.kind == jl.KIND_JOINT
@@ -214,7 +208,7 @@ class Integrator:
             v1, T, uc, beta, status, sweeps, residual = self.newton.solve(
                 v_free, j.u, j.U, self.params, j.uc, j.beta, j.T, self._dv, correction=corr)
             self._dv = v1 - v_free
-            amb = int(np.sum(status == jl_ambiguous()))
+            amb = int(np.sum(status == jl.ST_AMBIGUOUS))
         if self.newton is None or (residual > self.tolerance and self.material is None):
             # Gauss-Seidel sweeps: the solver of the case, or the end of a step that Newton
             # did not finish (warm-started from its last tractions; not with ENDO3D blocks,

@@ -11,17 +11,10 @@ import numpy as np
 from masonry_nscd.contact import joint_law as jl
 from masonry_nscd.contact.points import dof_offsets, face_contacts
 from masonry_nscd.loading import Ramp
-from masonry_nscd.model import Block, Loads, RigidBody
+from masonry_nscd.model import Block, Loads, RigidBody, at_rest
 from masonry_nscd.nscd.integrator import Integrator
 
 X, Y, Z = 0, 1, 2
-
-
-def _fixed(center, **kw) -> RigidBody:
-    """A rigid body with every dof imposed at zero velocity (a fixed support)."""
-    zero = lambda t: 0.0
-    return RigidBody(center=center, mass=1.0, inertia=np.ones(3),
-                     imposed_velocity={d: zero for d in range(6)}, **kw)
 
 
 def face_pattern(block: Block, dof0: int, ndof: int, axis: int, upper: bool, comp: int,
@@ -52,11 +45,10 @@ def block_between_plates(size=(0.2, 0.1, 0.15), divisions=(2, 2, 1), E=11.1e9, n
     its points nearly rank one, and the sweeps slow down accordingly.
     """
     block = Block(origin=(0, 0, 0), size=size, divisions=divisions, E=E, nu=nu, density=2000.0)
-    zero = lambda t: 0.0
-    bottom = _fixed(center=(size[0] / 2, -0.05, size[2] / 2), label="bottom plate")
+    bottom = RigidBody.fixed(center=(size[0] / 2, -0.05, size[2] / 2), label="bottom plate")
     top = RigidBody(center=(size[0] / 2, size[1] + 0.05, size[2] / 2), mass=plate_mass,
                     inertia=np.ones(3),
-                    imposed_velocity={d: zero for d in (0, 2, 3, 4, 5)}, label="top plate")
+                    imposed_velocity={d: at_rest for d in (0, 2, 3, 4, 5)}, label="top plate")
     bodies = [block, bottom, top]
     dof0 = dof_offsets(bodies)
     P = jl.joint_params(law="coulomb", mu=0.0)
@@ -85,10 +77,9 @@ def block_on_support(*, law: str = "coulomb", mu: float = 0.6, normal_force: flo
     """
     joint_kw = dict(joint_kw or {})
     P = jl.joint_params(law=law, mu=mu, **joint_kw)
-    support = _fixed(center=(size[0] / 2, -0.05, size[2] / 2), label="support")
+    support = RigidBody.fixed(center=(size[0] / 2, -0.05, size[2] / 2), label="support")
     if rigid:
-        zero = lambda t: 0.0
-        imposed = {d: zero for d in (2, 3, 4, 5)}
+        imposed = {d: at_rest for d in (2, 3, 4, 5)}
         if shear_velocity is not None:
             imposed[0] = Ramp(shear_velocity, shear_start, shear_ramp)
         body = RigidBody.box((0, 0, 0), size, 2000.0, imposed_velocity=imposed, label="block")
@@ -116,9 +107,7 @@ def block_on_support(*, law: str = "coulomb", mu: float = 0.6, normal_force: flo
         if rigid:
             Fs[X] = shear_force
         else:
-            from masonry_nscd.nscd.system import body_matrices
-
-            _, m, _ = body_matrices(body, h, 1.0)
+            m = body.lumped_mass()
             Fs[X:body.ndof:3] = shear_force * m[X::3] / m[X::3].sum()
         loads.add(Fs, Ramp(1.0, shear_start, shear_ramp))
     integ = Integrator(bodies, pts, P, loads, h=h, theta=1.0, tolerance=tolerance,
@@ -135,7 +124,7 @@ def column(n_blocks: int = 3, size=(0.3, 0.1, 0.15), divisions=(2, 2, 1), joint=
     blocks = [Block(origin=(0, i * (size[1] + joint), 0), size=size, divisions=divisions,
                     E=11.1e9, nu=0.2, density=2000.0, label=f"block {i}")
               for i in range(n_blocks)]
-    support = _fixed(center=(size[0] / 2, -0.05, size[2] / 2), label="support")
+    support = RigidBody.fixed(center=(size[0] / 2, -0.05, size[2] / 2), label="support")
     bodies = [*blocks, support]
     dof0 = dof_offsets(bodies)
     pts = face_contacts(bodies, dof0, 0, blocks[0], Y, False, [(n_blocks, None)], gap=0.0,
@@ -144,12 +133,10 @@ def column(n_blocks: int = 3, size=(0.3, 0.1, 0.15), divisions=(2, 2, 1), joint=
         pts += face_contacts(bodies, dof0, i, blocks[i], Y, False, [(i - 1, blocks[i - 1])],
                              gap=joint, tangent=(1, 0, 0), kind=jl.KIND_JOINT, law=0, group=0)
     loads = Loads()
-    from masonry_nscd.nscd.system import body_matrices
-
     G = np.zeros(dof0[-1])
     weight = 0.0
     for i, b in enumerate(blocks):
-        _, m, _ = body_matrices(b, h, 1.0)
+        m = b.lumped_mass()
         G[dof0[i] + Y:dof0[i + 1]:3] = -gravity * m[Y::3]
         weight += gravity * m[Y::3].sum()
     loads.add(G, Ramp(1.0, 0.0, 0.1))

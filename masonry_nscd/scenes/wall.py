@@ -27,9 +27,8 @@ import numpy as np
 from masonry_nscd.contact import joint_law as jl
 from masonry_nscd.contact.points import dof_offsets, face_contacts
 from masonry_nscd.loading import Ramp
-from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, Loads, RigidBody
+from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, Loads, RigidBody, at_rest
 from masonry_nscd.nscd.integrator import Integrator
-from masonry_nscd.nscd.system import body_matrices
 
 X, Y, Z = 0, 1, 2
 GROUP_BED, GROUP_HEAD, GROUP_GLUE_BOTTOM, GROUP_GLUE_TOP = 0, 1, 2, 3
@@ -99,13 +98,12 @@ def build_wall(case) -> WallScene:
         bodies = list(units)
     nu_ = len(units)
     width, height, t = w.wall_length_m, w.wall_height_m, w.thickness_m
-    zero = lambda _t: 0.0
-    lower = RigidBody(center=(width / 2, -0.1, t / 2), mass=1.0, inertia=np.ones(3),
-                      imposed_velocity={d: zero for d in range(6)}, label="lower beam")
+    lower = RigidBody.fixed(center=(width / 2, -0.1, t / 2), label="lower beam")
     hz = case.loading.horizontal
-    imposed = {X: Ramp(hz.rate_m_s, hz.start_s, hz.ramp_s), Z: zero, 3: zero, 4: zero, 5: zero}
+    imposed = {X: Ramp(hz.rate_m_s, hz.start_s, hz.ramp_s), Z: at_rest, 3: at_rest, 4: at_rest,
+               5: at_rest}
     if case.supports.top_vertical == "fixed":
-        imposed[Y] = zero
+        imposed[Y] = at_rest
     upper = RigidBody(center=(width / 2, height + 0.1, t / 2), mass=case.supports.top_beam_mass_kg,
                       inertia=np.ones(3), imposed_velocity=imposed, label="upper beam")
     bodies += [lower, upper]
@@ -140,11 +138,10 @@ def build_wall(case) -> WallScene:
     ndof = int(dof0[-1])
     G = np.zeros(ndof)
     for i, b in enumerate(bodies[:nu_]):
-        _, m, _ = body_matrices(b, sol.time_step_s, sol.theta)
         if isinstance(b, RigidBody):
             G[dof0[i] + Y] = -b.mass
         else:
-            G[dof0[i] + Y:dof0[i + 1]:3] = -m[Y::3]
+            G[dof0[i] + Y:dof0[i + 1]:3] = -b.lumped_mass()[Y::3]
     g = case.loading.gravity
     loads.add(G, Ramp(g.value_m_s2, g.start_s, g.ramp_s))
     if case.supports.top_vertical == "load":
