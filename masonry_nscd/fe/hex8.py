@@ -249,6 +249,34 @@ def forces_from_b(B: np.ndarray, w: np.ndarray, edofs: np.ndarray, sigma: np.nda
                 f[edofs[e, i]] += w[e, g] * s
 
 
+@njit(cache=True)
+def stiffness_from_b(B: np.ndarray, w: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """Element matrices ``K_e = sum_g w_g B_g^T C_g B_g`` (nel, 24, 24), N/m.
+
+    ``C`` (nel * 8, 6, 6): a material matrix per Gauss point, ``C[p, i, j] = d sigma_i /
+    d eps_j`` (Pa), not necessarily symmetric (a consistent tangent).
+    """
+    nel = B.shape[0]
+    K = np.zeros((nel, 24, 24))
+    CB = np.empty((6, 24))
+    for e in range(nel):
+        for g in range(8):
+            p = 8 * e + g
+            for i in range(6):
+                for k in range(24):
+                    s = 0.0
+                    for j in range(6):
+                        s += C[p, i, j] * B[e, g, j, k]
+                    CB[i, k] = s
+            for a in range(24):
+                for k in range(24):
+                    s = 0.0
+                    for i in range(6):
+                        s += B[e, g, i, a] * CB[i, k]
+                    K[e, a, k] += w[e, g] * s
+    return K
+
+
 def box_mesh(origin, size, divisions):
     """Structured hexahedral mesh of the box ``[origin, origin + size]`` (m).
 

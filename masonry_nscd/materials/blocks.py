@@ -8,12 +8,14 @@ and the internal forces are ``F_int = sum_e sum_g B^T sigma det J`` (N). ``commi
 last trial the state of the step.
 
 In the step, the theta-method's internal-force term is ``theta F_int(u_n+1) + (1 - theta)
-F_int(u_n)``; the solver linearises it with the elastic stiffness K0 (the iteration matrix of
-the reference ENDO3D implementation), so the correction it needs is
+F_int(u_n)``; the free velocities hold the elastic part ``K0 (u_n+1 - u_n)``, so the residual
+needs the correction
 
     c(u_n+1) = h theta [ F_int(u_n+1) - F_int(u_n) - K0 (u_n+1 - u_n) ]          (N s)
 
-which is zero for linear elastic blocks. Blocks that are linear elastic never call ENDO3D.
+which is zero for linear elastic blocks, and the Newton matrix the tangent stiffness
+(``tangent_stiffness``: consistent, by differences of the kernel) or a secant one
+(``secant_scale``). Blocks that are linear elastic never call ENDO3D.
 """
 
 from __future__ import annotations
@@ -84,6 +86,42 @@ class Endo3dBlocks:
         """The last trial becomes the state at the end of the step."""
         self.state_all[:] = self.trial_all
         self.sigma_committed_all[:] = self.sigma_all
+
+    def tangent_stiffness(self, delta: float = 1e-8) -> list[np.ndarray]:
+        """Consistent tangent stiffness (3n, 3n) of each block at the last trial strains, N/m.
+
+        ``C_p = d sigma / d eps`` at each Gauss point by forward differences of the ENDO3D
+        update from the committed state (strain steps ``delta``, engineering shear for the
+        shear components), ``C_p[:, j] = (sigma(eps + delta e_j) - sigma(eps)) / delta``,
+        assembled as ``K_e = sum_p w_p B_p^T C_p B_p``. It is the derivative of the step's
+        internal forces with respect to the end-of-step displacements: Newton converges
+        quadratically where the law is smooth, softening included (a negative stiffness along
+        a crack's normal). Not symmetric in general; seven kernel calls per Gauss point.
+        """
+        ngp = len(self._eps)
+        eps = np.repeat(self._eps[None], 7, axis=0)
+        for j in range(6):
+            eps[1 + j, :, j] += delta
+        states = np.tile(self.state_all, (7, 1))
+        out_states = np.empty_like(states)
+        sig = np.empty((7 * ngp, 6))
+        endo3d.endo3d_update_elements(
+            eps.reshape(-1, 6), states, self.params, self.xe,
+            np.tile(self.elem_of_point, 7), out_states, sig)
+        sig = sig.reshape(7, ngp, 6)
+        # C[p, i, j] = d sigma_i / d eps_j
+        C = np.ascontiguousarray(((sig[1:] - sig[0]) / delta).transpose(1, 2, 0))
+        Ke = hex8.stiffness_from_b(self.B, self.w, C)
+        out = []
+        e0 = 0
+        for b in self.blocks:
+            ne = len(b.conn)
+            loc = (3 * b.conn[:, :, None] + np.arange(3)).reshape(ne, 24)
+            K = np.zeros((3 * len(b.X), 3 * len(b.X)))
+            np.add.at(K, (loc[:, :, None], loc[:, None, :]), Ke[e0:e0 + ne])
+            out.append(K)
+            e0 += ne
+        return out
 
     def secant_scale(self, trial: bool = False) -> list[np.ndarray]:
         """Per element of each block, the scale of C0 in the secant iteration matrix.

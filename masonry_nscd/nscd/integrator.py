@@ -5,13 +5,22 @@
 1. external forces at t_n and t_n+1, internal forces at u_n;
 2. free velocities of every body (``kernels.free_velocity``), imposed velocities set;
 3. local free velocities of the contact points;
-4. the contact problem by non-linear Gauss-Seidel (``kernels.nlgs``), warm-started from the
-   tractions of the previous step;
-5. velocities, displacements, local relative displacements and joint states updated.
+4. the contact problem, by semi-smooth Newton on the whole step (``newton.NewtonSolver``, the
+   default; finished by Gauss-Seidel sweeps when it does not converge, elastic blocks only) or
+   by non-linear Gauss-Seidel (``kernels.nlgs``), warm-started from the previous step;
+5. velocities, displacements, local relative displacements, joint and ENDO3D states updated.
 
-A step whose Gauss-Seidel did not reach the tolerance within ``max_iterations`` sweeps is
-reported (``StepReport.converged`` False) and the caller decides; NaN or infinity anywhere in
-the new state raises ``DivergenceError`` naming the step and what diverged.
+ENDO3D blocks enter the Newton residual through their internal forces, and its matrix through
+their consistent tangent stiffness, refreshed at the current iterate whenever the iterations
+slow down (``material_matrix = "tangent"``, the default), or through a secant stiffness
+(``"secant"``, C0 scaled per element by the damages). Measured on the 0.5 MPa ENDO3D wall over
+the first 560 steps: 0.13 s per step with the tangent against 0.26 s with the secant, and through
+the cracking of the heel (from U_x = 1.7 mm) the secant stalled at 50 iterations where the
+tangent converges.
+
+A step that did not reach the tolerance is reported (``StepReport.converged`` False) and the
+caller decides; NaN or infinity anywhere in the new state raises ``DivergenceError`` naming the
+step and what diverged.
 """
 
 from __future__ import annotations
@@ -72,6 +81,7 @@ class Integrator:
         beta0: float | np.ndarray = 1.0,
         method: str = "nlgs",
         endo3d_params: np.ndarray | None = None,
+        material_matrix: str = "tangent",
     ):
         self.bodies = bodies
         self.points = points
@@ -111,6 +121,11 @@ class Integrator:
         if self.material is not None and not self.material:
             self.material = None
         self._secant = None
+        if material_matrix not in ("tangent", "secant"):
+            raise ValueError(f"material_matrix must be 'tangent' or 'secant', got "
+                             f"{material_matrix!r}")
+        self.material_matrix = material_matrix
+        self.tangent_updates = 0
         if self.material is not None and method != "newton":
             raise ValueError("ENDO3D blocks need the Newton solver (method 'newton'): the "
                              "material enters its residual")
@@ -164,9 +179,30 @@ class Integrator:
             mhat[s.minv_off[i]:s.minv_off[i] + n * n] = (np.diag(m) + (th * h) ** 2 * Ks).ravel()
         self.newton.set_iteration_mhat(mhat)
 
+    def _update_tangent(self) -> None:
+        """Consistent tangent iteration matrix of the ENDO3D blocks at the current iterate.
+
+        The Newton matrix then holds ``M + (theta h)^2 K_t`` for those blocks, with ``K_t`` the
+        derivative of their internal forces at the last trial displacements
+        (``Endo3dBlocks.tangent_stiffness``); it is kept for the following iterations and
+        steps until the iterations slow down again.
+        """
+        s = self.sys
+        mhat = s.mhat.copy()
+        h, th = s.h, s.theta
+        for k, Kt in zip(self.material.index, self.material.tangent_stiffness()):
+            m = s.mass[s.body_dof0[k]:s.body_dof0[k + 1]]
+            mhat[s.minv_off[k]:s.minv_off[k] + len(m) ** 2] = \
+                (np.diag(m) + (th * h) ** 2 * Kt).ravel()
+        self.tangent_updates += 1
+        self.newton.set_iteration_mhat(mhat)
+
     def _on_slow(self) -> None:
         if self.material is not None:
-            self._update_secant(trial=True)
+            if self.material_matrix == "tangent":
+                self._update_tangent()
+            else:
+                self._update_secant(trial=True)
 
     def _material_correction(self, fint_n: np.ndarray):
         """``c(v) = h theta [F_int(u) - F_int(u_n) - K0 (u - u_n)]`` for the ENDO3D blocks."""
@@ -204,7 +240,8 @@ class Integrator:
             corr = None
             if self.material is not None:
                 corr = self._material_correction(fint.copy())
-                self._update_secant()
+                if self.material_matrix == "secant":
+                    self._update_secant()
             v1, T, uc, beta, status, sweeps, residual = self.newton.solve(
                 v_free, j.u, j.U, self.params, j.uc, j.beta, j.T, self._dv, correction=corr)
             self._dv = v1 - v_free

@@ -1,0 +1,110 @@
+"""The Newton matrix's tangents against differences of what they linearise.
+
+* ENDO3D blocks: ``Endo3dBlocks.tangent_stiffness`` (forward differences of the kernel per Gauss
+  point, assembled with B) against central differences of the blocks' internal forces, in states
+  that are elastic, cracked in tension and crushed in compression.
+* Joints: the consistent tangent of ``newton.evaluate_joints`` against central differences of the
+  implicit law, on points that open and soften within the step, and the closed-form tangent
+  where the integrity does not move.
+"""
+
+import numpy as np
+import pytest
+
+from masonry_nscd.contact import joint_law as jl
+from masonry_nscd.materials.blocks import Endo3dBlocks
+from masonry_nscd.materials.endo3d import endo3d_params
+from masonry_nscd.model import MAT_ENDO3D, Block
+from masonry_nscd.nscd.newton import evaluate_joints, joint_tangent
+
+E, NU = 11.1e9, 0.2
+
+
+def _block_and_material():
+    blk = Block(origin=(0, 0, 0), size=(0.3, 0.1, 0.15), divisions=(2, 2, 1), E=E, nu=NU,
+                density=2000.0, material=MAT_ENDO3D)
+    prm = endo3d_params(E=E, nu=NU, R_t=1.0e6, eps_pic_t=1.0e6 / E, G_ft=60.0, R_c=9.46e6,
+                        eps_pic_c=0.13e-1, delta=0.4, beta=0.2, eps_kdc=0.18e-1, DCPK=1.0,
+                        REF=0.3e6, GFR=4.5)
+    return blk, Endo3dBlocks([blk], np.array([0, blk.ndof]), prm)
+
+
+def _field(blk, strain):
+    """Nodal displacements (3n,) of a homogeneous strain tensor (3x3) plus a bending-like term,
+    so that the Gauss points differ."""
+    X = blk.X
+    u = X @ np.asarray(strain).T
+    u[:, 0] += 2e-3 * strain[0][0] * (X[:, 1] - 0.05) * X[:, 0] / 0.3
+    return u.ravel()
+
+
+@pytest.mark.parametrize("name, strain", [
+    ("elastic", [[3e-5, 0, 0], [0, -2e-5, 1e-5], [0, 1e-5, 0]]),
+    ("cracked", [[4e-4, 0, 0], [0, -1e-4, 5e-5], [0, 5e-5, 0]]),
+    ("crushed", [[4e-3, 0, 0], [0, -2e-2, 0], [0, 0, 4e-3]]),
+])
+def test_endo3d_tangent_is_the_derivative_of_the_internal_forces(name, strain):
+    blk, mat = _block_and_material()
+    u0 = _field(blk, strain)
+    f = np.zeros(blk.ndof)
+    mat.internal_forces(u0, f, trial=True)  # a trial state from the virgin one: one big step
+    mat.commit()
+    u1 = 1.05 * u0  # loading on from there, within a step
+    mat.internal_forces(u1, f, trial=True)
+    K = mat.tangent_stiffness()[0]
+    rng = np.random.default_rng(3)
+    d = rng.standard_normal(blk.ndof) * 1e-3 * np.abs(u0).max()
+    errs = []
+    for eps in (1e-3, 1e-4):
+        fp, fm = np.zeros(blk.ndof), np.zeros(blk.ndof)
+        mat.internal_forces(u1 + eps * d, fp, trial=True)
+        mat.internal_forces(u1 - eps * d, fm, trial=True)
+        fd = (fp - fm) / (2 * eps)
+        errs.append(np.linalg.norm(K @ d - fd) / np.linalg.norm(fd))
+    assert min(errs) < 2e-3, (name, errs)
+    if name != "elastic":  # the damaged tangent is not the elastic one
+        mat0 = _block_and_material()[1]
+        mat0.internal_forces(u1, np.zeros(blk.ndof), trial=True)
+        K0 = mat0.tangent_stiffness()[0]
+        assert np.linalg.norm(K - K0) > 0.05 * np.linalg.norm(K0)
+
+
+def _joint_case(u_now, beta_old):
+    P = jl.joint_params(d_coh_initial=0.0)  # virgin joint: peaks at 2.9e-6 m (I), 3.3e-5 m (II)
+    params = np.ascontiguousarray(P[None, :])
+    u_pred = np.array([u_now])
+    uc_old = np.zeros((1, 3))
+    return params, u_pred, uc_old, np.array([beta_old])
+
+
+def _evaluate(params, u, uc_old, beta_old):
+    T, uc, beta = np.zeros((1, 3)), np.zeros((1, 3)), beta_old.copy()
+    status, K = np.zeros(1, dtype=np.int64), np.zeros((1, 3, 3))
+    evaluate_joints(u, np.zeros((1, 3)), 1.0, 1.0, np.array([jl.KIND_JOINT]),
+                    np.array([0]), params, uc_old, beta_old, T, uc, beta, status, K)
+    return T[0], K[0], beta[0]
+
+
+@pytest.mark.parametrize("u_now, softens", [
+    ((6e-6, 0.0, 0.0), True),       # mode I past the peak: softening within the step
+    ((2e-6, 6e-5, 0.0), True),      # mixed, softening
+    ((-1e-6, 2e-7, 1e-7), False),   # closed, below the envelope: integrity unchanged
+])
+def test_joint_tangent_is_the_derivative_of_the_implicit_law(u_now, softens):
+    params, u, uc_old, beta_old = _joint_case(u_now, 1.0)
+    T, K, beta = _evaluate(params, u, uc_old, beta_old)
+    assert (beta < 1.0) == softens
+    scale = 1e-4 * np.linalg.norm(u)
+    fd = np.zeros((3, 3))
+    for j in range(3):
+        e = np.zeros((1, 3))
+        e[0, j] = scale
+        Tp = _evaluate(params, u + e, uc_old, beta_old)[0]
+        Tm = _evaluate(params, u - e, uc_old, beta_old)[0]
+        fd[:, j] = (Tp - Tm) / (2 * scale)
+    assert np.linalg.norm(K - fd) <= 1e-3 * np.linalg.norm(fd), (K, fd, beta)
+    if softens:  # the frozen-integrity tangent would be far off
+        Kf = np.zeros((3, 3))
+        joint_tangent(u[0], T, uc_old[0], beta, jl.ST_OPEN if u[0, 0] > 0 else jl.ST_STICK,
+                      params[0], Kf)
+        assert np.linalg.norm(Kf - fd) > 0.2 * np.linalg.norm(fd)
