@@ -310,6 +310,11 @@ class Endo3d(_Section):
     )
     REF_Pa: Real = Field(0.3e6, gt=0.0, le=1e9, description="crack reclosure stress REF (Pa)")
     GFR_J_m2: Real = Field(4.5, gt=0.0, le=1e6, description="crack reclosure energy GFR (J/m^2)")
+    relaxation_time_s: Real = Field(
+        1e-3, ge=0.0, le=1.0,
+        description="Duvaut-Lions relaxation time tau of the viscous regularisation (s); "
+        "0 = the rate-independent law (materials/blocks.py)",
+    )
 
     @model_validator(mode="after")
     def _check_strengths(self) -> Endo3d:
@@ -348,6 +353,33 @@ class Blocks(_Section):
     endo3d: Endo3d = Field(
         default_factory=Endo3d, description="ENDO3D parameters (used when material is endo3d)"
     )
+
+    @model_validator(mode="after")
+    def _check_endo3d_with_E(self) -> Blocks:
+        """For ENDO3D blocks, the checks of ``materials.endo3d.endo3d_params`` that involve E:
+        ``R_t < R_c,eff`` and ``R_t delta <= R_c,eff (1/sqrt3 - delta/3)``, with the effective
+        compressive strength ``R_c,eff`` of that function (kept equal to it by
+        tests/test_case.py; not imported here, it would load numba)."""
+        if self.material != "endo3d":
+            return self
+        e, E = self.endo3d, self.E_Pa
+        if e.DCPK > 0.0 and e.eps_pic_c > e.R_c_Pa / E:
+            cap_free = e.DCPK >= 1.0 - e.R_c_Pa / (E * e.eps_pic_c)
+            rc_eff = E * e.eps_pic_c if cap_free else e.R_c_Pa / (1.0 - e.DCPK)
+        else:
+            rc_eff = e.R_c_Pa
+        problems: list[tuple[str, str]] = []
+        if not e.R_t_Pa < rc_eff:
+            problems.append(("endo3d.R_t_Pa", (
+                f"got {e.R_t_Pa:.6g} Pa; it must be lower than the effective compressive "
+                f"strength R_c,eff = {rc_eff:.6g} Pa (from R_c_Pa, eps_pic_c, DCPK and E_Pa)")))
+        elif not e.R_t_Pa * e.delta <= rc_eff * (1.0 / _SQRT3 - e.delta / 3.0):
+            problems.append(("endo3d.delta", (
+                f"got {e.delta:.6g}; the initial cohesion R_t delta = {e.R_t_Pa * e.delta:.6g} "
+                f"Pa exceeds the peak cohesion R_c,eff (1/sqrt3 - delta/3) = "
+                f"{rc_eff * (1.0 / _SQRT3 - e.delta / 3.0):.6g} Pa: lower delta or R_t_Pa")))
+        _problems(problems)
+        return self
 
 
 # ---------------------------------------------------------------------------------------------

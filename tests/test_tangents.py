@@ -108,3 +108,39 @@ def test_joint_tangent_is_the_derivative_of_the_implicit_law(u_now, softens):
         joint_tangent(u[0], T, uc_old[0], beta, jl.ST_OPEN if u[0, 0] > 0 else jl.ST_STICK,
                       params[0], Kf)
         assert np.linalg.norm(Kf - fd) > 0.2 * np.linalg.norm(fd)
+
+
+def test_viscous_regularisation_relaxes_to_the_endo3d_stress_at_rate_h_over_tau():
+    """Strain jumped past the tensile peak, then held: ``sigma_k - sigma_endo3d`` shrinks by
+    ``1 + h / tau`` per step (Duvaut-Lions, implicit), from ``C0 eps / (1 + h / tau)`` plus the
+    relaxed part after the first step."""
+    blk, mat0 = _block_and_material()
+    tau, h = 1e-3, 2e-3
+    mat = Endo3dBlocks([blk], np.array([0, blk.ndof]), mat0.params, tau=tau, h=h)
+    r = h / tau
+    u = _field(blk, [[4e-4, 0, 0], [0, -1e-4, 0], [0, 0, 0]])
+    f = np.zeros(blk.ndof)
+    mat0.internal_forces(u, f, trial=True)
+    sig_inv = mat0.sigma_all.copy()  # the rate-independent stress at that strain
+    mat.internal_forces(u, f, trial=True)
+    eps = mat._eps.copy()
+    elastic = np.einsum("pij,pj->pi", mat.C0, eps)
+    expected = (elastic + r * sig_inv) / (1 + r)
+    assert np.allclose(mat.sigma_all, expected, rtol=1e-12, atol=1e-6)
+    assert np.abs(elastic - sig_inv).max() > 1e5  # the jump does crack: there is something to relax
+    for k in range(1, 6):
+        mat.commit()
+        mat.internal_forces(u, f, trial=True)
+        gap = (expected - sig_inv) / (1 + r) ** k
+        assert np.allclose(mat.sigma_all - sig_inv, gap, rtol=1e-9, atol=1e-6)
+    # its tangent is (C0 + (h / tau) C) / (1 + h / tau), checked against differences
+    mat.commit()
+    u1 = 1.05 * u
+    mat.internal_forces(u1, f, trial=True)
+    K = mat.tangent_stiffness()[0]
+    d = np.random.default_rng(5).standard_normal(blk.ndof) * 1e-3 * np.abs(u).max()
+    fp, fm = np.zeros(blk.ndof), np.zeros(blk.ndof)
+    mat.internal_forces(u1 + 1e-3 * d, fp, trial=True)
+    mat.internal_forces(u1 - 1e-3 * d, fm, trial=True)
+    fd = (fp - fm) / 2e-3
+    assert np.linalg.norm(K @ d - fd) < 2e-3 * np.linalg.norm(fd)

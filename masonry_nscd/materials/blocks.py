@@ -16,6 +16,20 @@ needs the correction
 which is zero for linear elastic blocks, and the Newton matrix the tangent stiffness
 (``tangent_stiffness``: consistent, by differences of the kernel) or a secant one
 (``secant_scale``). Blocks that are linear elastic never call ENDO3D.
+
+**Viscous regularisation** (optional, relaxation time ``tau`` in s, 0 = none): the stress of a
+Gauss point relaxes towards the ENDO3D stress (Duvaut-Lions),
+
+    d sigma / dt = C0 d eps / dt - (sigma - sigma_endo3d) / tau,
+    sigma_n+1 = [ sigma_n + C0 (eps_n+1 - eps_n) + (h / tau) sigma_endo3d(eps_n+1) ] / (1 + h / tau),
+
+with the internal variables (damages, plastic strains, crack openings) those of ENDO3D. The
+tangent becomes ``(C0 + (h / tau) C_endo3d) / (1 + h / tau)``: positive when
+``tau > h S / E`` for a softening slope ``-S``. Where two Gauss points soften together (the two
+layers of a block one element thick, cracking in its plane), a negative tangent lets the
+iterations jump between the symmetric solution and the one where one layer cracks alone, and
+the step does not converge; the relaxation picks the symmetric one. As ``tau -> 0`` the
+rate-independent law returns; the stress lags it by about ``E tau d eps / dt``.
 """
 
 from __future__ import annotations
@@ -35,8 +49,11 @@ class Endo3dBlocks:
     blocks. Per-block views (``state``, ``trial``) index into the batch.
     """
 
-    def __init__(self, bodies: list, body_dof0: np.ndarray, params: np.ndarray):
+    def __init__(self, bodies: list, body_dof0: np.ndarray, params: np.ndarray, *,
+                 tau: float = 0.0, h: float = 1.0):
         self.params = np.ascontiguousarray(params, dtype=float)
+        # h / tau of the viscous regularisation (0: none)
+        self.relax = h / tau if tau > 0.0 else 0.0
         self.index = [i for i, b in enumerate(bodies)
                       if isinstance(b, Block) and b.material == MAT_ENDO3D]
         self.blocks = [bodies[i] for i in self.index]
@@ -57,6 +74,11 @@ class Endo3dBlocks:
         self.sigma_all = np.zeros((8 * nel, 6))
         self.sigma_committed_all = self.sigma_all.copy()
         self._eps = np.zeros((8 * nel, 6))
+        self._sigma_endo3d = np.zeros((8 * nel, 6))
+        self.eps_committed_all = np.zeros((8 * nel, 6))
+        ne_b = [len(b.conn) for b in self.blocks]
+        self.C0 = np.concatenate([np.broadcast_to(hex8.elastic_matrix(b.E, b.nu), (8 * n, 6, 6))
+                                  for b, n in zip(self.blocks, ne_b)])
         ends = np.cumsum([0] + [8 * len(b.conn) for b in self.blocks])
         self.state = [self.state_all[ends[k]:ends[k + 1]] for k in range(len(self.blocks))]
         self.trial = [self.trial_all[ends[k]:ends[k + 1]] for k in range(len(self.blocks))]
@@ -73,9 +95,18 @@ class Endo3dBlocks:
         """
         if trial:
             hex8.strains_from_b(self.B, self.edofs, u, self._eps)
-            self.failures = endo3d.endo3d_update_elements(
-                self._eps, self.state_all, self.params, self.xe, self.elem_of_point,
-                self.trial_all, self.sigma_all)
+            if self.relax > 0.0:
+                self.failures = endo3d.endo3d_update_elements(
+                    self._eps, self.state_all, self.params, self.xe, self.elem_of_point,
+                    self.trial_all, self._sigma_endo3d)
+                r = self.relax
+                self.sigma_all[:] = (self.sigma_committed_all + r * self._sigma_endo3d
+                                     + np.einsum("pij,pj->pi", self.C0,
+                                                 self._eps - self.eps_committed_all)) / (1.0 + r)
+            else:
+                self.failures = endo3d.endo3d_update_elements(
+                    self._eps, self.state_all, self.params, self.xe, self.elem_of_point,
+                    self.trial_all, self.sigma_all)
             sig = self.sigma_all
         else:
             sig = self.sigma_committed_all
@@ -86,6 +117,7 @@ class Endo3dBlocks:
         """The last trial becomes the state at the end of the step."""
         self.state_all[:] = self.trial_all
         self.sigma_committed_all[:] = self.sigma_all
+        self.eps_committed_all[:] = self._eps
 
     def tangent_stiffness(self, delta: float = 1e-8) -> list[np.ndarray]:
         """Consistent tangent stiffness (3n, 3n) of each block at the last trial strains, N/m.
@@ -111,6 +143,8 @@ class Endo3dBlocks:
         sig = sig.reshape(7, ngp, 6)
         # C[p, i, j] = d sigma_i / d eps_j
         C = np.ascontiguousarray(((sig[1:] - sig[0]) / delta).transpose(1, 2, 0))
+        if self.relax > 0.0:
+            C = np.ascontiguousarray((self.C0 + self.relax * C) / (1.0 + self.relax))
         Ke = hex8.stiffness_from_b(self.B, self.w, C)
         out = []
         e0 = 0

@@ -82,6 +82,7 @@ class Integrator:
         method: str = "nlgs",
         endo3d_params: np.ndarray | None = None,
         material_matrix: str = "tangent",
+        endo3d_tau: float = 0.0,
     ):
         self.bodies = bodies
         self.points = points
@@ -116,7 +117,7 @@ class Integrator:
         self.newton = None
         from masonry_nscd.materials.blocks import Endo3dBlocks
 
-        self.material = Endo3dBlocks(bodies, s.body_dof0, endo3d_params) \
+        self.material = Endo3dBlocks(bodies, s.body_dof0, endo3d_params, tau=endo3d_tau, h=h) \
             if endo3d_params is not None else None
         if self.material is not None and not self.material:
             self.material = None

@@ -156,7 +156,8 @@ def build_wall(case) -> WallScene:
         endo = params_from_case(case)
     integ = Integrator(bodies, pts, P, loads, h=sol.time_step_s, theta=sol.theta,
                        tolerance=sol.tolerance, max_iterations=sol.max_iterations,
-                       check_every=sol.check_every, method=sol.method, endo3d_params=endo)
+                       check_every=sol.check_every, method=sol.method, endo3d_params=endo,
+                       endo3d_tau=case.blocks.endo3d.relaxation_time_s)
     return WallScene(
         integrator=integ, units=units, course_of_unit=course, top_beam=i_up,
         top_dof_x=int(dof0[i_up] + X), top_dof_y=int(dof0[i_up] + Y),
