@@ -43,6 +43,7 @@ open ``K = diag(kappa / (1 + c kappa))``; stick ``K = diag(1 / c)``; slide
 
 from __future__ import annotations
 
+import contextlib
 import math
 
 import numpy as np
@@ -118,7 +119,7 @@ def joint_tangent_fd(u, T, uc_old, beta_old, P, K):
 
 @njit(cache=True)
 def evaluate_joints(u_pred, Hv, h, theta, kind, law, params, uc_old, beta_old,
-                    T, uc, beta, status, K):
+                    T, uc, beta, status, K, consistent=True):
     """Law and tangent at every joint point for ``u = u_pred + h theta H^T v`` (Hv = H^T v).
 
     The tangent is consistent: with the integrity frozen where it does not drop within the
@@ -140,7 +141,7 @@ def evaluate_joints(u_pred, Hv, h, theta, kind, law, params, uc_old, beta_old,
             co[i] = uc_old[a, i]
         st, bn = jl.local_solve_implicit(u, A, co, beta_old[a], params[law[a]], jl.KIND_JOINT,
                                          t, c)
-        if bn < beta_old[a]:
+        if consistent and bn < beta_old[a]:
             # the integrity drops within the step: the frozen-integrity tangent would miss the
             # softening (wrong by 100 % and in sign on opening joints), forward differences
             # of the law give the consistent one
@@ -310,13 +311,18 @@ class NewtonSolver:
         # and value of the largest residual entry) per iteration, for diagnosis; None (the
         # default) records nothing
         self.trace = None
+        # joints softening within the step: consistent tangent (True) or integrity frozen
+        self.consistent_joints = True
 
     def set_iteration_mhat(self, mhat_jac: np.ndarray) -> None:
         """Use other body blocks (same layout as ``mhat``) in the Newton matrix."""
         self.mhat_jac = mhat_jac
         self.lu = None
 
-    def _factorise(self, K):
+    def _factorise(self, K, pivoting: bool = False):
+        """Factorise the Newton matrix with the joint tangents ``K`` (sparse LU), unless the
+        factorisation in place is already of that matrix; ``pivoting``: partial pivoting
+        (the robust, slower factorisation) instead of diagonal pivots."""
         if self.lu is not None and self._K_factorised is not None and \
                 np.array_equal(K, self._K_factorised):
             return  # the same matrix: refactorising would not help
@@ -328,7 +334,17 @@ class NewtonSolver:
                                s.side_dofs, s.side_coef, s.kind, s.area, K, self.glue_of,
                                self.glue_eps, s.h, s.theta)
         J = sp.csc_matrix((v, (r, c)), shape=(n, n))
-        self.lu = spla.splu(J)
+        self.lu = None
+        if not pivoting:
+            # the pattern is symmetric and the diagonal dominant enough (mass, springs, glue
+            # compliance): symmetric ordering, pivots on the diagonal. Measured on the wall:
+            # 0.75 M nonzeros in L + U against 1.23 M with COLAMD and partial pivoting, solves
+            # 0.5 to 1 ms against 2.5 to 3 ms, factorisations about twice faster
+            with contextlib.suppress(RuntimeError):  # a zero pivot: pivot after all
+                self.lu = spla.splu(J, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                                    options={"SymmetricMode": True})
+        if self.lu is None:
+            self.lu = spla.splu(J)
         self.factorisations += 1
 
     def _refresh(self, K) -> None:
@@ -407,7 +423,7 @@ class NewtonSolver:
             K = np.zeros((npt, 3, 3))
             kernels.local_velocities(s.side_dofs, s.side_coef, v, Hv)
             evaluate_joints(u_pred, Hv, h, th, s.kind, s.law, params, uc_old, beta_old, out_T,
-                            out_uc, out_beta, out_status, K)
+                            out_uc, out_beta, out_status, K, self.consistent_joints)
             out_T[g] = -r_glue.reshape(-1, 3) / (h * s.area[g, None])
             residual(s.body_dof0, self.mhat_off, self.mhat, v, v_free, s.side_dofs,
                      s.side_coef, s.kind, s.area, out_T, r_glue, self.glue_of, h, R)
@@ -445,12 +461,21 @@ class NewtonSolver:
             if fresh:
                 self._refresh(state[4])
             prev = res
+            pivoted = False
             while True:
                 dx = self.lu.solve(-F)
-                if not np.all(np.isfinite(dx)) and not fresh:
-                    self._refresh(state[4])
+                if not np.all(np.isfinite(dx)) and not pivoted:
+                    # an unstable factorisation (diagonal pivots): refresh, with pivoting if
+                    # the matrix was fresh already
+                    if self.on_slow is not None and not fresh:
+                        self.on_slow()
+                    self.lu = None
+                    pivoted = fresh
+                    self._factorise(state[4], pivoting=pivoted)
                     fresh = True
                     continue
+                if not np.all(np.isfinite(dx)):  # singular even with pivoting: no step
+                    dx = np.zeros_like(dx)
                 alpha, descent, v_try, r_try, F_try, norm_try, state_try = self._line_search(
                     evaluate, v, r_glue, dx, norm, nf, fresh)
                 if descent or fresh:
