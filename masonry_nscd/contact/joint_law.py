@@ -145,6 +145,11 @@ def mixed_mode(ucn: float, uct2: float, P: np.ndarray):
     d2 = P[P_D2]
     if a + c <= 0.0:
         a = 1.0  # no opening: take pure mode I (only delta_e is used then)
+    else:  # only the mixity c / a matters: weights scaled to a + c = 1, so that the tiny
+        # openings of round-off (u ~ 1e-156 m) cannot underflow ``den`` to zero
+        s = a + c
+        a /= s
+        c /= s
     den = d2 * d2 * a + d1 * d1 * c
     delta_e = d1 * d2 * math.sqrt((a + c) / den)
     G = (d2 * d2 * a * P[P_GI] + d1 * d1 * c * P[P_GII]) / den

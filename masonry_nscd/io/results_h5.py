@@ -44,6 +44,9 @@ Guarantees (tested in tests/test_io.py)
   inconsistent: readers refuse it; ``h5clear -s results.h5`` (HDF5 tools) clears the flag and
   the steps written before are usually readable. HDF5 offers no stronger guarantee for a
   write that is cut in the middle.
+- ``ResultsFile.reopen`` continues an existing file (a resumed run): the steps after a given
+  one and the curve rows beyond a given length are dropped on a copy that then replaces the
+  file, so an interruption there also leaves the file as it was.
 - Not guarded: two writers on the same path (the second one replaces the file).
 """
 
@@ -51,6 +54,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import tempfile
 import time as _time
 from collections.abc import Mapping
@@ -185,6 +189,65 @@ class ResultsFile:
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
             raise
+
+    @classmethod
+    def reopen(
+        cls,
+        path: PathLike,
+        *,
+        last_step: int | None = None,
+        curve_length: int | None = None,
+        compression: str | None = None,
+    ) -> Self:
+        """Continue writing an existing results file (a resumed run).
+
+        Step groups after ``last_step`` and unfinished ones (no step/time attributes) are
+        removed, and curve columns longer than ``curve_length`` are cut to it, so that the file
+        ends where the run resumes. Those changes are made on a copy that then replaces
+        ``path`` (``os.replace``): an interruption leaves the file as it was. Raises
+        ``FileNotFoundError``, ``OSError`` (unreadable, or still flagged as open for write),
+        ``ValueError`` (not a results file of this format).
+        """
+        target = Path(path)
+        with _open_for_reading(target, 0.5) as f:
+            if _attr(f.attrs.get("format")) != FORMAT or "steps" not in f or "curve" not in f:
+                raise ValueError(f"{target}: not a {FORMAT} file")
+            kept: set[int] = set()
+            drop: list[str] = []
+            for name, g in f["steps"].items():
+                done = "step" in g.attrs and "time" in g.attrs
+                step = int(g.attrs["step"]) if done else None
+                if step is None or (last_step is not None and step > last_step):
+                    drop.append(name)
+                else:
+                    kept.add(step)
+            trim = curve_length is not None and any(
+                len(ds) > curve_length for ds in f["curve"].values()
+            )
+        if drop or trim:
+            fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+            os.close(fd)
+            try:
+                shutil.copyfile(target, tmp)
+                with h5py.File(tmp, "r+", libver=LIBVER, locking=False) as f:
+                    for name in drop:
+                        del f["steps"][name]
+                    if trim:
+                        for ds in f["curve"].values():
+                            if len(ds) > curve_length:
+                                ds.resize((curve_length,))
+                _fsync(tmp)
+                os.replace(tmp, target)
+            except BaseException:
+                with contextlib.suppress(OSError):
+                    os.unlink(tmp)
+                raise
+        self = cls.__new__(cls)
+        self.path = target
+        self.compression = compression
+        self._closed = False
+        self._steps = kept
+        return self
 
     # -- context manager -------------------------------------------------------------------
     def __enter__(self) -> Self:

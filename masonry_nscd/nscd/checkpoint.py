@@ -1,0 +1,166 @@
+"""Checkpoints of the NSCD time loop: the integrator's state as plain arrays, to disk and back.
+
+What a checkpoint holds (SI units, as in the integrator):
+
+* ``u`` (m, rad for rigid rotations), ``v`` (m/s, rad/s): the dofs at the end of the last step;
+* ``t`` (s), ``step_index``: time and number of steps done;
+* ``F0`` (N): external forces at ``t`` (the start of the next step);
+* ``dv`` (m/s): the last impulse velocity correction, the warm start of the next contact solve;
+* ``joint_u``, ``joint_U``, ``joint_uc``, ``joint_beta``, ``joint_T``, ``joint_status``: the
+  :class:`~masonry_nscd.nscd.integrator.JointState` of every contact point (m, m/s, m, -, Pa,
+  status code);
+* ``material_state``, ``material_sigma``, ``material_eps``: the committed ENDO3D Gauss-point
+  states, apparent stresses (Pa) and strains of the ENDO3D blocks, when the scene has any (the
+  strains are where the viscous regularisation relaxes from).
+
+Not saved: what the solver keeps between steps to go faster. The sparse LU of the Newton
+matrix, its iteration matrix of the ENDO3D blocks (secant or tangent) and the last trial states
+are rebuilt by a freshly built integrator on its first step. That changes only the iteration
+path: a resumed run reaches the same states as an uninterrupted one within the solver
+tolerance.
+
+The file is a NumPy ``.npz`` (no pickled objects), written to a temporary file beside its
+target, fsynced, then renamed onto it (``os.replace``): a checkpoint on disk is always either
+the previous complete one or the new complete one. The caller may add its own arrays (prefixed
+``run_`` by :func:`save_checkpoint` to keep them apart).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+import zipfile
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+FORMAT = "masonry_nscd.checkpoint"
+_UMASK = os.umask(0)  # read once, at import (reading it means setting it)
+os.umask(_UMASK)
+FORMAT_VERSION = 1
+_JOINT_FIELDS = ("u", "U", "uc", "beta", "T", "status")
+_EXTRA = "run_"
+
+
+class CheckpointError(ValueError):
+    """A checkpoint that cannot be read or does not fit the integrator."""
+
+
+def integrator_state(integ) -> dict[str, NDArray]:
+    """Copies of every array that the next step of ``integ`` (an ``Integrator``) depends on."""
+    out: dict[str, NDArray] = {
+        "u": integ.u, "v": integ.v, "t": np.float64(integ.t),
+        "step_index": np.int64(integ.step_index), "F0": integ._F0, "dv": integ._dv,
+    }
+    j = integ.joints
+    for name in _JOINT_FIELDS:
+        out[f"joint_{name}"] = getattr(j, name)
+    mat = integ.material
+    if mat is not None:
+        out["material_state"] = mat.state_all
+        out["material_sigma"] = mat.sigma_committed_all
+        out["material_eps"] = mat.eps_committed_all
+    return {k: np.array(v, copy=True) for k, v in out.items()}
+
+
+def _check_shape(name: str, value: np.ndarray, shape: tuple[int, ...]) -> None:
+    if value.shape != shape:
+        raise CheckpointError(f"checkpoint field {name!r}: shape {value.shape}, the scene "
+                              f"needs {shape} (was the case changed?)")
+
+
+def _put(name: str, target: np.ndarray, value: np.ndarray) -> None:
+    """Copy ``value`` into ``target`` in place (views into it stay valid), checking the shape."""
+    _check_shape(name, value, target.shape)
+    target[...] = value
+
+
+def restore_integrator(integ, state: Mapping[str, ArrayLike]) -> None:
+    """Put ``state`` (from :func:`integrator_state`) into ``integ``, a freshly built integrator
+    of the same scene. Raises :class:`CheckpointError` when a field is missing or has another
+    shape. The solver caches stay as built (empty) and fill again on the next step."""
+    need = ["u", "v", "t", "step_index", "F0", "dv", *(f"joint_{n}" for n in _JOINT_FIELDS)]
+    mat = integ.material
+    if mat is not None:
+        need += ["material_state", "material_sigma", "material_eps"]
+    missing = [k for k in need if k not in state]
+    if missing:
+        raise CheckpointError(f"checkpoint lacks {', '.join(missing)}")
+    if mat is None and "material_state" in state:
+        raise CheckpointError("checkpoint has ENDO3D block states, the scene has no ENDO3D block")
+    arr = {k: np.asarray(state[k]) for k in need}
+    for name in ("u", "v", "F0", "dv"):
+        _check_shape(name, arr[name], integ.u.shape)
+    j = integ.joints
+    for name in _JOINT_FIELDS:
+        _put(f"joint_{name}", getattr(j, name), arr[f"joint_{name}"])
+    if mat is not None:
+        _put("material_state", mat.state_all, arr["material_state"])
+        _put("material_sigma", mat.sigma_committed_all, arr["material_sigma"])
+        _put("material_eps", mat.eps_committed_all, arr["material_eps"])
+        # no trial pending: the trial states and stresses equal the committed ones
+        mat.trial_all[...] = mat.state_all
+        mat.sigma_all[...] = mat.sigma_committed_all
+    integ.u = arr["u"].astype(float, copy=True)
+    integ.v = arr["v"].astype(float, copy=True)
+    integ._F0 = arr["F0"].astype(float, copy=True)
+    integ._dv = arr["dv"].astype(float, copy=True)
+    integ.t = float(arr["t"])
+    integ.step_index = int(arr["step_index"])
+
+
+def save_checkpoint(path: str | os.PathLike[str], integ,
+                    extra: Mapping[str, ArrayLike] | None = None) -> None:
+    """Write the state of ``integ`` and the caller's ``extra`` arrays to ``path`` atomically.
+
+    ``extra`` arrays must be numeric or unicode strings (no objects); they are read back by
+    :func:`load_checkpoint` under their own names.
+    """
+    arrays: dict[str, NDArray] = {
+        "format": np.array(FORMAT), "format_version": np.int64(FORMAT_VERSION),
+        **integrator_state(integ),
+    }
+    for k, v in (extra or {}).items():
+        a = np.asarray(v)
+        if a.dtype.kind not in "biufU":
+            raise TypeError(f"checkpoint extra {k!r}: numeric or str array expected, got "
+                            f"dtype {a.dtype}")
+        arrays[_EXTRA + k] = a
+    target = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    try:
+        os.chmod(tmp, 0o666 & ~_UMASK)  # the usual permissions, not mkstemp's 0600
+        with os.fdopen(fd, "wb") as f:
+            np.savez(f, **arrays)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def load_checkpoint(path: str | os.PathLike[str]) -> tuple[dict[str, NDArray],
+                                                           dict[str, NDArray]]:
+    """Read a checkpoint: ``(integrator state, extra arrays)``. :class:`CheckpointError` when
+    the file is not a checkpoint of this format (``FileNotFoundError`` when it is missing)."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except FileNotFoundError:
+        raise
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+        raise CheckpointError(f"{path}: not a readable checkpoint ({exc})") from exc
+    if str(data.pop("format", "")) != FORMAT:
+        raise CheckpointError(f"{path}: not a {FORMAT} file")
+    version = int(data.pop("format_version", -1))
+    if version != FORMAT_VERSION:
+        raise CheckpointError(f"{path}: checkpoint format version {version}, this program "
+                              f"reads version {FORMAT_VERSION}")
+    extra = {k[len(_EXTRA):]: v for k, v in data.items() if k.startswith(_EXTRA)}
+    state = {k: v for k, v in data.items() if not k.startswith(_EXTRA)}
+    return state, extra
