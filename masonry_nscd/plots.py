@@ -1,0 +1,366 @@
+"""Figures of finished (or interrupted) runs, as PNG files: curves and damage maps.
+
+Matplotlib is used through its object-oriented API (``matplotlib.figure.Figure``, which draws
+with the Agg backend): no window, no pyplot state, works on a machine without a display.
+
+Figures
+-------
+``force_displacement.png`` (:func:`plot_curves`)
+    ``F_x`` (kN) against ``U_x`` (mm) of the horizontal stage of every run on one chart, the
+    converged steps as lines (the force of a step whose solver did not converge is drawn as a
+    grey cross and does not set the scale), the peak of each run marked, and the study's
+    initial slope (71 kN/mm) as a dashed line from the origin. A second panel zooms on the
+    start, where the slopes are compared. Labels: case name, sigma_N, block material and the
+    initial stiffness of the run's summary (secant 10-40 % of the peak, :mod:`report`).
+``damage_<run>_ux_<U>mm.png`` (:func:`plot_damage_map`)
+    The wall's face (x-y plane) at the output step of ``results.h5`` nearest to ``U_x = U``,
+    element by element (each unit is 1 or more elements; the joints are the gaps between the
+    units), four panels with colour scales fixed to [0, 1] so that runs can be compared:
+
+    * block crushing: the post-peak compressive damage ``d_c`` (the pre-peak damage
+      ``d_cpp`` is drawn on its own: it grows under the pre-compression alone, to about 0.7
+      at 0.5 MPa with the study's ``eps_pic_c``, and would hide the crushing in a
+      ``max(d_c, d_cpp)`` map);
+    * the pre-peak compressive damage ``d_cpp``;
+    * block tensile cracking: the largest tensile damage ``d_t`` of the element;
+    * joints: the cohesion lost since the start, ``1 - beta`` (0 as built, 1 cohesion lost),
+      at the contact points of the bed and head joints, drawn as short segments in the middle
+      of the joint, as long as the points' tributary length. ``d_coh = 1 - beta b`` starts at
+      ``d_coh_initial`` (0.99944 in the study), so ``d_coh`` itself would be one colour.
+
+    Coordinates are the reference ones, or the deformed ones with the displacements
+    multiplied by ``magnify`` (``magnify = 0``: undeformed).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from masonry_nscd.report import (
+    WallFields,
+    compute_summary,
+    horizontal_stage_start,
+    output_steps,
+    read_curve_csv,
+    read_wall_fields,
+    unit_at_point,
+    unit_places,
+)
+
+#: The study's initial stiffness of the wall (kN/mm), the same for the three vertical stresses.
+REFERENCE_STIFFNESS_KN_MM = 71.0
+DAMAGE_CMAP = "YlOrRd"
+_BED, _HEAD = 0, 1
+
+
+class PlotInputError(ValueError):
+    """A run folder that cannot be plotted, or a bad option (exit code 2)."""
+
+
+@dataclass
+class RunData:
+    """What the figures need of one run folder."""
+
+    outdir: Path
+    case: Any  # masonry_nscd.case.Case
+    curve: dict[str, NDArray[np.float64]]
+    summary: dict[str, Any]
+    label: str = ""
+
+    @property
+    def has_fields(self) -> bool:
+        return (self.outdir / "results.h5").exists()
+
+
+def load_run(outdir: Path | str) -> RunData:
+    """Read the case and the curve of a run folder (raises :class:`PlotInputError`)."""
+    from masonry_nscd.case import CaseError, load_case
+
+    outdir = Path(outdir)
+    csv_path = outdir / "force_displacement.csv"
+    if not csv_path.exists():
+        raise PlotInputError(f"{outdir}: not a run folder (no force_displacement.csv)")
+    try:
+        case = load_case(outdir / "case.yaml")
+    except CaseError as exc:
+        raise PlotInputError(f"{outdir}: cannot read its case.yaml: {exc.messages[0]}") from None
+    try:
+        curve = read_curve_csv(csv_path)
+    except (OSError, ValueError) as exc:
+        raise PlotInputError(f"{csv_path}: {exc}") from None
+    hz = case.loading.horizontal
+    summary = compute_summary(curve, target_ux_mm=1e3 * hz.target_m,
+                              horizontal_start_s=hz.start_s)
+    return RunData(outdir, case, curve, summary)
+
+
+def label_runs(runs: Sequence[RunData]) -> None:
+    """Set each run's label: the case name, or the folder name when case names repeat."""
+    names = [r.case.name for r in runs]
+    for r in runs:
+        r.label = r.case.name if names.count(r.case.name) == 1 else r.outdir.name
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("_") or "run"
+
+
+def _save(fig, path: Path) -> Path:
+    """Save a figure as PNG atomically."""
+    from masonry_nscd.io.vtu import atomic_write
+
+    atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=120))
+    return path
+
+
+# ---------------------------------------------------------------------------------------------
+# Force-displacement curves
+# ---------------------------------------------------------------------------------------------
+
+
+def _stage(run: RunData) -> tuple[NDArray, NDArray, NDArray]:
+    """``ux_mm``, ``fx_kN`` and the converged mask of the horizontal stage."""
+    c = run.curve
+    i0 = horizontal_stage_start(c, run.case.loading.horizontal.start_s)
+    ok = c["converged"][i0:] != 0 if "converged" in c else np.ones(len(c["ux_mm"]) - i0, bool)
+    return c["ux_mm"][i0:], c["fx_kN"][i0:], ok
+
+
+def _curve_label(run: RunData) -> str:
+    s = run.summary
+    k = s["initial_stiffness_kN_mm"]
+    return (f"{run.label} ($\\sigma_N$ = {run.case.loading.vertical_stress.value_Pa / 1e6:g} MPa, "
+            f"{run.case.blocks.material} blocks"
+            + (f", k = {k:.3g} kN/mm)" if k is not None else ")"))
+
+
+def plot_curves(runs: Sequence[RunData], path: Path,
+                reference_kN_mm: float = REFERENCE_STIFFNESS_KN_MM) -> Path:
+    """The force-displacement curves of ``runs`` on one chart (see the module docstring)."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(13, 5.5), layout="constrained")
+    ax_all, ax_zoom = fig.subplots(1, 2, gridspec_kw={"width_ratios": [3, 2]})
+    f_top, f_bottom, u_zoom = 1.0, 0.0, 0.0
+    for n, run in enumerate(runs):
+        ux, fx, ok = _stage(run)
+        color = f"C{n % 10}"
+        for ax in (ax_all, ax_zoom):
+            ax.plot(ux[ok], fx[ok], color=color, lw=1.6, label=_curve_label(run))
+            if (~ok).any():
+                ax.plot(ux[~ok], fx[~ok], "x", color="0.5", ms=4)
+            s = run.summary
+            if s["peak_force_kN"] is not None:
+                ax.plot(s["ux_at_peak_mm"], s["peak_force_kN"], "o", color=color, ms=6)
+        if ok.any():
+            f_top = max(f_top, float(fx[ok].max()))
+            f_bottom = min(f_bottom, float(fx[ok].min()))
+            reach = np.flatnonzero(fx[ok] >= 0.6 * fx[ok].max())
+            u_zoom = max(u_zoom, float(ux[ok][reach[0]]) if reach.size else 0.0)
+    u_ref = 1.1 * f_top / reference_kN_mm
+    for ax in (ax_all, ax_zoom):
+        ax.plot([0.0, u_ref], [0.0, reference_kN_mm * u_ref], "k--", lw=1.2,
+                label=f"study's initial slope, {reference_kN_mm:g} kN/mm")
+        ax.set_xlabel("$U_x$, horizontal displacement of the top beam (mm)")
+        ax.set_ylabel("$F_x$, horizontal force on the wall (kN)")
+        ax.grid(True, alpha=0.3)
+        ax.set_ylim(f_bottom - 0.05 * (f_top - f_bottom), 1.1 * f_top)
+    ax_zoom.set_xlim(0.0, max(u_zoom, u_ref, 1e-6) * 1.2)
+    ax_all.set_xlim(left=0.0)
+    ax_all.set_title("Force-displacement, horizontal stage (dots: peaks; x: steps not converged)")
+    ax_zoom.set_title("Start of the horizontal stage: initial slopes")
+    ax_all.legend(fontsize=8, loc="best")
+    return _save(fig, path)
+
+
+# ---------------------------------------------------------------------------------------------
+# Damage maps
+# ---------------------------------------------------------------------------------------------
+
+
+def nearest_output_step(run: RunData, ux_mm: float) -> int:
+    """The output step of ``results.h5`` whose ``U_x`` is nearest to ``ux_mm`` (the latest one
+    among equals, so that ``0`` gives the state just before the horizontal stage)."""
+    steps = [s for s, _ in output_steps(run.outdir / "results.h5")]
+    if not steps:
+        raise PlotInputError(f"{run.outdir}: results.h5 has no output step")
+    ux_of = dict(zip(run.curve["step"].astype(int), run.curve["ux_mm"], strict=True))
+    known = [s for s in steps if s in ux_of]
+    if not known:
+        return steps[-1]
+    dist = np.array([abs(ux_of[s] - ux_mm) for s in known])
+    best = np.flatnonzero(dist <= dist.min() + 1e-12)
+    return known[int(best[-1])]
+
+
+def nodal_displacements(fields: WallFields, material: str) -> NDArray[np.float64]:
+    """Displacement of every mesh node (nn, 3), m, from the step's dofs ``u``.
+
+    The units are the first bodies of the system: a deformable unit has 3 dofs per node, in
+    the order of the mesh; a rigid unit 6 (translation and small rotation about its centre).
+    """
+    nodes, u = fields.nodes_m, fields.u
+    if u is None:
+        return np.zeros_like(nodes)
+    if material != "rigid":
+        return np.asarray(u[:nodes.size], dtype=float).reshape(-1, 3)
+    out = np.zeros_like(nodes)
+    for i in range(int(fields.block_of_element.max()) + 1):
+        ids = np.unique(fields.hexes[fields.block_of_element == i])
+        q = u[6 * i:6 * i + 6]
+        centre = 0.5 * (nodes[ids].min(axis=0) + nodes[ids].max(axis=0))
+        out[ids] = q[:3] + np.cross(q[3:], nodes[ids] - centre)
+    return out
+
+
+def _element_polygons(fields: WallFields, disp: NDArray, magnify: float) -> NDArray:
+    """(ne, 4, 2) corners of each element's z-min face (VTK order: counter-clockwise), m."""
+    xy = fields.nodes_m[:, :2] + magnify * disp[:, :2]
+    return xy[fields.hexes[:, :4]]
+
+
+def joint_segments(fields: WallFields, joint_thickness_m: float, disp: NDArray,
+                   magnify: float) -> tuple[NDArray, NDArray]:
+    """Segments ``(n, 2, 2)`` (m) in the middle of the joints, and their ``1 - beta``.
+
+    The contact points of a bed or head joint that share (x, y) (they differ in z) are merged:
+    the segment is as long as their area over the wall's thickness, its value the largest.
+    With ``magnify``, a segment moves with the face of the unit that carries its points
+    (displacement interpolated linearly along the face's edge).
+    """
+    idx = np.flatnonzero(np.isin(fields.contact_group, (_BED, _HEAD)))
+    if not idx.size:
+        return np.zeros((0, 2, 2)), np.zeros(0)
+    thickness = float(np.ptp(fields.nodes_m[:, 2])) or 1.0
+    places = unit_places(fields.nodes_m, fields.hexes, fields.block_of_element)
+    keys: dict[tuple[int, float, float], list[int]] = {}
+    for a in idx:
+        x, y = fields.contact_points_m[a, :2]
+        keys.setdefault((int(fields.contact_group[a]), round(x, 6), round(y, 6)), []).append(a)
+    segs, vals = [], []
+    for (group, x, y), members in keys.items():
+        half = 0.5 * float(fields.contact_area_m2[members].sum()) / thickness
+        if group == _BED:
+            seg = np.array([[x - half, y], [x + half, y]]) - (0.0, 0.5 * joint_thickness_m)
+        else:
+            seg = np.array([[x, y - half], [x, y + half]]) - (0.5 * joint_thickness_m, 0.0)
+        if magnify:
+            seg = seg + magnify * _face_displacement(fields, places, disp, x, y, group)
+        segs.append(seg)
+        vals.append(float(1.0 - fields.joint_beta[members].min()))
+    return np.array(segs), np.array(vals)
+
+
+def _face_displacement(fields: WallFields, places, disp: NDArray, x: float, y: float,
+                       group: int) -> NDArray:
+    """In-plane displacement (m) at a contact point: linear along the z-min edge of the face of
+    the unit that carries it (bottom face for a bed joint, left face for a head joint)."""
+    i = unit_at_point(places, x, y, group)
+    if i is None:
+        return np.zeros(2)
+    p, nodes = places[i], fields.nodes_m
+    ids = np.unique(fields.hexes[fields.block_of_element == i])
+    ids = ids[nodes[ids, 2] <= nodes[:, 2].min() + 1e-9]
+    axis, along, at = (1, 0, p.y0) if group == _BED else (0, 1, p.x0)
+    ids = ids[np.abs(nodes[ids, axis] - at) < 1e-6]
+    ids = ids[np.argsort(nodes[ids, along])]
+    s = x if group == _BED else y
+    return np.array([np.interp(s, nodes[ids, along], disp[ids, d]) for d in (0, 1)])
+
+
+def plot_damage_map(run: RunData, step: int, path: Path, magnify: float = 0.0) -> Path:
+    """The four damage panels of ``run`` at output ``step`` (see the module docstring)."""
+    from matplotlib.collections import LineCollection, PolyCollection
+    from matplotlib.figure import Figure
+
+    case = run.case
+    fields = read_wall_fields(run.outdir / "results.h5", step, case.joint.d_coh_initial)
+    disp = nodal_displacements(fields, case.blocks.material)
+    polys = _element_polygons(fields, disp, magnify)
+    segs, jvals = joint_segments(fields, case.wall.joint_thickness_m, disp, magnify)
+    fig = Figure(figsize=(14, 9.5), layout="constrained")
+    axes = fig.subplots(2, 2)
+    panels = [
+        (fields.d_c, "Block crushing", "post-peak compressive damage $d_c$"),
+        (fields.d_cpp, "Block pre-peak compressive damage", "$d_{cpp}$"),
+        (fields.d_t, "Block tensile cracking", "largest crack damage $d_t$"),
+    ]
+    for ax, (values, title, what) in zip(axes.flat, panels, strict=False):
+        pc = PolyCollection(polys, array=values, cmap=DAMAGE_CMAP, clim=(0.0, 1.0),
+                            edgecolors="0.55", linewidths=0.3)
+        ax.add_collection(pc)
+        fig.colorbar(pc, ax=ax, shrink=0.85, label=f"{what} (dimensionless)")
+        ax.set_title(f"{title}: {what}, largest {values.max():.3g}")
+    ax = axes.flat[3]
+    ax.add_collection(PolyCollection(polys, facecolors="0.93", edgecolors="0.7",
+                                     linewidths=0.3))
+    lc = LineCollection(segs, array=jvals, cmap=DAMAGE_CMAP, clim=(0.0, 1.0), linewidths=3.5)
+    ax.add_collection(lc)
+    fig.colorbar(lc, ax=ax, shrink=0.85,
+                 label=r"cohesion lost $1 - \beta$; $d_{coh} = 1 - \beta\,(1 - d_{coh,0})$")
+    ax.set_title(r"Joint damage: cohesion lost since the start $1 - \beta$"
+                 + (f" (largest {jvals.max():.3g})" if len(jvals) else ""))
+    _frame_axes(axes.flat, polys)
+    ux, fx = _ux_fx_at(run, fields.step)
+    shape = f", displacements x {magnify:g}" if magnify else ", undeformed shape"
+    fig.suptitle(f"{run.label}: damage at $U_x$ = {ux:.3f} mm, $F_x$ = {fx:.4g} kN "
+                 f"(step {fields.step}, t = {fields.time_s:.4f} s; $\\sigma_N$ = "
+                 f"{case.loading.vertical_stress.value_Pa / 1e6:g} MPa, "
+                 f"{case.blocks.material} blocks{shape})")
+    return _save(fig, path)
+
+
+def _frame_axes(axes, polys: NDArray) -> None:
+    lo, hi = polys.reshape(-1, 2).min(axis=0), polys.reshape(-1, 2).max(axis=0)
+    pad = 0.03 * float(max(hi - lo))
+    for ax in axes:
+        ax.set_xlim(lo[0] - pad, hi[0] + pad)
+        ax.set_ylim(lo[1] - pad, hi[1] + pad)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+
+
+def _ux_fx_at(run: RunData, step: int) -> tuple[float, float]:
+    rows = np.flatnonzero(run.curve["step"].astype(int) == step)
+    if not rows.size:
+        return math.nan, math.nan
+    return float(run.curve["ux_mm"][rows[0]]), float(run.curve["fx_kN"][rows[0]])
+
+
+def default_displacements(run: RunData) -> list[float]:
+    """``U_x`` of the peak and of the last step (mm), without repeats."""
+    s = run.summary
+    out = [v for v in (s["ux_at_peak_mm"], s["last_ux_mm"]) if v is not None]
+    return sorted({round(v, 6) for v in out})
+
+
+def plot_runs(outdirs: Sequence[Path | str], plot_dir: Path, at_mm: Sequence[float] | None = None,
+              magnify: float = 0.0,
+              reference_kN_mm: float = REFERENCE_STIFFNESS_KN_MM) -> tuple[list[Path], list[str]]:
+    """All the figures of ``outdirs`` into ``plot_dir``: the curves, then the damage maps of
+    every run with a ``results.h5`` at ``at_mm`` (default: at its peak and at its end).
+
+    Returns the PNG files written and notes on what was skipped.
+    """
+    runs = [load_run(d) for d in outdirs]
+    label_runs(runs)
+    written = [plot_curves(runs, plot_dir / "force_displacement.png", reference_kN_mm)]
+    notes = []
+    for run in runs:
+        if not run.has_fields:
+            notes.append(f"{run.outdir}: no results.h5, no damage map")
+            continue
+        for ux in (at_mm if at_mm is not None else default_displacements(run)):
+            step = nearest_output_step(run, ux)
+            name = f"damage_{_slug(run.label)}_ux_{ux:.2f}mm.png"
+            written.append(plot_damage_map(run, step, plot_dir / name, magnify))
+    return written, notes

@@ -1,0 +1,547 @@
+"""The summary of a run: initial stiffness, peak, force at the target, convergence, damages.
+
+Everything is computed from the force-displacement curve (the columns of
+``force_displacement.csv``, see :mod:`masonry_nscd.run`) and, where the run wrote it, from the
+last output step of ``results.h5``. Units are in the key names (``_kN``, ``_mm``, ``_kN_mm``,
+``_m``, ``_s``); damages, residuals and counts are dimensionless.
+
+Definitions (also in ``docs/choices.md``, "Run summary")
+--------------------------------------------------------
+Horizontal stage
+    The rows with ``time_s >= loading.horizontal.start_s`` when the case is known; otherwise the
+    rows from the last one with ``ux_mm <= 0`` before ``ux_mm`` first becomes positive.
+Peak
+    The largest ``fx_kN`` of the horizontal stage (the push is towards +x) and its ``ux_mm``,
+    over the converged steps only (the force of a step whose solver did not converge can be
+    far off: ``peak_force_unconverged_kN`` gives the largest force of those steps, and the
+    stiffness and the force at the target are also read on converged steps only).
+Initial stiffness (kN/mm)
+    The secant between two force levels, ``F_low = 0.10 F_peak`` and ``F_high = 0.40 F_peak``:
+    ``k = (F_high - F_low) / (u_high - u_low)``, where ``u_low`` and ``u_high`` are the
+    displacements at which ``fx`` first reaches each level in the horizontal stage, linearly
+    interpolated between the two rows around the crossing. The lower level skips the start of
+    the stage (velocity ramp, the force left over from the vertical stage); the upper one stays
+    below the force at which the joints start to slide and the curve bends. If ``fx`` is
+    already above ``F_low`` when the stage starts, the secant is not defined (``None``).
+    :func:`secant_stiffness` takes any two levels (the calibration uses fixed ones, see
+    :mod:`masonry_nscd.calibrate`).
+Force at the target
+    ``fx`` interpolated linearly in ``ux`` at the case's target displacement
+    (``loading.horizontal.target_m``, 10 mm for the study), ``None`` if the run stopped before.
+Largest damages
+    Read at the last output step of ``results.h5``: every damage is irreversible, so the last
+    step holds the largest values. Blocks: ``d_c`` (post-peak compressive damage, crushing),
+    ``d_cpp`` (pre-peak compressive damage), ``d_t`` (largest tensile crack damage); joints (bed
+    and head joints, not the glue): ``d_coh = 1 - beta b`` with ``b = 1 - d_coh_initial``, and
+    the integrity ``beta`` (1 as built, 0 once the cohesion is lost). Each comes with where it
+    is: the unit (index as in ``block_of_element``), its course counted from 1 at the bottom,
+    its position in the course counted from 1 at the left end (x = 0), and the wall-face
+    coordinates x, y (m) of the element centre or of the contact point (contact points lie on
+    the face of the unit above a bed joint, or right of a head joint). A largest value of 0
+    (or an intact joint, ``beta = 1``) has no location (``None``).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+#: Fractions of the peak force between which the initial stiffness is measured.
+STIFFNESS_FRACTIONS = (0.10, 0.40)
+#: A joint point whose integrity ``beta`` is below this has lost its cohesion (counted).
+COHESION_LOST_BETA = 0.01
+#: Contact-point groups of the wall (masonry_nscd.scenes.wall): 0 bed, 1 head, 2-3 glue.
+_BED, _HEAD = 0, 1
+
+FloatArray = NDArray[np.float64]
+
+
+# ---------------------------------------------------------------------------------------------
+# The curve
+# ---------------------------------------------------------------------------------------------
+
+
+def horizontal_stage_start(curve: Mapping[str, Sequence[float]],
+                           start_s: float | None = None) -> int:
+    """Index of the first row of the horizontal stage (see the module docstring)."""
+    t = np.asarray(curve["time_s"], dtype=float)
+    if start_s is not None:
+        idx = np.flatnonzero(t >= start_s - 1e-12)
+        return int(idx[0]) if idx.size else len(t)
+    ux = np.asarray(curve["ux_mm"], dtype=float)
+    moved = np.flatnonzero(ux > 0.0)
+    return max(0, int(moved[0]) - 1) if moved.size else len(ux)
+
+
+def first_crossing(x: Sequence[float], y: Sequence[float], level: float) -> float | None:
+    """``x`` where ``y`` first reaches ``level`` from below, linearly interpolated.
+
+    ``None`` if ``y`` never reaches it, or if ``y[0]`` is already at or above it (the crossing
+    is then before the data).
+    """
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    above = np.flatnonzero(y >= level)
+    if not above.size or above[0] == 0:
+        return None
+    i = int(above[0])
+    x0, x1, y0, y1 = x[i - 1], x[i], y[i - 1], y[i]
+    return float(x0 + (level - y0) * (x1 - x0) / (y1 - y0))
+
+
+def secant_stiffness(ux_mm: Sequence[float], fx_kN: Sequence[float], f_low_kN: float,
+                     f_high_kN: float) -> tuple[float | None, float | None, float | None]:
+    """Secant stiffness (kN/mm) between the first crossings of two force levels (kN).
+
+    ``ux_mm``, ``fx_kN``: the horizontal stage, in order. Returns ``(k_kN_mm, u_low_mm,
+    u_high_mm)``, with ``None`` where a level is not crossed from below.
+    """
+    u_lo = first_crossing(ux_mm, fx_kN, f_low_kN)
+    u_hi = first_crossing(ux_mm, fx_kN, f_high_kN)
+    if u_lo is None or u_hi is None or not u_hi > u_lo:
+        return None, u_lo, u_hi
+    return (f_high_kN - f_low_kN) / (u_hi - u_lo), u_lo, u_hi
+
+
+def value_at(x: Sequence[float], y: Sequence[float], x_target: float) -> float | None:
+    """``y`` at the first ``x >= x_target``, interpolated linearly; ``None`` if not reached."""
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    reached = np.flatnonzero(x >= x_target)
+    if not reached.size:
+        return None
+    i = int(reached[0])
+    if i == 0 or x[i] == x[i - 1]:
+        return float(y[i])
+    return float(y[i - 1] + (x_target - x[i - 1]) * (y[i] - y[i - 1]) / (x[i] - x[i - 1]))
+
+
+def curve_summary(curve: Mapping[str, Sequence[float]], *, target_ux_mm: float | None = None,
+                  horizontal_start_s: float | None = None,
+                  fractions: tuple[float, float] = STIFFNESS_FRACTIONS) -> dict[str, Any]:
+    """The part of the summary that comes from the curve alone (see the module docstring).
+
+    ``curve``: columns of ``force_displacement.csv`` (at least ``step``, ``time_s``, ``ux_mm``,
+    ``fx_kN``; ``residual``, ``converged``, ``iterations`` when present). ``target_ux_mm``: the
+    displacement at which the force is reported (mm).
+    """
+    c = {k: np.asarray(v, dtype=float) for k, v in curve.items()}
+    n = len(c["time_s"])
+    out: dict[str, Any] = {"steps": int(c["step"][-1]) if n else 0,
+                           "last_time_s": _num(c["time_s"][-1]) if n else None,
+                           "last_ux_mm": _num(c["ux_mm"][-1]) if n else None,
+                           "last_fx_kN": _num(c["fx_kN"][-1]) if n else None}
+    out.update(_convergence(c))
+    i0 = horizontal_stage_start(c, horizontal_start_s)
+    stage = {k: v[i0:] for k, v in c.items()}
+    out["horizontal_stage_rows"] = len(stage["ux_mm"])
+    out["fx_at_horizontal_start_kN"] = _num(stage["fx_kN"][0]) if len(stage["fx_kN"]) else None
+    ok = stage["converged"] != 0 if "converged" in stage else np.ones(len(stage["ux_mm"]), bool)
+    out["peak_force_unconverged_kN"] = _num(stage["fx_kN"][~ok].max()) if (~ok).any() else None
+    stage = {k: v[ok] for k, v in stage.items()}
+    ux, fx = stage["ux_mm"], stage["fx_kN"]
+    out.update(_peak_and_stiffness(stage, fractions))
+    out["target_ux_mm"] = _num(target_ux_mm)
+    at = value_at(ux, fx, target_ux_mm) if target_ux_mm is not None and len(ux) else None
+    out["force_at_target_kN"] = _num(at)
+    out["target_reached"] = at is not None
+    return out
+
+
+def _convergence(c: Mapping[str, FloatArray]) -> dict[str, Any]:
+    conv = c.get("converged")
+    res = c.get("residual")
+    it = c.get("iterations")
+    return {
+        "unconverged_steps": int(np.sum(conv == 0)) if conv is not None else None,
+        "worst_residual": _num(res.max()) if res is not None and len(res) else None,
+        "max_iterations_per_step": int(it.max()) if it is not None and len(it) else None,
+    }
+
+
+def _peak_and_stiffness(stage: Mapping[str, FloatArray],
+                        fractions: tuple[float, float]) -> dict[str, Any]:
+    """Peak and secant stiffness of the (converged rows of the) horizontal stage."""
+    ux, fx = stage["ux_mm"], stage["fx_kN"]
+    empty = {"peak_force_kN": None, "ux_at_peak_mm": None, "step_at_peak": None,
+             "stiffness_fractions_of_peak": list(fractions), "stiffness_force_low_kN": None,
+             "stiffness_force_high_kN": None, "stiffness_ux_low_mm": None,
+             "stiffness_ux_high_mm": None, "initial_stiffness_kN_mm": None}
+    if not len(fx) or not fx.max() > 0.0:
+        return empty
+    ip = int(np.argmax(fx))
+    f_lo, f_hi = fractions[0] * fx[ip], fractions[1] * fx[ip]
+    k, u_lo, u_hi = secant_stiffness(ux[:ip + 1], fx[:ip + 1], f_lo, f_hi)
+    return {**empty, "peak_force_kN": _num(fx[ip]), "ux_at_peak_mm": _num(ux[ip]),
+            "step_at_peak": int(stage["step"][ip]), "stiffness_force_low_kN": _num(f_lo),
+            "stiffness_force_high_kN": _num(f_hi), "stiffness_ux_low_mm": _num(u_lo),
+            "stiffness_ux_high_mm": _num(u_hi), "initial_stiffness_kN_mm": _num(k)}
+
+
+def _num(x: float | None) -> float | None:
+    """A JSON-friendly float: ``None`` for None, NaN and infinities."""
+    if x is None:
+        return None
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+# ---------------------------------------------------------------------------------------------
+# Where things are in the wall
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class UnitPlace:
+    """Where a unit sits: course from 1 at the bottom, position from 1 at the left end, box (m)."""
+
+    course: int
+    position: int
+    units_in_course: int
+    x0: float
+    x1: float
+    y0: float
+    y1: float
+
+
+def unit_places(nodes_m: FloatArray, hexes: NDArray[np.int64],
+                block_of_element: NDArray[np.int64]) -> list[UnitPlace]:
+    """The place of every unit, from the mesh alone (reference coordinates, m).
+
+    Courses are the distinct bottom heights of the units (to 0.1 mm), counted from the bottom;
+    positions the order of the left ends in a course.
+    """
+    n_units = int(block_of_element.max()) + 1 if len(block_of_element) else 0
+    boxes = []
+    for i in range(n_units):
+        pts = nodes_m[np.unique(hexes[block_of_element == i])]
+        boxes.append((pts[:, 0].min(), pts[:, 0].max(), pts[:, 1].min(), pts[:, 1].max()))
+    levels = sorted({round(b[2], 4) for b in boxes})
+    places: list[UnitPlace | None] = [None] * n_units
+    for k, level in enumerate(levels):
+        members = sorted((b[0], i) for i, b in enumerate(boxes) if round(b[2], 4) == level)
+        for p, (_, i) in enumerate(members):
+            places[i] = UnitPlace(k + 1, p + 1, len(members), *boxes[i])
+    return places  # type: ignore[return-value]
+
+
+def describe_unit(place: UnitPlace, courses: int) -> str:
+    """``course 1 (bottom), unit 6 of 6 (right end)``."""
+    course = f"course {place.course}"
+    if place.course == 1:
+        course += " (bottom)"
+    elif place.course == courses:
+        course += " (top)"
+    unit = f"unit {place.position} of {place.units_in_course}"
+    if place.units_in_course > 1 and place.position == 1:
+        unit += " (left end)"
+    elif place.units_in_course > 1 and place.position == place.units_in_course:
+        unit += " (right end)"
+    return f"{course}, {unit}"
+
+
+def unit_at_point(places: Sequence[UnitPlace], x: float, y: float, group: int,
+                  tol: float = 1e-6) -> int | None:
+    """The unit carrying a joint contact point: the one whose box holds ``(x, y)``; on a bed
+    joint the unit above, on a head joint the unit on the right."""
+    found = [i for i, p in enumerate(places)
+             if p.x0 - tol <= x <= p.x1 + tol and p.y0 - tol <= y <= p.y1 + tol]
+    if not found:
+        return None
+    key = (lambda i: places[i].y0) if group == _BED else (lambda i: places[i].x0)
+    return max(found, key=key)
+
+
+def describe_joint_point(places: Sequence[UnitPlace], x: float, y: float, group: int,
+                         courses: int) -> str:
+    """``bed joint between courses 1 and 2, under unit 3 of 7`` or ``head joint in course 2
+    (bottom), between units 3 and 4``."""
+    i = unit_at_point(places, x, y, group)
+    if i is None:
+        return f"joint point at x = {x:.3f} m, y = {y:.3f} m"
+    p = places[i]
+    if group == _BED:
+        return (f"bed joint between courses {p.course - 1} and {p.course}, under unit "
+                f"{p.position} of {p.units_in_course} of course {p.course}")
+    course = describe_unit(p, courses).split(",")[0]
+    return f"head joint in {course}, between units {p.position - 1} and {p.position}"
+
+
+# ---------------------------------------------------------------------------------------------
+# Fields of one output step
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass
+class WallFields:
+    """The mesh and the damage fields of one output step (SI units, damages dimensionless)."""
+
+    nodes_m: FloatArray  # (nn, 3) reference coordinates
+    hexes: NDArray[np.int64]  # (ne, 8) VTK order: the z-min face first, counter-clockwise
+    block_of_element: NDArray[np.int64]  # (ne,)
+    contact_points_m: FloatArray  # (npt, 3)
+    contact_group: NDArray[np.int64]  # (npt,) 0 bed, 1 head, 2 glue bottom, 3 glue top
+    contact_area_m2: FloatArray  # (npt,)
+    d_c: FloatArray  # (ne,) post-peak compressive damage
+    d_cpp: FloatArray  # (ne,) pre-peak compressive damage
+    d_t: FloatArray  # (ne,) largest tensile damage
+    joint_beta: FloatArray  # (npt,) integrity, 1 as built
+    d_coh_initial: float  # b = 1 - d_coh_initial
+    step: int
+    time_s: float
+    u: FloatArray | None = None  # (ndof,) generalised displacements, m and rad
+
+    @property
+    def joint_d_coh(self) -> FloatArray:
+        """Total cohesive damage ``1 - beta b`` per contact point."""
+        return 1.0 - self.joint_beta * (1.0 - self.d_coh_initial)
+
+
+def output_steps(h5_path: Path | str) -> list[tuple[int, float]]:
+    """``(step, time_s)`` of every complete output step of a results file, in order (waits up
+    to 2 s for a run that is writing the file, as :func:`~masonry_nscd.io.results_h5.read_results`
+    does)."""
+    from masonry_nscd.io.results_h5 import _open_for_reading
+
+    with _open_for_reading(h5_path, 2.0) as f:
+        out = [(int(g.attrs["step"]), float(g.attrs["time"])) for g in f["steps"].values()
+               if "step" in g.attrs and "time" in g.attrs]
+    return sorted(out)
+
+
+def read_wall_fields(h5_path: Path | str, step: int | None = None,
+                     d_coh_initial: float | None = None) -> WallFields | None:
+    """The fields of output ``step`` (default: the last one) of a results file.
+
+    ``d_coh_initial``: the case's ``joint.d_coh_initial`` (default: read from the file's case).
+    ``None`` if the file has no complete output step.
+    """
+    from masonry_nscd.io.results_h5 import _open_for_reading
+
+    steps = output_steps(h5_path)
+    if not steps:
+        return None
+    if step is None:
+        step = steps[-1][0]
+    with _open_for_reading(h5_path, 2.0) as f:
+        mesh = {k: ds[()] for k, ds in f["mesh"].items()}
+        g = f["steps"][f"{step:06d}"]
+        data = {k: ds[()] for k, ds in g.items()}
+        time_s = float(g.attrs["time"])
+        if d_coh_initial is None:
+            d_coh_initial = _d_coh_initial(f["case/yaml"].asstr()[()])
+    ne = len(mesh["hexes"])
+    return WallFields(
+        nodes_m=mesh["nodes_m"], hexes=mesh["hexes"], block_of_element=mesh["block_of_element"],
+        contact_points_m=mesh["contact_points_m"], contact_group=mesh["contact_group"],
+        contact_area_m2=mesh.get("contact_area_m2", np.ones(len(mesh["contact_group"]))),
+        d_c=data.get("element_d_c", np.zeros(ne)), d_cpp=data.get("element_d_cpp", np.zeros(ne)),
+        d_t=data.get("element_d_t", np.zeros(ne)), joint_beta=data["joint_beta"],
+        d_coh_initial=d_coh_initial, step=int(step), time_s=time_s, u=data.get("u"))
+
+
+def _d_coh_initial(case_yaml: str) -> float:
+    from masonry_nscd.case import case_from_dict, read_yaml
+
+    return case_from_dict(read_yaml(case_yaml)).joint.d_coh_initial
+
+
+def largest_damages(fields: WallFields) -> dict[str, Any]:
+    """The largest block and joint damages of one output step, and where they are."""
+    places = unit_places(fields.nodes_m, fields.hexes, fields.block_of_element)
+    courses = max((p.course for p in places), default=0)
+    centres = fields.nodes_m[fields.hexes].mean(axis=1)
+    out: dict[str, Any] = {}
+    for name, values in (("block_d_c", fields.d_c), ("block_d_cpp", fields.d_cpp),
+                         ("block_d_t", fields.d_t)):
+        out[name] = _block_entry(values, centres, fields.block_of_element, places, courses)
+    out["joint_d_coh"] = _joint_entry(fields, places, courses)
+    return out
+
+
+def _block_entry(values: FloatArray, centres: FloatArray, block_of_element: NDArray[np.int64],
+                 places: Sequence[UnitPlace], courses: int) -> dict[str, Any]:
+    if not len(values):
+        return {"value": None, "where": None}
+    e = int(np.argmax(values))
+    entry: dict[str, Any] = {"value": _num(values[e]), "elements_above_0.5": int(
+        np.sum(values > 0.5))}
+    if not values[e] > 0.0:
+        return {**entry, "where": None}
+    i = int(block_of_element[e])
+    p = places[i]
+    return {**entry, "where": describe_unit(p, courses), "element": e, "unit_index": i,
+            "course": p.course, "position_in_course": p.position,
+            "units_in_course": p.units_in_course, "x_m": _num(centres[e, 0]),
+            "y_m": _num(centres[e, 1])}
+
+
+def _joint_entry(fields: WallFields, places: Sequence[UnitPlace],
+                 courses: int) -> dict[str, Any]:
+    joints = np.flatnonzero(np.isin(fields.contact_group, (_BED, _HEAD)))
+    if not joints.size:
+        return {"value": None, "where": None}
+    beta = fields.joint_beta[joints]
+    a = int(joints[np.argmin(beta)])
+    entry: dict[str, Any] = {
+        "value": _num(fields.joint_d_coh[a]), "beta": _num(fields.joint_beta[a]),
+        "d_coh_initial": fields.d_coh_initial, "joint_points": int(joints.size),
+        "points_cohesion_lost": int(np.sum(beta < COHESION_LOST_BETA)),
+    }
+    if not fields.joint_beta[a] < 1.0:
+        return {**entry, "where": None}
+    x, y = (float(v) for v in fields.contact_points_m[a, :2])
+    group = int(fields.contact_group[a])
+    i = unit_at_point(places, x, y, group)
+    where = describe_joint_point(places, x, y, group, courses)
+    entry.update({"where": where, "point": a, "joint": "bed" if group == _BED else "head",
+                  "x_m": x, "y_m": y})
+    if i is not None:
+        entry.update({"unit_index": i, "course": places[i].course,
+                      "position_in_course": places[i].position})
+    return entry
+
+
+# ---------------------------------------------------------------------------------------------
+# The whole summary
+# ---------------------------------------------------------------------------------------------
+
+
+def compute_summary(curve: Mapping[str, Sequence[float]], *, target_ux_mm: float | None = None,
+                    horizontal_start_s: float | None = None, fields: WallFields | None = None,
+                    fractions: tuple[float, float] = STIFFNESS_FRACTIONS) -> dict[str, Any]:
+    """The run summary from the curve and, if given, the fields of the last output step.
+
+    A pure function: see the module docstring for the definitions. Keys carry their units.
+    """
+    out = curve_summary(curve, target_ux_mm=target_ux_mm, horizontal_start_s=horizontal_start_s,
+                        fractions=fractions)
+    last = {k: list(v)[-1] for k, v in curve.items() if len(v)}
+    out["curve_last_max_joint_damage"] = _num(last.get("max_joint_damage"))
+    out["curve_last_max_block_damage"] = _num(last.get("max_block_damage"))
+    out["curve_last_max_d_cpp"] = _num(last.get("max_d_cpp"))
+    if fields is not None:
+        ux_by_step = dict(zip(np.asarray(curve["step"], dtype=int),
+                              np.asarray(curve["ux_mm"], dtype=float), strict=True))
+        out["damage_step"] = fields.step
+        out["damage_time_s"] = fields.time_s
+        out["damage_ux_mm"] = _num(ux_by_step.get(fields.step))
+        out["largest_damage"] = largest_damages(fields)
+    return out
+
+
+def read_curve_csv(path: Path | str) -> dict[str, FloatArray]:
+    """The columns of ``force_displacement.csv`` as float arrays.
+
+    A last row cut by an interruption (fewer fields, or text that is not a number) is dropped.
+    """
+    with open(path, newline="") as f:
+        reader = csv.reader(f)
+        header = next(reader, None)
+        if header is None:
+            raise ValueError(f"{path}: empty file, no header")
+        rows = []
+        for row in reader:
+            try:
+                values = [float(v) for v in row]
+            except ValueError:
+                break
+            if len(values) != len(header):
+                break
+            rows.append(values)
+    data = np.array(rows, dtype=float).reshape(-1, len(header))
+    return {name: data[:, j] for j, name in enumerate(header)}
+
+
+def summarize_run(outdir: Path | str,
+                  curve: Mapping[str, Sequence[float]] | None = None) -> dict[str, Any]:
+    """The summary of a finished or interrupted run folder.
+
+    Reads ``case.yaml``, ``force_displacement.csv`` (or takes ``curve``, e.g. the run's
+    in-memory curve when the CSV may not be flushed) and the last output step of
+    ``results.h5`` when there is one.
+    """
+    from masonry_nscd.case import load_case
+
+    outdir = Path(outdir)
+    case = load_case(outdir / "case.yaml")
+    if curve is None:
+        curve = read_curve_csv(outdir / "force_displacement.csv")
+    h5 = outdir / "results.h5"
+    fields = read_wall_fields(h5, d_coh_initial=case.joint.d_coh_initial) \
+        if h5.exists() else None
+    hz = case.loading.horizontal
+    head = {"case_name": case.name, "block_material": case.blocks.material,
+            "vertical_stress_MPa": case.loading.vertical_stress.value_Pa / 1e6,
+            "vertical_force_kN": case.vertical_force_N / 1e3,
+            "horizontal_start_s": hz.start_s, "stiffness_definition": (
+                "secant between the first crossings of 10 % and 40 % of the peak force in the "
+                "horizontal stage, displacements interpolated linearly")}
+    return {**head, **compute_summary(curve, target_ux_mm=1e3 * hz.target_m,
+                                      horizontal_start_s=hz.start_s, fields=fields)}
+
+
+def write_summary(outdir: Path | str, summary: Mapping[str, Any]) -> Path:
+    """Write ``summary.json`` in ``outdir`` atomically; returns its path."""
+    from masonry_nscd.io.vtu import atomic_write
+
+    path = Path(outdir) / "summary.json"
+    text = json.dumps(summary, indent=2, allow_nan=False) + "\n"
+    atomic_write(path, lambda p: Path(p).write_text(text))
+    return path
+
+
+def _fmt(x: float | None, spec: str, unit: str = "") -> str:
+    return "n/a" if x is None else f"{x:{spec}}{unit}"
+
+
+def format_summary(s: Mapping[str, Any]) -> list[str]:
+    """A short human report of a summary, a few lines."""
+    lines = [
+        (f"initial stiffness {_fmt(s['initial_stiffness_kN_mm'], '.4g', ' kN/mm')} (secant "
+         f"between {_fmt(s['stiffness_force_low_kN'], '.4g')} and "
+         f"{_fmt(s['stiffness_force_high_kN'], '.4g')} kN, 10 % and 40 % of the peak)"),
+        f"peak force {_fmt(s['peak_force_kN'], '.4g', ' kN')} at Ux "
+        f"{_fmt(s['ux_at_peak_mm'], '.4g', ' mm')}; force at Ux = "
+        f"{_fmt(s['target_ux_mm'], '.4g', ' mm')}: "
+        + (_fmt(s["force_at_target_kN"], ".4g", " kN") if s["target_reached"]
+           else f"not reached (last Ux {_fmt(s['last_ux_mm'], '.4g', ' mm')})"),
+        f"steps not converged {s['unconverged_steps']} (worst residual "
+        f"{_fmt(s['worst_residual'], '.2e')})"
+        + (f"; their largest force, left out of the peak: {s['peak_force_unconverged_kN']:.4g} kN"
+           if s.get("peak_force_unconverged_kN") is not None else ""),
+    ]
+    for name, e in (s.get("largest_damage") or {}).items():
+        if e.get("where"):
+            where = f" at {e['where']} (x {e['x_m']:.3f}, y {e['y_m']:.3f} m)"
+        elif name == "joint_d_coh":
+            where = " (the initial damage: no joint damaged further)"
+        else:
+            where = " (undamaged)"
+        lines.append(f"largest {name.replace('_', ' ', 1)} {_fmt(e['value'], '.6g')}{where}")
+    return lines
+
+
+def report_run(outdir: Path | str, log: Callable[[str], None],
+               curve: Mapping[str, Sequence[float]] | None = None) -> dict[str, Any] | None:
+    """Summarise a run folder, write ``summary.json`` and log the short report.
+
+    Never raises for an ordinary error (a report must not lose a run): the problem is logged
+    and ``None`` returned.
+    """
+    try:
+        summary = summarize_run(outdir, curve)
+        path = write_summary(outdir, summary)
+    except Exception as exc:  # noqa: BLE001 (a bad report must not fail a finished run)
+        log(f"summary not written: {type(exc).__name__}: {exc}")
+        return None
+    for line in format_summary(summary):
+        log(f"summary: {line}")
+    log(f"summary written to {path}")
+    return summary

@@ -1,0 +1,58 @@
+"""`masonry plot`: PNG figures of a smoke run (curves and damage maps), and its errors."""
+
+import subprocess
+import sys
+
+import pytest
+from typer.testing import CliRunner
+
+from masonry_nscd.cli import app
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def smoke_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("plots") / "run"
+    res = CliRunner().invoke(app, ["run", "cases/smoke.yaml", "-o", str(out),
+                                   "--set", "output.vtu=false"])
+    assert res.exit_code == 0, res.output
+    return out
+
+
+def _is_png(path):
+    data = path.read_bytes()
+    return data[:8] == PNG_SIGNATURE and len(data) > 10_000
+
+
+def test_plot_writes_the_curves_and_the_damage_maps(smoke_run, tmp_path):
+    res = CliRunner().invoke(app, ["plot", str(smoke_run), str(smoke_run), "-o", str(tmp_path),
+                                   "--at", "0,0.25", "--magnify", "200"])
+    assert res.exit_code == 0, res.output
+    names = sorted(p.name for p in tmp_path.iterdir())
+    # the same case twice: the figures are named after the run folders
+    assert names == ["damage_run_ux_0.00mm.png", "damage_run_ux_0.25mm.png",
+                     "force_displacement.png"]
+    assert all(_is_png(tmp_path / n) for n in names)
+    assert f"wrote {tmp_path / 'force_displacement.png'}" in res.output
+
+
+def test_plot_defaults_to_the_peak_and_the_end_in_the_run_folder(smoke_run):
+    res = CliRunner().invoke(app, ["plot", str(smoke_run)])
+    assert res.exit_code == 0, res.output
+    names = sorted(p.name for p in (smoke_run / "plots").iterdir())
+    assert names == ["damage_smoke_ux_0.51mm.png", "force_displacement.png"]  # peak = end
+
+
+def test_plot_refuses_what_is_not_a_run_or_a_bad_option(smoke_run, tmp_path):
+    res = CliRunner().invoke(app, ["plot", str(tmp_path)])
+    assert res.exit_code == 2 and "not a run folder" in res.output
+    res = CliRunner().invoke(app, ["plot", str(smoke_run), "--at", "1mm"])
+    assert res.exit_code == 2 and "--at" in res.output
+
+
+def test_help_does_not_import_matplotlib_or_scipy():
+    code = ("import sys, masonry_nscd.cli; "
+            "print([m for m in ('matplotlib', 'scipy', 'numpy') if m in sys.modules])")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
