@@ -90,33 +90,67 @@ SetOption = Annotated[
 
 @app.command()
 def run(
-    case_file: Annotated[Path, typer.Argument(metavar="CASE.yaml", help="The case file (YAML).")],
+    case_file: Annotated[Path | None, typer.Argument(
+        metavar="[CASE.yaml]", help="The case file (YAML); none with --resume.")] = None,
     output: Annotated[Path | None, typer.Option("-o", "--output",
                       help="Run folder (default results/<case name>/).")] = None,
     overrides: SetOption = None,
     overwrite: Annotated[bool, typer.Option("--overwrite",
                          help="Write into a run folder that is not empty.")] = False,
+    resume: Annotated[Path | None, typer.Option(
+        "--resume", metavar="OUTDIR",
+        help="Continue the interrupted run in OUTDIR from its last checkpoint "
+        "(case from OUTDIR/case.yaml).")] = None,
 ) -> None:
     """Run a wall case to its target displacement and write CSV, HDF5 and VTU results."""
-    case = _load_case_or_exit(case_file, overrides)
-    from masonry_nscd.run import RunFailure, RunInputError, run_case
+    if resume is not None:
+        if case_file is not None or output is not None or overrides or overwrite:
+            _fail("--resume OUTDIR continues the run in OUTDIR with its own case.yaml: give "
+                  "no CASE.yaml, -o, --set or --overwrite with it", 2)
+        outdir = resume
+        from masonry_nscd.nscd.checkpoint import CheckpointError
+        from masonry_nscd.resume import read_resume_point
 
-    outdir = output or Path("results") / case.name
+        if not outdir.is_dir():
+            _fail(f"--resume {outdir}: no such run folder", 2)
+        try:
+            point = read_resume_point(outdir)
+        except CheckpointError as exc:
+            _fail(f"cannot resume: {exc}", 2)
+        if point is None:
+            _fail(f"cannot resume: {outdir} has no checkpoint (checkpoint.npz): not a run "
+                  "folder, or the run stopped before its first output step", 2)
+        if point.finished:
+            typer.echo(f"the run in {outdir} is finished (step {point.step}): nothing to resume")
+            return
+        case = _load_case_or_exit(outdir / "case.yaml")
+    else:
+        if case_file is None:
+            _fail("missing CASE.yaml (or --resume OUTDIR to continue an interrupted run)", 2)
+        case = _load_case_or_exit(case_file, overrides)
+        outdir = output or Path("results") / case.name
     import signal
+
+    from masonry_nscd.run import RunFailure, RunInputError, RunOutputError, run_case
 
     def _terminate(signum, frame):  # SIGTERM ends the run like Ctrl-C: outputs are kept
         raise KeyboardInterrupt
 
     signal.signal(signal.SIGTERM, _terminate)
     try:
-        res = run_case(case, outdir, overwrite=overwrite, echo=typer.echo)
+        res = run_case(case, outdir, overwrite=overwrite, echo=typer.echo,
+                       resume=resume is not None)
     except RunInputError as exc:
         _fail(str(exc), 2)
+    except RunOutputError as exc:
+        _fail(f"{exc}; results up to the last output step are kept in {outdir} (once the "
+              f"cause is fixed: masonry run --resume {outdir})", 1)
     except RunFailure as exc:
         _fail(f"the solver failed: {exc} (results up to the last output step are kept in "
               f"{outdir})", 1)
     except KeyboardInterrupt:
-        _fail(f"interrupted; results up to the last output step are kept in {outdir}", 130)
+        _fail(f"interrupted; results up to the last output step are kept in {outdir} "
+              f"(continue with: masonry run --resume {outdir})", 130)
     finally:
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
     typer.echo(f"results in {res.outdir}")
@@ -240,6 +274,391 @@ def point_block(
         f"d_t = {curve['d_t'][-1]:.4g}, d_c = {curve['d_c'][-1]:.4g}, "
         f"d_cpp = {curve['d_cpp'][-1]:.4g}"
     )
+
+
+@app.command()
+def plot(
+    outdirs: Annotated[list[Path], typer.Argument(metavar="OUTDIR...",
+                       help="Run folders (as written by masonry run).")],
+    output: Annotated[Path | None, typer.Option(
+        "-o", "--output", metavar="DIR",
+        help="Folder of the PNG files (default OUTDIR/plots for one run, ./plots for several).")
+    ] = None,
+    at: Annotated[str | None, typer.Option(
+        "--at", metavar="MM,MM,...",
+        help="U_x (mm) of the damage maps, nearest output step (default: the peak and the end).")
+    ] = None,
+    magnify: Annotated[float, typer.Option(
+        "--magnify", metavar="M", help="Draw the deformed shape, displacements x M (0: no).")
+    ] = 0.0,
+    reference: Annotated[float, typer.Option(
+        "--reference-stiffness", metavar="KN_MM", help="Slope of the reference line, kN/mm.")
+    ] = 71.0,
+) -> None:
+    """Write PNG figures of runs: force-displacement curves and damage maps of the wall.
+
+    The curves of all the runs go on one chart with the study's 71 kN/mm initial slope; the
+    damage maps show the wall's face unit by unit (d_c, d_cpp, d_t, joint cohesion lost).
+    """
+    try:
+        at_mm = [float(v) for v in at.split(",")] if at else None
+    except ValueError:
+        _fail(f"--at must be displacements in mm separated by commas, got {at!r}", 2)
+    if not magnify >= 0.0:
+        _fail(f"--magnify must be >= 0, got {magnify}", 2)
+    from masonry_nscd.plots import PlotInputError, plot_runs
+
+    plot_dir = output or (outdirs[0] / "plots" if len(outdirs) == 1 else Path("plots"))
+    try:
+        written, notes = plot_runs(outdirs, plot_dir, at_mm, magnify, reference)
+    except (PlotInputError, OSError) as exc:  # OSError: an unreadable results.h5
+        _fail(str(exc), 2)
+    for note in notes:
+        typer.echo(note)
+    for path in written:
+        typer.echo(f"wrote {path}")
+
+
+@app.command("calibrate")
+def calibrate_cmd(
+    case_file: Annotated[Path, typer.Argument(metavar="CASE.yaml", help="The case file (YAML).")],
+    target: Annotated[float, typer.Option("--target-stiffness", metavar="KN_MM",
+                      help="Target initial stiffness of the wall, kN/mm.")],
+    param: Annotated[str, typer.Option("--param", metavar="PATH",
+                     help="Case field to calibrate.")] = "joint.d_spring",
+    bounds: Annotated[str | None, typer.Option(
+        "--bounds", metavar="LOW:HIGH",
+        help="Interval of the parameter; must bracket the target (default 0.8:0.99 for "
+        "joint.d_spring).")] = None,
+    force_range: Annotated[str | None, typer.Option(
+        "--force-range", metavar="LOW:HIGH",
+        help="Force levels of the stiffness secant, kN (default 10 % and 40 % of mu N).")
+    ] = None,
+    rtol: Annotated[float, typer.Option("--rtol", help="Relative tolerance on the stiffness.")
+                    ] = 1e-3,
+    output: Annotated[Path | None, typer.Option(
+        "-o", "--output", metavar="OUTDIR",
+        help="Calibration folder (default results/<case name>_calibration/).")] = None,
+    overrides: SetOption = None,
+    overwrite: Annotated[bool, typer.Option("--overwrite",
+                         help="Write into a folder that is not empty.")] = False,
+) -> None:
+    """Find the value of one parameter that gives a target initial stiffness of the wall.
+
+    Brent's method on short runs that stop once the stiffness is measured; writes the
+    calibrated case and calibration.json.
+    """
+    case = _load_case_or_exit(case_file, overrides)
+    from masonry_nscd import calibrate as cal
+    from masonry_nscd.case import CaseError, load_case
+    from masonry_nscd.run import RunFailure
+
+    try:
+        if bounds is None and param not in cal.DEFAULT_BOUNDS:
+            raise cal.CalibrationError(f"--bounds LOW:HIGH is needed to calibrate {param}")
+        lo_hi = cal.parse_range(bounds, "--bounds") if bounds else cal.DEFAULT_BOUNDS[param]
+        f_range = cal.parse_range(force_range, "--force-range") if force_range else None
+        cal.parameter_value(case, param)
+        if not (target > 0.0 and rtol > 0.0):
+            raise cal.CalibrationError("--target-stiffness and --rtol must be > 0")
+    except cal.CalibrationError as exc:
+        _fail(str(exc), 2)
+    outdir = output or Path("results") / f"{case.name}_calibration"
+    if outdir.exists() and (not outdir.is_dir() or any(outdir.iterdir())) and not overwrite:
+        _fail(f"output folder {outdir} exists and is not empty: use --overwrite or another -o", 2)
+    if overwrite and (outdir / "runs").is_dir():
+        import shutil
+
+        shutil.rmtree(outdir / "runs")
+
+    def load(value: float, for_run: bool):
+        extra = [f"{param}={float(value)!r}"]
+        extra += ["output.vtu=false", "output.hdf5=false"] if for_run else \
+            [f"name={case.name}_calibrated"]
+        return load_case(case_file, [*(overrides or ()), *extra])
+
+    typer.echo(f"calibrating {param} of {case.name} in [{lo_hi[0]:g}, {lo_hi[1]:g}] to "
+               f"{target:g} kN/mm (short runs in {outdir / 'runs'})")
+    try:
+        result = cal.calibrate(case, load, param, target, lo_hi, outdir, force_range_kN=f_range,
+                               rtol=rtol, echo=typer.echo)
+    except CaseError as exc:
+        _fail(f"invalid value of {param}: {'; '.join(exc.messages)}", 2)
+    except cal.CalibrationError as exc:
+        _fail(str(exc), 2)
+    except RunFailure as exc:
+        _fail(f"a calibration run failed: {exc}", 1)
+    except KeyboardInterrupt:
+        _fail(f"interrupted; the short runs so far are in {outdir / 'runs'}", 130)
+    calibrated = load(result.value, False)
+    result.case_file = str(outdir / f"{calibrated.name}.yaml")
+    cal.write_calibrated_case(calibrated, result, Path(result.case_file))
+    cal.write_report(result, outdir / "calibration.json")
+    for line in cal.format_result(result):
+        typer.echo(line)
+    typer.echo(f"wrote {result.case_file} and {outdir / 'calibration.json'}")
+
+
+@app.command("stress-test")
+def stress_test_cmd(
+    output: Annotated[Path, typer.Option("-o", "--output", metavar="OUTDIR",
+                      help="Folder of the runs and of stress.csv.")] = Path("results/stress-test"),
+    quick: Annotated[bool, typer.Option("--quick", help="Only the fast subset of variants.")
+                     ] = False,
+    only: Annotated[list[str] | None, typer.Option(
+        "--only", metavar="NAME", help="Run this variant only (repeatable).")] = None,
+    base: Annotated[Path | None, typer.Option(
+        "--case", metavar="CASE.yaml", help="Base case (default cases/smoke.yaml).")] = None,
+    time_limit: Annotated[float, typer.Option(
+        "--time-limit", metavar="S", help="Wall-clock limit per variant, s.")] = 600.0,
+    overwrite: Annotated[bool, typer.Option("--overwrite",
+                         help="Write into a folder that is not empty.")] = False,
+) -> None:
+    """Run a matrix of variants of a small wall (time step, theta, stiffnesses, stress,
+    friction, joint damage, geometry, materials) and write OUTDIR/stress.csv. Exit 0 when every
+    variant finished in equilibrium or failed cleanly, 1 otherwise."""
+    from masonry_nscd import stress
+
+    base_path = base or stress.DEFAULT_BASE
+    _load_case_or_exit(base_path)
+    try:
+        stress.select(quick, only)
+    except ValueError as exc:
+        _fail(str(exc), 2)
+    if not time_limit > 0.0:
+        _fail(f"--time-limit must be > 0 s, got {time_limit}", 2)
+    if output.exists() and (not output.is_dir() or any(output.iterdir())) and not overwrite:
+        _fail(f"output folder {output} exists and is not empty: use --overwrite or another -o", 2)
+    try:
+        results = stress.stress_test(output, base=base_path, quick=quick, names=only,
+                                     time_limit_s=time_limit, echo=typer.echo)
+    except OSError as exc:
+        _fail(f"cannot write in {output}: {exc.strerror or exc}", 1)
+    except KeyboardInterrupt:
+        _fail(f"interrupted; the variants done so far are in {output / 'stress.csv'}", 130)
+    typer.echo(stress.format_table(results))
+    bad = [r.case for r in results if not r.acceptable]
+    typer.echo(f"wrote {output / 'stress.csv'}: {len(results) - len(bad)} of {len(results)} "
+               f"variants acceptable" + (f"; not: {', '.join(bad)}" if bad else ""))
+    if bad:
+        raise typer.Exit(1)
+
+
+def _bench_outdir(output: Path | None, default: Path, overwrite: bool) -> Path:
+    """The benchmark folder: ``output`` or ``default``; leave with code 2 if not empty."""
+    outdir = output or default
+    if outdir.exists() and (not outdir.is_dir() or any(outdir.iterdir())) and not overwrite:
+        _fail(f"output folder {outdir} exists and is not empty: use --overwrite or another -o", 2)
+    return outdir
+
+
+@app.command("bench")
+def bench_cmd(
+    case_file: Annotated[Path | None, typer.Argument(
+        metavar="[CASE.yaml]", help="The case file (YAML); may be left out with --startup.")
+    ] = None,
+    output: Annotated[Path | None, typer.Option(
+        "-o", "--output", metavar="OUTDIR",
+        help="Folder of bench.csv, bench.png and the runs (default results/bench/<case name>/)."
+    )] = None,
+    quick: Annotated[bool, typer.Option(
+        "--quick", help="A short ladder: time step x2, rate x2, tolerance x100, one mesh.")
+    ] = False,
+    startup: Annotated[bool, typer.Option(
+        "--startup", help="Also time `masonry --help` (median of 5) and `masonry run "
+        "cases/smoke.yaml` (median of 3).")] = False,
+    repeats: Annotated[int, typer.Option(
+        "--repeats", metavar="N", help="Runs of each setting shorter than 30 s (median taken).")
+    ] = 3,
+    time_limit: Annotated[float, typer.Option(
+        "--time-limit", metavar="S", help="Wall-clock limit of one run, s.")] = 600.0,
+    overrides: SetOption = None,
+    overwrite: Annotated[bool, typer.Option("--overwrite",
+                         help="Write into a folder that is not empty.")] = False,
+) -> None:
+    """Run time against error: a ladder of settings around the case's (time step, loading rate,
+    tolerance, mesh per unit, solver), each compared with a refined reference run (half the
+    time step, tolerance ten times tighter). Writes bench.csv and bench.png; exit 1 if the
+    reference run did not finish."""
+    if case_file is None and not startup:
+        _fail("missing CASE.yaml (or --startup alone for the start-up figures)", 2)
+    if repeats < 1 or not time_limit > 0.0:
+        _fail("--repeats must be >= 1 and --time-limit > 0 s", 2)
+    case = _load_case_or_exit(case_file, overrides) if case_file is not None else None
+    outdir = _bench_outdir(output, Path("results") / "bench" / (case.name if case else "startup"),
+                           overwrite)
+    from masonry_nscd import bench as bm
+
+    if startup:
+        try:
+            lines = bm.format_startup(bm.startup_figures(outdir))
+        except (OSError, RuntimeError) as exc:
+            _fail(f"start-up figures: {exc}", 1)
+        for line in lines:
+            typer.echo(line)
+    if case_file is None:
+        return
+    try:
+        result = bm.bench(case_file, outdir, overrides=list(overrides or ()), quick=quick,
+                          repeats=repeats, time_limit_s=time_limit, echo=typer.echo)
+    except KeyboardInterrupt:
+        _fail(f"interrupted; the settings done so far are in {outdir / 'bench.csv'}", 130)
+    typer.echo(bm.format_table(result.rows))
+    for line in bm.verdict(result):
+        typer.echo(line)
+    typer.echo(f"wrote {result.csv_path}" + (f" and {result.png_path}" if result.png_path else ""))
+    ref = result.row("reference")
+    if ref is None or ref.status != "ok":
+        _fail("the reference run did not finish: no errors measured", 1)
+
+
+@app.command("bench-scaling")
+def bench_scaling_cmd(
+    case_file: Annotated[Path, typer.Argument(metavar="CASE.yaml", help="The case file (YAML).")],
+    output: Annotated[Path | None, typer.Option(
+        "-o", "--output", metavar="OUTDIR",
+        help="Folder of scaling.csv and scaling.png (default results/bench-scaling/<case name>/)."
+    )] = None,
+    steps: Annotated[int, typer.Option("--steps", metavar="N", help="Time steps per wall.")
+                     ] = 40,
+    overrides: SetOption = None,
+    overwrite: Annotated[bool, typer.Option("--overwrite",
+                         help="Write into a folder that is not empty.")] = False,
+) -> None:
+    """Time per step and peak memory of walls with 1, 2, 4 and 8 times the units of the case,
+    against the number of contact points; each wall stepped N times in a fresh process."""
+    case = _load_case_or_exit(case_file, overrides)
+    if steps < 2:
+        _fail(f"--steps must be >= 2, got {steps}", 2)
+    outdir = _bench_outdir(output, Path("results") / "bench-scaling" / case.name, overwrite)
+    from masonry_nscd import bench as bm
+
+    try:
+        rows, statements = bm.bench_scaling(case_file, outdir, overrides=list(overrides or ()),
+                                            steps=steps, echo=typer.echo)
+    except KeyboardInterrupt:
+        _fail("interrupted", 130)
+    typer.echo(bm.format_scaling_table(rows))
+    for line in statements:
+        typer.echo(line)
+    typer.echo(f"wrote {outdir / 'scaling.csv'} and {outdir / 'scaling.png'}")
+    if any(r.status != "ok" for r in rows):
+        _fail("some walls did not finish their steps (see the status column)", 1)
+
+
+def _fail_list(what: str, messages: list[str], code: int) -> None:
+    """``_fail`` with one problem per line."""
+    if len(messages) == 1:
+        _fail(f"{what}: {messages[0]}", code)
+    lines = "\n".join(f"  - {m}" for m in messages)
+    _fail(f"{what} ({len(messages)} problems):\n{lines}", code)
+
+
+WorkersOption = Annotated[int | None, typer.Option(
+    "--workers", metavar="N", min=1,
+    help="Local worker processes, one thread each (default: the number of cores).")]
+SchedulerOption = Annotated[str | None, typer.Option(
+    "--scheduler", metavar="ADDRESS",
+    help="Submit the runs to the Dask scheduler at ADDRESS (e.g. tcp://host:8786) instead of "
+    "local processes; OUTDIR must be on a file system the workers share.")]
+
+
+@app.command("sweep")
+def sweep_cmd(
+    case_file: Annotated[Path, typer.Argument(metavar="CASE.yaml", help="The case file (YAML).")],
+    sets: Annotated[list[str], typer.Option(
+        "--set", metavar="PATH=V1,V2,...",
+        help="Values of one field, each read as YAML (repeatable: the runs are the cartesian "
+        "product; a single value is a fixed override of every run).")],
+    output: Annotated[Path | None, typer.Option(
+        "-o", "--output", metavar="OUTDIR",
+        help="Sweep folder (default results/<case name>_sweep/).")] = None,
+    workers: WorkersOption = None,
+    scheduler: SchedulerOption = None,
+) -> None:
+    """Run a case for every combination of the --set values, on local processes or a Dask
+    cluster; write OUTDIR/sweep.csv and OUTDIR/force_displacement.png.
+
+    Each run has its folder in OUTDIR/runs; running the same sweep again keeps the finished
+    runs. Exit 0 when every run finished, 1 when some did not (status column of sweep.csv).
+    """
+    case = _load_case_or_exit(case_file)
+    if workers is not None and scheduler:
+        _fail("--workers is for local processes; with --scheduler the cluster has its workers", 2)
+    from masonry_nscd.sweep import SweepError, run_sweep
+
+    outdir = output or Path("results") / f"{case.name}_sweep"
+    try:
+        result = run_sweep(case_file, sets, outdir, workers=workers, scheduler=scheduler,
+                           echo=typer.echo)
+    except SweepError as exc:
+        _fail_list("cannot start the sweep", exc.messages, 2)
+    except KeyboardInterrupt:
+        _fail(f"interrupted; the runs done so far are in {outdir / 'sweep.csv'} (the same "
+              "command finishes the sweep)", 130)
+    typer.echo(f"wrote {result.table}" + (f" and {result.plot}" if result.plot else ""))
+    if result.failed:
+        _fail(f"{len(result.failed)} of {len(result.records)} runs did not finish: "
+              + ", ".join(f"{r.name} ({r.status})" for r in result.failed), 1)
+
+
+@app.command("sensitivity")
+def sensitivity_cmd(
+    case_file: Annotated[Path, typer.Argument(metavar="CASE.yaml", help="The case file (YAML).")],
+    params: Annotated[list[str], typer.Option(
+        "--param", metavar="PATH=LOW:HIGH",
+        help="A numeric field and its range, SI units (repeatable).")],
+    samples: Annotated[int, typer.Option(
+        "--samples", metavar="N",
+        help="Morris: trajectories, N (D + 1) runs; Sobol: base samples, a power of 2, "
+        "N (D + 2) runs (D parameters).")],
+    method: Annotated[str, typer.Option("--method", metavar="morris|sobol",
+                                        help="Elementary effects or variance-based indices.")
+                      ] = "morris",
+    output_key: Annotated[str, typer.Option(
+        "--output", metavar="KEY",
+        help="Output analysed: peak_force_kN, initial_stiffness_kN_mm, force_at_target_kN or "
+        "ux_at_peak_mm.")] = "peak_force_kN",
+    outdir: Annotated[Path | None, typer.Option(
+        "-o", "--outdir", metavar="OUTDIR",
+        help="Study folder (default results/<case name>_<method>/).")] = None,
+    overrides: SetOption = None,
+    seed: Annotated[int, typer.Option("--seed", help="Seed of the sampling and bootstrap.")
+                    ] = 0,
+    workers: WorkersOption = None,
+    scheduler: SchedulerOption = None,
+) -> None:
+    """Sensitivity indices of one output of the run to some parameters of the case (SALib):
+    write OUTDIR/samples.csv, OUTDIR/indices.csv and OUTDIR/indices.png.
+
+    Every sample is a run (folders in OUTDIR/runs, kept when the same command runs again).
+    The analysis needs every run: if some failed or have no value, they are listed and the
+    command exits with 1 without indices.
+    """
+    case = _load_case_or_exit(case_file, overrides)
+    if workers is not None and scheduler:
+        _fail("--workers is for local processes; with --scheduler the cluster has its workers", 2)
+    from masonry_nscd import sensitivity as sa
+    from masonry_nscd.sweep import SweepError
+
+    outdir = outdir or Path("results") / f"{case.name}_{method}"
+    try:
+        result = sa.run_sensitivity(case_file, params, method, samples, output_key, outdir,
+                                    fixed_sets=list(overrides or ()), workers=workers,
+                                    scheduler=scheduler, seed=seed, echo=typer.echo)
+    except SweepError as exc:
+        _fail_list("cannot start the sensitivity study", exc.messages, 2)
+    except KeyboardInterrupt:
+        _fail(f"interrupted; the runs done so far are in {outdir / sa.SAMPLES_FILE} (the same "
+              "command finishes them)", 130)
+    if result.indices is None:
+        _fail(f"no analysis: {len(result.missing)} of {len(result.records)} runs have no "
+              f"{output_key} ({sa.describe_missing(result.missing)}); "
+              f"{method} needs every run of its design (see {result.samples_table}; narrow "
+              "the ranges or fix the cause, then run the same command again)", 1)
+    for line in sa.format_indices(method, result.indices):
+        typer.echo(line)
+    typer.echo(f"wrote {result.samples_table}, {result.indices_csv} and {result.chart}")
 
 
 if __name__ == "__main__":  # pragma: no cover
