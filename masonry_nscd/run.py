@@ -412,6 +412,10 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     except RunFailure as exc:
         with contextlib.suppress(RunOutputError):
             log(f"failed: {exc}", show=False)
+        if not isinstance(exc, RunOutputError):  # the summary of what was computed
+            from masonry_nscd.report import report_run
+
+            report_run(outdir, log, curve)  # never raises
         raise
     except KeyboardInterrupt:
         with contextlib.suppress(RunOutputError):

@@ -115,3 +115,28 @@ def test_equilibrium_error():
     curve["fx_bottom_kN"][-1] = -9.0
     assert stress.equilibrium_error(curve, 1.0) == pytest.approx(1.0 / 50.0)
     assert np.isnan(stress.equilibrium_error({}, 1.0))
+
+
+def test_a_lost_step_stops_the_run_and_keeps_a_summary(tmp_path, monkeypatch):
+    """A step whose forces still change by more than LOST_RESIDUAL per iteration ends the run
+    (exit 1 path) instead of being recorded; summary.json describes what was computed."""
+    import dataclasses
+    import json
+
+    from masonry_nscd import run as run_mod
+
+    orig = Integrator.step
+
+    def step(self):
+        rep = orig(self)
+        if rep.step == 20:
+            return dataclasses.replace(rep, residual=0.5, converged=False)
+        return rep
+
+    monkeypatch.setattr(Integrator, "step", step)
+    r = stress.run_variant(stress.DEFAULT_BASE, _variant("reference"), tmp_path / "v")
+    assert r.outcome == "failed"
+    assert "step 20" in r.message and "0.5" in r.message
+    assert run_mod.LOST_RESIDUAL < 0.5
+    summary = json.loads((tmp_path / "v" / "summary.json").read_text())
+    assert summary["steps"] == 19
