@@ -95,18 +95,15 @@ class Endo3dBlocks:
         """
         if trial:
             hex8.strains_from_b(self.B, self.edofs, u, self._eps)
-            if self.relax > 0.0:
-                self.failures = endo3d.endo3d_update_elements(
-                    self._eps, self.state_all, self.params, self.xe, self.elem_of_point,
-                    self.trial_all, self._sigma_endo3d)
-                r = self.relax
-                self.sigma_all[:] = (self.sigma_committed_all + r * self._sigma_endo3d
+            r = self.relax
+            out = self._sigma_endo3d if r > 0.0 else self.sigma_all
+            self.failures = endo3d.endo3d_update_elements(
+                self._eps, self.state_all, self.params, self.xe, self.elem_of_point,
+                self.trial_all, out)
+            if r > 0.0:  # Duvaut-Lions relaxation towards the ENDO3D stress
+                self.sigma_all[:] = (self.sigma_committed_all + r * out
                                      + np.einsum("pij,pj->pi", self.C0,
                                                  self._eps - self.eps_committed_all)) / (1.0 + r)
-            else:
-                self.failures = endo3d.endo3d_update_elements(
-                    self._eps, self.state_all, self.params, self.xe, self.elem_of_point,
-                    self.trial_all, self.sigma_all)
             sig = self.sigma_all
         else:
             sig = self.sigma_committed_all

@@ -168,17 +168,12 @@ class Integrator:
                 np.abs(a - b).max() <= 0.02 for a, b in zip(scales, self._secant)):
             return
         self._secant = scales
-        s = self.sys
-        mhat = s.mhat.copy()
-        h, th = s.h, s.theta
+        stiffnesses = []
         for k, i in enumerate(self.material.index):
             blk = self.bodies[i]
             C = hex8.elastic_matrix(blk.E, blk.nu)
-            Ks = hex8.assemble_block_scaled(blk.X, blk.conn, C, scales[k])
-            m = s.mass[s.body_dof0[i]:s.body_dof0[i + 1]]
-            n = blk.ndof
-            mhat[s.minv_off[i]:s.minv_off[i] + n * n] = (np.diag(m) + (th * h) ** 2 * Ks).ravel()
-        self.newton.set_iteration_mhat(mhat)
+            stiffnesses.append(hex8.assemble_block_scaled(blk.X, blk.conn, C, scales[k]))
+        self._set_material_matrix(stiffnesses)
 
     def _update_tangent(self) -> None:
         """Consistent tangent iteration matrix of the ENDO3D blocks at the current iterate.
@@ -188,14 +183,19 @@ class Integrator:
         (``Endo3dBlocks.tangent_stiffness``); it is kept for the following iterations and
         steps until the iterations slow down again.
         """
+        self._set_material_matrix(self.material.tangent_stiffness())
+        self.tangent_updates += 1
+
+    def _set_material_matrix(self, stiffnesses: list[np.ndarray]) -> None:
+        """Put ``M + (theta h)^2 K`` of each ENDO3D block (``K`` (3n, 3n) N/m, in the order of
+        ``material.index``) into the Newton matrix; the other bodies keep their ``M_hat``."""
         s = self.sys
         mhat = s.mhat.copy()
         h, th = s.h, s.theta
-        for k, Kt in zip(self.material.index, self.material.tangent_stiffness()):
-            m = s.mass[s.body_dof0[k]:s.body_dof0[k + 1]]
-            mhat[s.minv_off[k]:s.minv_off[k] + len(m) ** 2] = \
-                (np.diag(m) + (th * h) ** 2 * Kt).ravel()
-        self.tangent_updates += 1
+        for i, K in zip(self.material.index, stiffnesses):
+            m = s.mass[s.body_dof0[i]:s.body_dof0[i + 1]]
+            mhat[s.minv_off[i]:s.minv_off[i] + len(m) ** 2] = \
+                (np.diag(m) + (th * h) ** 2 * K).ravel()
         self.newton.set_iteration_mhat(mhat)
 
     def _on_slow(self) -> None:

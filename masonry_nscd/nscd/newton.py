@@ -119,7 +119,7 @@ def joint_tangent_fd(u, T, uc_old, beta_old, P, K):
 
 @njit(cache=True)
 def evaluate_joints(u_pred, Hv, h, theta, kind, law, params, uc_old, beta_old,
-                    T, uc, beta, status, K, consistent=True):
+                    T, uc, beta, status, K):
     """Law and tangent at every joint point for ``u = u_pred + h theta H^T v`` (Hv = H^T v).
 
     The tangent is consistent: with the integrity frozen where it does not drop within the
@@ -141,7 +141,7 @@ def evaluate_joints(u_pred, Hv, h, theta, kind, law, params, uc_old, beta_old,
             co[i] = uc_old[a, i]
         st, bn = jl.local_solve_implicit(u, A, co, beta_old[a], params[law[a]], jl.KIND_JOINT,
                                          t, c)
-        if consistent and bn < beta_old[a]:
+        if bn < beta_old[a]:
             # the integrity drops within the step: the frozen-integrity tangent would miss the
             # softening (wrong by 100 % and in sign on opening joints), forward differences
             # of the law give the consistent one
@@ -311,8 +311,6 @@ class NewtonSolver:
         # and value of the largest residual entry) per iteration, for diagnosis; None (the
         # default) records nothing
         self.trace = None
-        # joints softening within the step: consistent tangent (True) or integrity frozen
-        self.consistent_joints = True
 
     def set_iteration_mhat(self, mhat_jac: np.ndarray) -> None:
         """Use other body blocks (same layout as ``mhat``) in the Newton matrix."""
@@ -423,7 +421,7 @@ class NewtonSolver:
             K = np.zeros((npt, 3, 3))
             kernels.local_velocities(s.side_dofs, s.side_coef, v, Hv)
             evaluate_joints(u_pred, Hv, h, th, s.kind, s.law, params, uc_old, beta_old, out_T,
-                            out_uc, out_beta, out_status, K, self.consistent_joints)
+                            out_uc, out_beta, out_status, K)
             out_T[g] = -r_glue.reshape(-1, 3) / (h * s.area[g, None])
             residual(s.body_dof0, self.mhat_off, self.mhat, v, v_free, s.side_dofs,
                      s.side_coef, s.kind, s.area, out_T, r_glue, self.glue_of, h, R)
