@@ -1,9 +1,11 @@
 """masonry_nscd: masonry walls block by block with Non-Smooth Contact Dynamics.
 
-On import, the numba on-disk cache is pointed at a folder keyed on a hash of this package's
-sources (unless ``NUMBA_CACHE_DIR`` is already set). numba checks a cached kernel against its
-own module only, so a kernel that calls a kernel of another, edited module could otherwise be
-served stale from the cache; with the key, any edit of the package starts a fresh cache.
+On import, the numba on-disk cache is pointed at a folder keyed on a hash of the package's
+kernel modules, the sources that hold ``njit`` functions (unless ``NUMBA_CACHE_DIR`` is already
+set). numba checks a cached kernel against its own module only, so a kernel that calls a kernel
+of another, edited module could otherwise be served stale from the cache; with the key, any edit
+of a kernel module starts a fresh cache, and edits elsewhere (the CLI, the run loop, the
+reports) keep the compiled kernels.
 ``masonry cache-clear`` removes the cache folders.
 """
 
@@ -18,12 +20,15 @@ __version__ = "0.1.0"
 _PKG = Path(__file__).resolve().parent
 
 
-def source_hash() -> str:
-    """Short hash of every .py file of the package (names and contents)."""
+def source_hash(kernels_only: bool = False) -> str:
+    """Short hash of the package's .py files (names and contents); with ``kernels_only``, of
+    the kernel modules only (the files that contain ``njit``)."""
     h = hashlib.sha256()
     for p in sorted(_PKG.rglob("*.py")):
-        h.update(str(p.relative_to(_PKG)).encode())
-        h.update(p.read_bytes())
+        text = p.read_bytes()
+        if not kernels_only or b"njit" in text:
+            h.update(str(p.relative_to(_PKG)).encode())
+            h.update(text)
     return h.hexdigest()[:16]
 
 
@@ -34,4 +39,4 @@ def cache_root() -> Path:
 
 
 if "NUMBA_CACHE_DIR" not in os.environ:
-    os.environ["NUMBA_CACHE_DIR"] = str(cache_root() / source_hash())
+    os.environ["NUMBA_CACHE_DIR"] = str(cache_root() / source_hash(kernels_only=True))
