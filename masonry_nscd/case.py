@@ -180,11 +180,11 @@ class Wall(_Section):
     """
 
     unit_length_m: Real = Field(
-        0.300, gt=0.0, le=10.0, description="length of one whole unit along the wall (m)"
+        0.300, ge=0.01, le=10.0, description="length of one whole unit along the wall (m)"
     )
-    unit_height_m: Real = Field(0.100, gt=0.0, le=10.0, description="height of one unit (m)")
+    unit_height_m: Real = Field(0.100, ge=0.01, le=10.0, description="height of one unit (m)")
     thickness_m: Real = Field(
-        0.150, gt=0.0, le=10.0, description="thickness of the wall and of the units (m)"
+        0.150, ge=0.01, le=10.0, description="thickness of the wall and of the units (m)"
     )
     joint_thickness_m: Real = Field(
         0.010,
@@ -201,7 +201,7 @@ class Wall(_Section):
     )
     half_unit_length_m: Real = Field(
         0.145,
-        gt=0.0,
+        ge=0.005,
         le=10.0,
         description="length of the half units at both ends of even courses, running bond (m)",
     )
@@ -275,15 +275,15 @@ class Endo3d(_Section):
     """
 
     R_t_Pa: Real = Field(
-        1.0e6, gt=0.0, le=1e9, description="tensile strength R_t (Pa), Rankine criterion"
+        1.0e6, ge=1e3, le=1e9, description="tensile strength R_t (Pa), Rankine criterion"
     )
     eps_pic_t: Real = Field(
         0.9009e-4, gt=0.0, lt=1.0, description="strain at the tensile peak (dimensionless)"
     )
     G_ft_J_m2: Real = Field(
-        60.0, gt=0.0, le=1e6, description="tensile fracture energy G_ft (J/m^2), Hillerborg"
+        60.0, ge=1e-3, le=1e6, description="tensile fracture energy G_ft (J/m^2), Hillerborg"
     )
-    R_c_Pa: Real = Field(9.46e6, gt=0.0, le=1e10, description="compressive strength R_c (Pa)")
+    R_c_Pa: Real = Field(9.46e6, ge=1e3, le=1e10, description="compressive strength R_c (Pa)")
     eps_pic_c: Real = Field(
         0.13e-1, gt=0.0, lt=1.0, description="strain at the compressive peak (dimensionless)"
     )
@@ -308,8 +308,8 @@ class Endo3d(_Section):
     DCPK: Real = Field(
         1.0, ge=0.0, le=1.0, description="cap on the pre-peak compressive damage (dimensionless)"
     )
-    REF_Pa: Real = Field(0.3e6, gt=0.0, le=1e9, description="crack reclosure stress REF (Pa)")
-    GFR_J_m2: Real = Field(4.5, gt=0.0, le=1e6, description="crack reclosure energy GFR (J/m^2)")
+    REF_Pa: Real = Field(0.3e6, ge=1e2, le=1e9, description="crack reclosure stress REF (Pa)")
+    GFR_J_m2: Real = Field(4.5, ge=1e-3, le=1e6, description="crack reclosure energy GFR (J/m^2)")
     relaxation_time_s: Real = Field(
         1e-3, ge=0.0, le=1.0,
         description="Duvaut-Lions relaxation time tau of the viscous regularisation (s); "
@@ -345,8 +345,8 @@ class Blocks(_Section):
     material: Literal["elastic", "endo3d", "rigid"] = Field(
         "endo3d", description="block material model: elastic, endo3d or rigid"
     )
-    density_kg_m3: Real = Field(2000.0, gt=0.0, le=1e5, description="density (kg/m^3)")
-    E_Pa: Real = Field(11.1e9, gt=0.0, le=1e13, description="Young's modulus E (Pa)")
+    density_kg_m3: Real = Field(2000.0, ge=100.0, le=1e5, description="density (kg/m^3)")
+    E_Pa: Real = Field(11.1e9, ge=1e6, le=1e13, description="Young's modulus E (Pa)")
     nu: Real = Field(
         0.2, gt=-1.0, lt=0.5, description="Poisson's ratio (dimensionless, -1 < nu < 0.5)"
     )
@@ -409,28 +409,28 @@ class Joint(_Section):
         "fczm", description="fczm: cohesive zone + friction + spring; coulomb: dry friction only"
     )
     K_I_spring_Pa_m: Real = Field(
-        4.3e11, gt=0.0, le=1e16, description="normal stiffness of the series spring (Pa/m)"
+        4.3e11, ge=1e6, le=1e16, description="normal stiffness of the series spring (Pa/m)"
     )
     K_II_spring_Pa_m: Real = Field(
-        1.8e11, gt=0.0, le=1e16, description="tangential stiffness of the series spring (Pa/m)"
+        1.8e11, ge=1e6, le=1e16, description="tangential stiffness of the series spring (Pa/m)"
     )
     d_spring: Real = Field(
         0.953, ge=0.0, lt=1.0, description="constant damage of the spring (dimensionless)"
     )
     sigma_I_e_Pa: Real = Field(
-        0.05e6, gt=0.0, le=1e9, description="mode I elastic limit (tensile strength) (Pa)"
+        0.05e6, ge=1.0, le=1e9, description="mode I elastic limit (tensile strength) (Pa)"
     )
     K_I_coh_Pa_m: Real = Field(
-        1.21e11, gt=0.0, le=1e16, description="mode I cohesive stiffness (Pa/m)"
+        1.21e11, ge=1e6, le=1e16, description="mode I cohesive stiffness (Pa/m)"
     )
-    G_fI_J_m2: Real = Field(3.0, gt=0.0, le=1e6, description="mode I fracture energy (J/m^2)")
+    G_fI_J_m2: Real = Field(3.0, ge=1e-3, le=1e6, description="mode I fracture energy (J/m^2)")
     sigma_II_e_Pa: Real = Field(
-        0.27e6, gt=0.0, le=1e9, description="mode II elastic limit (shear strength) (Pa)"
+        0.27e6, ge=1.0, le=1e9, description="mode II elastic limit (shear strength) (Pa)"
     )
     K_II_coh_Pa_m: Real = Field(
-        2.8e11, gt=0.0, le=1e16, description="mode II cohesive stiffness (Pa/m)"
+        2.8e11, ge=1e6, le=1e16, description="mode II cohesive stiffness (Pa/m)"
     )
-    G_fII_J_m2: Real = Field(206.0, gt=0.0, le=1e6, description="mode II fracture energy (J/m^2)")
+    G_fII_J_m2: Real = Field(206.0, ge=1e-3, le=1e6, description="mode II fracture energy (J/m^2)")
     d_coh_initial: Real = Field(
         0.99944,
         ge=0.0,
@@ -446,7 +446,7 @@ class Joint(_Section):
     )
     eta: Real = Field(
         1e-4,
-        gt=0.0,
+        ge=1e-12,
         lt=0.5,
         description="residual integrity at which the joint is fully broken (dimensionless)",
     )
@@ -531,7 +531,7 @@ class Supports(_Section):
         "load", description="top beam in y: load (free, carries sigma_N) or fixed (held)"
     )
     top_beam_mass_kg: Real = Field(
-        500.0, gt=0.0, le=1e7, description="mass of the rigid top steel beam (kg)"
+        500.0, ge=1.0, le=1e7, description="mass of the rigid top steel beam (kg)"
     )
 
 
@@ -618,7 +618,7 @@ class Solver(_Section):
     a loose tolerance lowers the apparent initial stiffness of the wall (docs/model.md section 4).
     """
 
-    time_step_s: Real = Field(2e-3, gt=0.0, le=1.0, description="time step h (s)")
+    time_step_s: Real = Field(2e-3, ge=1e-6, le=1.0, description="time step h (s)")
     theta: Real = Field(
         1.0, ge=0.5, le=1.0, description="theta of the theta-method (dimensionless, 0.5..1)"
     )
@@ -629,7 +629,7 @@ class Solver(_Section):
     )
     tolerance: Real = Field(
         1e-8,
-        gt=0.0,
+        ge=1e-14,
         lt=1.0,
         description="convergence: relative change of the contact forces (dimensionless)",
     )

@@ -374,8 +374,8 @@ _text = st.text(max_size=30)
         lambda s: s.strip() == s and not any(c in s for c in "/\\\x00") and s not in (".", "..")
     ),
     description=st.text(max_size=200),
-    E=st.floats(min_value=1.0, max_value=1e13),
-    eta=st.floats(min_value=1e-300, max_value=0.49),
+    E=st.floats(min_value=1e6, max_value=1e13),
+    eta=st.floats(min_value=1e-12, max_value=0.49),
     target=st.floats(min_value=1e-9, max_value=10.0),
 )
 def test_round_trip_random_values(name, description, E, eta, target):

@@ -4,8 +4,8 @@
   inserted or replaced): ``masonry validate`` and ``masonry run`` end with exit code 0 (valid)
   or 2, never a traceback; a ``run`` of an invalid file stops at the case, before any output.
 * Values inside the schema's bounds: a case that validates builds its scene, or the builders
-  refuse it with a ValueError that ``masonry run`` reports with exit code 2 (degenerate
-  geometry such as a unit 1e-308 m high: the schema's lower bounds are only "> 0").
+  refuse it with a ValueError that ``masonry run`` reports with exit code 2. Degenerate
+  geometry such as a unit 1e-308 m high is refused by the schema's lower bounds (1 cm).
 """
 
 from __future__ import annotations
@@ -178,9 +178,16 @@ def test_a_valid_case_builds_its_scene(edits, material):
         assert scene.integrator.sys.ndof > 0
 
 
-def test_degenerate_geometry_is_an_input_error(tmp_path):
-    """Inside the schema's bounds but unbuildable: exit code 2 and a message, no traceback."""
+@pytest.mark.parametrize("edit, bound", [("wall.unit_height_m=1e-308", "0.01 <= value"),
+                                         ("blocks.density_kg_m3=1e-30", "100 <= value"),
+                                         ("joint.K_I_spring_Pa_m=1e-3", "1e+06 <= value"),
+                                         ("solver.time_step_s=1e-300", "1e-06 <= value")])
+def test_degenerate_values_are_refused_with_their_bound(tmp_path, edit, bound):
+    """Values that once passed a "> 0" bound and failed inside the solver (a unit 1e-308 m
+    high, a density of 1e-30 kg/m^3): exit code 2, the field and its range named."""
     res = runner.invoke(app, ["run", str(ROOT / "cases" / "smoke.yaml"), "-o", str(tmp_path / "r"),
-                              "--set", "wall.unit_height_m=1e-308"])
+                              "--set", edit])
     _clean(res, 2)
-    assert "invalid case" in res.output and "Jacobian" in res.output
+    assert "invalid case" in res.output and edit.split("=")[0] in res.output
+    assert bound in res.output
+    assert not (tmp_path / "r").exists()
