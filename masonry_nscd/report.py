@@ -162,6 +162,8 @@ def _convergence(c: Mapping[str, FloatArray]) -> dict[str, Any]:
         "unconverged_steps": int(np.sum(conv == 0)) if conv is not None else None,
         "worst_residual": _num(res.max()) if res is not None and len(res) else None,
         "max_iterations_per_step": int(it.max()) if it is not None and len(it) else None,
+        "steps_with_failed_gauss_points": (int(np.sum(c["failed_gauss_points"] > 0))
+                                           if "failed_gauss_points" in c else None),
     }
 
 
@@ -513,7 +515,9 @@ def format_summary(s: Mapping[str, Any]) -> list[str]:
         + (_fmt(s["force_at_target_kN"], ".4g", " kN") if s["target_reached"]
            else f"not reached (last Ux {_fmt(s['last_ux_mm'], '.4g', ' mm')})"),
         f"steps not converged {s['unconverged_steps']} (worst residual "
-        f"{_fmt(s['worst_residual'], '.2e')})"
+        f"{_fmt(s['worst_residual'], '.2e')}"
+        + (f"; {s['steps_with_failed_gauss_points']} with failed ENDO3D Gauss points"
+           if s.get("steps_with_failed_gauss_points") else "") + ")"
         + (f"; their largest force, left out of the peak: {s['peak_force_unconverged_kN']:.4g} kN"
            if s.get("peak_force_unconverged_kN") is not None else ""),
     ]

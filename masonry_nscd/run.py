@@ -41,6 +41,7 @@ import numpy as np
 CSV_COLUMNS = [
     "step", "time_s", "ux_mm", "fx_kN", "uy_mm", "fy_kN", "fx_bottom_kN", "fy_bottom_kN",
     "iterations", "residual", "converged", "max_joint_damage", "max_block_damage", "max_d_cpp",
+    "failed_gauss_points",
 ]
 
 
@@ -325,9 +326,18 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
             worst = max(worst, rep.residual)
             if not rep.converged:
                 unconverged += 1
-                log(f"step {rep.step} (t = {rep.time:.4f} s): contact solver ({case.solver.method}) "
-                    f"not converged after {rep.sweeps} iterations, residual "
-                    f"{rep.residual:.3e} > {case.solver.tolerance:.1e}", show=unconverged <= 5)
+                if rep.material_failures:
+                    at = rep.material_failure_at
+                    place = (f" (the first in the element centred at x = {at[0]:.3f}, y = "
+                             f"{at[1]:.3f}, z = {at[2]:.3f} m)") if at else ""
+                    log(f"step {rep.step} (t = {rep.time:.4f} s): ENDO3D return mapping not "
+                        f"converged at {rep.material_failures} Gauss points{place}",
+                        show=unconverged <= 5)
+                if rep.residual > case.solver.tolerance:
+                    log(f"step {rep.step} (t = {rep.time:.4f} s): contact solver "
+                        f"({case.solver.method}) not converged after {rep.sweeps} iterations, "
+                        f"residual {rep.residual:.3e} > {case.solver.tolerance:.1e}",
+                        show=unconverged <= 5)
                 if rep.residual > LOST_RESIDUAL:
                     raise RunFailure(
                         f"step {rep.step} ({stage_at(case, rep.time)} stage, t = {rep.time:.6g} "
@@ -346,7 +356,8 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
             db = float(np.maximum(bf["d_c"], bf["d_t"]).max()) if len(hexes) else 0.0
             row = [rep.step, rep.time, 1e3 * ux, 1e-3 * top[0], 1e3 * uy, 1e-3 * top[1],
                    1e-3 * bot[0], 1e-3 * bot[1], rep.sweeps, rep.residual, int(rep.converged),
-                   dj, db, float(bf["d_cpp"].max()) if len(hexes) else 0.0]
+                   dj, db, float(bf["d_cpp"].max()) if len(hexes) else 0.0,
+                   rep.material_failures]
             bad = [c for c, v in zip(CSV_COLUMNS, row) if not math.isfinite(v)]
             if bad:
                 raise RunFailure(f"step {rep.step} ({stage_at(case, rep.time)} stage, t = "

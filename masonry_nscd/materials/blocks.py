@@ -110,6 +110,21 @@ class Endo3dBlocks:
         fint[self.all_dofs] = 0.0
         hex8.forces_from_b(self.B, self.w, self.edofs, sig, fint)
 
+    def failed_points(self) -> np.ndarray:
+        """Gauss points (indices into the batch) whose return mapping did not converge at the
+        last trial. The batch kernel only counts them (``failures``); this runs the kernel again
+        point by point, so call it before ``commit`` and only when ``failures`` > 0."""
+        out = np.empty(endo3d.N_STATE)
+        sig = np.empty(6)
+        bad = [p for p in range(len(self._eps))
+               if endo3d.endo3d_update(self._eps[p], self.state_all[p], self.params,
+                                       self.xe[self.elem_of_point[p]], out, sig) != 0]
+        return np.array(bad, dtype=np.int64)
+
+    def point_centre(self, p: int) -> np.ndarray:
+        """Centre (m, reference coordinates) of the hexahedron of Gauss point ``p``."""
+        return self.xe[self.elem_of_point[p]].mean(axis=0)
+
     def commit(self) -> None:
         """The last trial becomes the state at the end of the step."""
         self.state_all[:] = self.trial_all

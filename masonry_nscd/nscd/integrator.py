@@ -18,7 +18,8 @@ the first 560 steps: 0.13 s per step with the tangent against 0.26 s with the se
 the cracking of the heel (from U_x = 1.7 mm) the secant stalled at 50 iterations where the
 tangent converges.
 
-A step that did not reach the tolerance is reported (``StepReport.converged`` False) and the
+A step that did not reach the tolerance, or whose ENDO3D return mapping failed at some Gauss
+point (``StepReport.material_failures``), is reported (``StepReport.converged`` False) and the
 caller decides; NaN or infinity anywhere in the new state raises ``DivergenceError`` naming the
 step and what diverged.
 """
@@ -49,6 +50,10 @@ class StepReport:
     residual: float
     converged: bool
     ambiguous: int  # contact points whose local problem had no exact status
+    # ENDO3D Gauss points whose return mapping did not converge in the accepted state, and the
+    # centre (m) of the element of the first of them
+    material_failures: int = 0
+    material_failure_at: tuple[float, float, float] | None = None
 
 
 @dataclass
@@ -273,11 +278,18 @@ class Integrator:
             what = "body velocities" if not np.isfinite(v1).all() else "contact tractions"
             raise DivergenceError(f"step {self.step_index} (t = {t1:.6g} s): {what} not finite")
         self.u, self.v, self.t, self._F0 = u1, v1, t1, F1
+        failures, failure_at = 0, None
         if self.material is not None:
+            failures = int(self.material.failures)
+            if failures:
+                bad = self.material.failed_points()
+                if len(bad):
+                    failure_at = tuple(float(x) for x in self.material.point_centre(bad[0]))
             self.material.commit()
         self.joints = JointState(u=ul1, U=U1, uc=uc, beta=beta, T=T, status=status)
         return StepReport(self.step_index, t1, int(sweeps), float(residual),
-                          bool(residual <= self.tolerance), int(amb))
+                          bool(residual <= self.tolerance and failures == 0), int(amb),
+                          failures, failure_at)
 
     # --- read-outs ----------------------------------------------------------------------
     def point_forces(self) -> np.ndarray:
