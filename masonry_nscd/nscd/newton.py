@@ -25,12 +25,23 @@ point's own Delassus diagonal) in the lower right block: glue points can outnumb
 hold, and the tiny compliance keeps the matrix non-singular. For ENDO3D blocks ``M_hat`` holds
 their tangent stiffness (``Integrator._update_tangent``) and the residual a material correction.
 
-Iterations: the matrix is factorised (sparse LU) only when the iterations slow down (chord
-method otherwise), or when a direction from an older matrix does not decrease the residual: while
-the joints keep their statuses the factorisation of an earlier step serves, and a step costs one
-or two solves. A backtracking line search on the residual norm stops the open/closed cycling of
-tiny loads; where even the direction of a fresh matrix finds no decrease (a kink of the
-piecewise-smooth residual) the full step is taken.
+Iterations:
+
+* predictor: the solution (body velocities, glue impulses) extrapolated linearly from the last
+  two steps;
+* chord steps ``-J0^-1 F`` with the factorisation of an earlier iterate, accelerated by
+  Anderson mixing of the last few steps (``_anderson``: GMRES preconditioned by J0 on a linear
+  residual), and a backtracking line search on the residual norm, which stops the open/closed
+  cycling of tiny loads; an accelerated step that does not decrease the norm is replaced by the
+  plain one;
+* the matrix is factorised again (sparse LU, in a fixed pattern and order: ``_Pattern``) when
+  the residual fell by less than ``slow_rate`` in two iterations in a row, or when a direction
+  from an older matrix does not decrease the residual; where even the direction of a fresh
+  matrix finds no decrease (a kink of the piecewise-smooth residual) the full step is taken.
+
+Measured on the reference wall with elastic blocks (100 steps from U_x = 0.3 mm, CPU time):
+plain chord steps 9.2 iterations and 0.35 factorisations per step, 26.8 ms; accelerated, 7.0
+and 0.17, 18.4 ms. Near the peak (from U_x = 2.5 mm) 63.5 against 49.7 ms per step.
 
 The law needs a spring in series (finite ``T(u)``); for dry Signorini-Coulomb contacts use the
 Gauss-Seidel solver.
@@ -193,8 +204,11 @@ def residual(body_dof0, mhat_off, mhat, v, v_free, side_dofs, side_coef, kind, a
 
 @njit(cache=True)
 def jacobian_coo(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_coef, kind,
-                 area, K, glue_of, glue_eps, h, theta):
-    """COO triplets of the Newton matrix (free dofs, then 3 glue multipliers per glue point)."""
+                 area, K, glue_of, glue_eps, h, theta, keep_zeros=False):
+    """COO triplets of the Newton matrix (free dofs, then 3 glue multipliers per glue point).
+
+    ``keep_zeros``: emit every entry that can be non-zero, zeros included, always in the same
+    order; the triplets then fit the fixed pattern of ``NewtonSolver`` (``_pattern``)."""
     nb = body_dof0.shape[0] - 1
     cap = 0
     for b in range(nb):
@@ -220,7 +234,7 @@ def jacobian_coo(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_c
                 if fj < 0:
                     continue
                 val = mhat[mo + i * n + j]
-                if val != 0.0:
+                if val != 0.0 or keep_zeros:
                     rows[k] = fi
                     cols[k] = fj
                     vals[k] = val
@@ -249,7 +263,7 @@ def jacobian_coo(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_c
                 k2 = coef[i, 0] * K[a, 0, 2] + coef[i, 1] * K[a, 1, 2] + coef[i, 2] * K[a, 2, 2]
                 for j in range(m):
                     val = w * (k0 * coef[j, 0] + k1 * coef[j, 1] + k2 * coef[j, 2])
-                    if val != 0.0:
+                    if val != 0.0 or keep_zeros:
                         rows[k] = dofs[i]
                         cols[k] = dofs[j]
                         vals[k] = val
@@ -258,7 +272,7 @@ def jacobian_coo(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_c
             g = nfree + 3 * glue_of[a]
             for i in range(m):
                 for c in range(3):
-                    if coef[i, c] != 0.0:
+                    if coef[i, c] != 0.0 or keep_zeros:
                         rows[k] = dofs[i]
                         cols[k] = g + c
                         vals[k] = -coef[i, c]
@@ -274,6 +288,81 @@ def jacobian_coo(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_c
             vals[k] = glue_eps[gi]
             k += 1
     return rows[:k], cols[:k], vals[:k]
+
+
+@njit(cache=True)
+def scatter_add(slot, vals, out):
+    """``out[slot[k]] += vals[k]`` over all k, from ``out = 0``: triplets summed into the
+    values of a fixed sparse pattern."""
+    for i in range(out.shape[0]):
+        out[i] = 0.0
+    for k in range(slot.shape[0]):
+        out[slot[k]] += vals[k]
+
+
+class _PermutedLU:
+    """LU factors of ``P J P^T`` (``P x = x[order]``) that solve ``J x = b``."""
+
+    def __init__(self, lu, order: np.ndarray):
+        self.lu, self.order = lu, order
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        x = np.empty_like(b)
+        x[self.order] = self.lu.solve(b[self.order])
+        return x
+
+
+class _Pattern:
+    """The fixed sparsity of the Newton matrix and a fill-reducing order, found once.
+
+    Every Newton matrix of a scene has the same pattern (the same bodies, points and free
+    dofs; ``jacobian_coo(..., keep_zeros=True)`` emits the same triplets in the same order), so
+    the place of each triplet in the CSC arrays is computed once and filling a matrix is a
+    scatter (``scatter_add``) instead of a COO to CSC conversion. The symmetric minimum-degree
+    order of SuperLU (``MMD_AT_PLUS_A``) is also computed once, at the first factorisation,
+    and the later matrices are factorised already permuted, in their natural order. Measured
+    on the reference wall (4123 unknowns, 0.28 M entries): assembly 2 ms instead of 11 ms,
+    factorisation 20 ms instead of 26 ms, the same 0.72 M nonzeros in L + U.
+    """
+
+    def __init__(self, rows: np.ndarray, cols: np.ndarray, n: int):
+        self.n = n
+        self.slot = self._slots(rows, cols)
+        self.order = None  # P x = x[order]; None until the first factorisation
+
+    def _slots(self, rows, cols) -> np.ndarray:
+        """CSC arrays of the pattern of (rows, cols) and the slot of each triplet."""
+        n = self.n
+        uniq, slot = np.unique(cols * n + rows, return_inverse=True)
+        self.indptr = np.searchsorted(uniq // n, np.arange(n + 1)).astype(np.int64)
+        self.indices = (uniq % n).astype(np.int64)
+        self._rows, self._cols = rows, cols
+        return slot.astype(np.int64)
+
+    def matrix(self, vals: np.ndarray) -> sp.csc_matrix:
+        """The matrix of the triplet values ``vals`` (in the current order)."""
+        data = np.empty(len(self.indices))
+        scatter_add(self.slot, vals, data)
+        return sp.csc_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
+
+    def factorise(self, vals: np.ndarray, pivoting: bool = False):
+        """LU of the matrix of ``vals``: with diagonal pivots (RuntimeError on a zero pivot),
+        or with partial pivoting (``pivoting``, robust and slower)."""
+        if pivoting:
+            lu = spla.splu(self.matrix(vals))
+            return lu if self.order is None else _PermutedLU(lu, self.order)
+        opts = {"SymmetricMode": True}
+        if self.order is None:
+            lu = spla.splu(self.matrix(vals), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                           options=opts)
+            # J[r, c] is entry (place[r], place[c]) of P J P^T
+            place = lu.perm_c.astype(np.int64)
+            self.order = np.argsort(place)
+            self.slot = self._slots(place[self._rows], place[self._cols])
+            return lu
+        lu = spla.splu(self.matrix(vals), permc_spec="NATURAL", diag_pivot_thresh=0.0,
+                       options=opts)
+        return _PermutedLU(lu, self.order)
 
 
 class NewtonSolver:
@@ -301,6 +390,8 @@ class NewtonSolver:
         self.lu = None
         self.factorisations = 0
         self._K_factorised = None
+        # fixed pattern and order of the Newton matrix, found at the first factorisation
+        self._pattern: _Pattern | None = None
         # the body blocks of the Newton matrix; a secant iteration matrix may replace the
         # elastic one (``set_iteration_mhat``), the residual keeps the elastic decomposition
         self.mhat_jac = mhat
@@ -311,6 +402,16 @@ class NewtonSolver:
         # and value of the largest residual entry) per iteration, for diagnosis; None (the
         # default) records nothing
         self.trace = None
+        # refactorise when the residual falls by less than this per iteration
+        self.slow_rate = 0.6
+        # depth of the Anderson acceleration of the chord iterations (0: plain chord steps)
+        self.anderson = 5
+        # the solutions (body velocities, glue impulses) of the last two steps, for the
+        # predictor of the next one
+        self._solutions: list[tuple[np.ndarray, np.ndarray]] = []
+        # refactorisation policy: "rate" (one iteration slower than slow_rate) or "rate2"
+        # (two in a row)
+        self.policy = "rate2"
 
     def set_iteration_mhat(self, mhat_jac: np.ndarray) -> None:
         """Use other body blocks (same layout as ``mhat``) in the Newton matrix."""
@@ -330,19 +431,20 @@ class NewtonSolver:
         n = nf + 3 * len(self.glue)
         r, c, v = jacobian_coo(s.body_dof0, self.mhat_off, self.mhat_jac, self.free_index, nf,
                                s.side_dofs, s.side_coef, s.kind, s.area, K, self.glue_of,
-                               self.glue_eps, s.h, s.theta)
-        J = sp.csc_matrix((v, (r, c)), shape=(n, n))
+                               self.glue_eps, s.h, s.theta, True)
+        if self._pattern is None or len(self._pattern.slot) != len(v):
+            self._pattern = _Pattern(r, c, n)
+        pat = self._pattern
         self.lu = None
         if not pivoting:
             # the pattern is symmetric and the diagonal dominant enough (mass, springs, glue
             # compliance): symmetric ordering, pivots on the diagonal. Measured on the wall:
-            # 0.75 M nonzeros in L + U against 1.23 M with COLAMD and partial pivoting, solves
-            # 0.5 to 1 ms against 2.5 to 3 ms, factorisations about twice faster
+            # 0.72 M nonzeros in L + U against 1.0 M with COLAMD, solves 0.4 to 1 ms against
+            # 2.5 to 3 ms with partial pivoting
             with contextlib.suppress(RuntimeError):  # a zero pivot: pivot after all
-                self.lu = spla.splu(J, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                                    options={"SymmetricMode": True})
+                self.lu = pat.factorise(v)
         if self.lu is None:
-            self.lu = spla.splu(J)
+            self.lu = pat.factorise(v, pivoting=True)
         self.factorisations += 1
 
     def _refresh(self, K) -> None:
@@ -385,6 +487,26 @@ class NewtonSolver:
             if first is None:
                 first = (v_try, r_try)
             alpha *= 0.5
+
+    def _anderson(self, x, f, last, d_x, d_f, weight) -> np.ndarray:
+        """The chord step ``f`` at ``x``, accelerated (Anderson, type II) with the history of
+        the iterates ``x_i`` and their chord steps ``f_i = -J0^-1 F(x_i)`` (same matrix J0):
+
+            gamma = argmin || W (f - dF gamma) ||_2,   step = f - (dX + dF) gamma
+
+        with ``dX``, ``dF`` the differences of consecutive iterates and steps (the last
+        ``anderson`` of them; ``d_x``, ``d_f`` are updated in place) and ``W`` the weights of
+        the unknowns. For a linear residual this is GMRES preconditioned by J0; a stale
+        factorisation whose plain steps shrink the residual by 0.5 per iteration (the
+        reference wall) converges in about half the iterations.
+        """
+        d_x.append(x - last[0])
+        d_f.append(f - last[1])
+        if len(d_x) > self.anderson:
+            del d_x[0], d_f[0]
+        DF = np.column_stack(d_f)
+        gamma = np.linalg.lstsq(DF * weight[:, None], f * weight, rcond=1e-12)[0]
+        return f - (np.column_stack(d_x) + DF) @ gamma
 
     def solve(self, v_free, u_old, U_old, params, uc_old, beta_old, T, dv_guess,
               correction=None):
@@ -433,15 +555,28 @@ class NewtonSolver:
             norm = math.sqrt(np.sum(F[:nf] ** 2) + glue_scale ** 2 * np.sum(F[nf:] ** 2))
             return F, norm, (out_T, out_uc, out_beta, out_status, K, cvec, cscale)
 
-        v = v_free + dv_guess
+        if len(self._solutions) == 2:
+            # the solution of the step extrapolated linearly from the last two: in a slow,
+            # smooth loading both change at a steady rate (measured on the reference wall: the
+            # second iterate moves the tractions by 2e-5 instead of 1.3e-3, one iteration less)
+            (v1, r1), (v2, r2) = self._solutions
+            v = 2.0 * v2 - v1
+            r_glue = 2.0 * r2 - r1
+        else:
+            v = v_free + dv_guess
+            r_glue = (-h * s.area[g, None] * T[g]).ravel()
         v[s.imposed_dofs] = v_free[s.imposed_dofs]
-        r_glue = (-h * s.area[g, None] * T[g]).ravel()
         F, norm, state = evaluate(v, r_glue)
         T_prev = T
         c_prev = None
         res = math.inf
-        prev = math.inf
+        prev = prev2 = math.inf
         it = 0
+        # Anderson history: the iterate (free velocities, glue impulses) and its chord step at
+        # the last iterate, and the differences of both over the last full steps with this
+        # matrix; glue impulses weighted by 1 / glue_scale in the least squares (velocity units)
+        weight = np.concatenate([np.ones(nf), np.full(3 * len(g), 1.0 / glue_scale)])
+        last, d_x, d_f = None, [], []
         for it in range(1, self.max_iterations + 1):
             Tn = state[0]
             num = np.sum((s.area[:, None] * (Tn - T_prev)) ** 2)
@@ -455,10 +590,13 @@ class NewtonSolver:
                 break
             # refactorise only when the iterations converge slower than 0.6 per iteration: an LU
             # of the wall costs about as much as five iterations
-            fresh = self.lu is None or (it > 2 and res > 0.6 * prev)
+            slow = it > 2 and res > self.slow_rate * prev
+            if self.policy == "rate2":
+                slow = slow and it > 3 and prev > self.slow_rate * prev2
+            fresh = self.lu is None or slow
             if fresh:
                 self._refresh(state[4])
-            prev = res
+            prev2, prev = prev, res
             pivoted = False
             while True:
                 dx = self.lu.solve(-F)
@@ -474,8 +612,20 @@ class NewtonSolver:
                     continue
                 if not np.all(np.isfinite(dx)):  # singular even with pivoting: no step
                     dx = np.zeros_like(dx)
+                x = np.concatenate([v[self.free], r_glue])
+                if fresh:
+                    last, d_x, d_f = None, [], []
+                step = dx
+                if last is not None and self.anderson > 0:
+                    step = self._anderson(x, dx, last, d_x, d_f, weight)
+                last = (x, dx)
                 alpha, descent, v_try, r_try, F_try, norm_try, state_try = self._line_search(
-                    evaluate, v, r_glue, dx, norm, nf, fresh)
+                    evaluate, v, r_glue, step, norm, nf, fresh and step is dx)
+                if alpha != 1.0 or not descent:
+                    last, d_x, d_f = None, [], []
+                    if step is not dx:  # the accelerated step failed: the plain one
+                        alpha, descent, v_try, r_try, F_try, norm_try, state_try = \
+                            self._line_search(evaluate, v, r_glue, dx, norm, nf, fresh)
                 if descent or fresh:
                     break
                 # a direction from an older matrix that does not decrease the residual: the
@@ -492,4 +642,5 @@ class NewtonSolver:
             c_prev = cvec
             v, r_glue, F, norm, state = v_try, r_try, F_try, norm_try, state_try
         Tn, uc, beta, status = state[:4]
+        self._solutions = [*self._solutions[-1:], (v.copy(), r_glue.copy())]
         return v, Tn, uc, beta, status, it, res
