@@ -106,15 +106,23 @@ def test_exception_outside_the_steps_is_an_error(tmp_path, monkeypatch):
     assert r.outcome == "error" and not r.acceptable and "KeyError" in r.message
 
 
-def test_equilibrium_error():
-    n = 20
+def test_equilibrium_error_is_the_momentum_balance():
+    """P(k2) - P(k1) = sum h (F + F_b + W): a wall at rest under balanced forces, then one
+    accelerated by an unbalanced force with the matching change of momentum, balance; the
+    same force without the momentum change is off by the force over the largest force."""
+    n, h = 20, 1e-3
     curve = {"step": np.arange(1, n + 1), "fx_kN": np.full(n, 10.0),
              "fx_bottom_kN": np.full(n, -10.0), "fy_kN": np.full(n, -50.0),
              "fy_bottom_kN": np.full(n, 51.0)}
-    assert stress.equilibrium_error(curve, 1.0) == 0.0
-    curve["fx_bottom_kN"][-1] = -9.0
-    assert stress.equilibrium_error(curve, 1.0) == pytest.approx(1.0 / 50.0)
-    assert np.isnan(stress.equilibrium_error({}, 1.0))
+    rest = (np.zeros(2), np.zeros(2))
+    assert stress.equilibrium_error(curve, 1.0, h, (10, 20), rest) == 0.0
+    curve["fx_bottom_kN"][10:] = -9.0  # 1 kN unbalanced over steps 11..20
+    moving = (np.zeros(2), np.array([1e3 * h * 10 * 1.0, 0.0]))  # N s
+    assert stress.equilibrium_error(curve, 1.0, h, (10, 20), moving) == pytest.approx(0.0,
+                                                                                      abs=1e-12)
+    assert stress.equilibrium_error(curve, 1.0, h, (10, 20), rest) == pytest.approx(1.0 / 51.0)
+    assert np.isnan(stress.equilibrium_error({}, 1.0, h, (10, 20), rest))
+    assert np.isnan(stress.equilibrium_error(curve, 1.0, h, (10, 30), rest))
 
 
 def test_a_lost_step_stops_the_run_and_keeps_a_summary(tmp_path, monkeypatch):
