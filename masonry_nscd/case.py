@@ -297,7 +297,7 @@ class Endo3d(_Section):
         0.2,
         ge=0.0,
         lt=_SQRT3,
-        description="Drucker-Prager dilatancy coefficient (dimensionless, < sqrt 3)",
+        description="Drucker-Prager dilatancy coefficient (dimensionless, 0 <= beta <= delta)",
     )
     eps_kdc: Real = Field(
         0.18e-1,
@@ -318,7 +318,23 @@ class Endo3d(_Section):
 
     @model_validator(mode="after")
     def _check_strengths(self) -> Endo3d:
+        """``R_t < R_c``; ``beta <= delta``: the Drucker-Prager flow dissipates
+        ``dlambda (C + (delta - beta) p)`` (J/m^3), negative at pressures
+        ``p > C/(beta - delta)`` when ``beta > delta``: the law then creates energy (issue 7:
+        a shear cycle with beta = 1.5, delta = 0 ratchets the effective pressure up to
+        100 R_c). ``materials.endo3d.endo3d_params`` only warns, for studies of the kernel."""
         problems: list[tuple[str, str]] = []
+        if not self.beta <= self.delta:
+            problems.append(
+                (
+                    "beta",
+                    (
+                        f"got {self.beta:.6g}; allowed: 0 <= beta <= delta = {self.delta:.6g} "
+                        "(with beta > delta the Drucker-Prager flow dissipates a negative "
+                        "energy dlambda (C + (delta - beta) p) at pressures p > C/(beta - delta))"
+                    ),
+                )
+            )
         if not self.R_t_Pa < self.R_c_Pa:
             problems.append(
                 (

@@ -18,36 +18,81 @@ Plastic criteria on the principal effective stresses ``s_i`` (directions ``e_i``
 * Rankine (cracking), for ``s_i >= 0``:  ``f_i = s_i - R_t``,  ``d eps_pR = dlam_i e_i (x) e_i``.
 * Crack reclosure, for ``s_i < 0`` while ``e_i . eps_pR . e_i > 0``: ``f_i = s_i + REF``; the
   multiplier is negative and is capped so that ``e_i . eps_pR . e_i`` never becomes negative.
-* Drucker-Prager (skipped when the three Rankine criteria are active):
+* Drucker-Prager (skipped when three Rankine criteria are active, see below):
   ``f_D = sqrt(J2) - delta p - C(lambda_D)``, ``p = -tr(s~)/3`` (Pa), non-associated flow
   ``d eps_pD = dlam_D (s_dev / (2 sqrt(J2)) + beta/3 1)`` (so ``tr d eps_pD = beta dlam_D``).
+  Its dissipation is ``dlam_D (C + (delta - beta) p)`` (J/m^3): non-negative for
+  ``beta <= delta`` (``p >= -R_t`` under Rankine); the case schema asks ``beta <= delta``,
+  :func:`endo3d_params` only warns (issue 7).
 * Cohesion hardening (Pa): ``C = C_min + (C_max - C_min)(2x - x^2)``, ``x = lambda_D/lambda_pk``
-  for ``x < 1``, ``C = C_max`` afterwards (and always when ``lambda_pk = 0``), with
-  ``C_min = R_t delta``, ``C_max = R_c,eff (1/sqrt(3) - delta/3)``.
+  for ``x < 1``, ``C = C_max`` afterwards (and always when ``lambda_pk = 0``: no division by
+  it), with ``C_min = R_t delta``, ``C_max = R_c,eff (1/sqrt(3) - delta/3)``. Slope
+  ``H = dC/dlambda_D = 2 (C_max - C_min)(1 - x)/lambda_pk`` (Pa). Iterates of the return
+  mapping with a negative increment ``dlam_D < 0`` (transient: such a pass drops
+  Drucker-Prager) use the tangent at the start of the step, ``C = C_n + H_n dlam_D``.
 * Peak quantities: if ``DCPK > 0`` and ``eps_pic_c > R_c/E``:
   ``d_pic = min(DCPK, 1 - R_c/(E eps_pic_c))``, ``R_c,eff = R_c/(1 - d_pic)``; otherwise
-  ``d_pic = 0``, ``eps_pic_c := R_c/E``, ``R_c,eff = R_c``.  ``eps_pl,pk = eps_pic_c - R_c,eff/E``,
-  ``lambda_pk = 3 eps_pl,pk / (sqrt(3) - beta)``.
+  ``d_pic = 0``, ``eps_pic_c := R_c/E``, ``R_c,eff = R_c``.  ``eps_pl,pk = eps_pic_c - R_c,eff/E``
+  (exactly 0 when the cap DCPK does not bind, and set to 0 below ``16 eps_machine eps_pic_c``,
+  its round-off), ``lambda_pk = 3 eps_pl,pk / (sqrt(3) - beta)``.
 
-Return mapping (cutting plane, in the principal basis of the trial effective stress, which all
-flows share): a criterion violated by more than the tolerance becomes active and stays active
-(consistency condition ``f = 0``) for the rest of the pass; at each iteration the active ones are
-linearised at the current stress and the multiplier increments solved from
+Return mapping (in the principal basis of the trial effective stress, which all flows share;
+principal values in decreasing order). Passes of a cutting-plane algorithm: a criterion violated
+by more than the tolerance ``tol = 1e-8 max(R_t, R_c,eff, REF)`` (Pa) becomes active and stays
+active (consistency condition ``f = 0``) for the rest of the pass; at each iteration the active
+ones are linearised at the current stress and the multiplier increments solved from
 
     Rankine/Rankine:   J_ij = M (i = j),  lam (i != j)
     Rankine i / DP:    J_iD = G dev_i / sqrt(J2) + K beta,   J_Di = G dev_i / sqrt(J2) + delta K
     DP/DP:             J_DD = G + K beta delta + H,   H = dC/dlambda_D
 
 (one Rankine alone: ``dlam = f/(K + 4G/3)``; DP alone: ``dlam_D = f_D/(G + K beta delta + H)``).
-When no criterion is violated by more than ``1e-8 max(R_t, R_c,eff, REF)`` (Pa), the cumulative
-multipliers of the pass are checked: a criterion whose multiplier has the wrong sign is dropped
-and the pass restarts from the trial stress; a reclosure that would make ``e_i . eps_pR . e_i``
-negative is replaced by the full closure of that direction (prescribed increment) and the pass
-restarts. A singular or ill-conditioned system (a multiplier increment above 1) involving
-Drucker-Prager drops Drucker-Prager for the step (choice: the Rankine/reclosure block is always
-regular; the degeneracy appears when the DP flow, once the other constraints are enforced, no
-longer changes f_D). The kernel returns status 1 (state still written) when a pass does not converge in
-``MAX_RETURN_ITER`` iterations or after 8 restarts, 2 when a linear system is singular.
+Between passes the active set is corrected (one kind of correction per restart, the
+multipliers of a pass that needs one kind saying nothing about the next): (1) Drucker-Prager
+flowed and was then skipped (three Rankine-type constraints): redone without it; (2) a
+reclosure that would make ``e_i . eps_pR . e_i`` negative becomes the full closure of that
+direction (prescribed increment ``-r_i``); (3) of the multipliers with the wrong sign
+(Rankine < 0, reclosure > 0, Drucker-Prager < 0) the largest is excluded; (4) an excluded
+surface, or a closure, that the final stress violates (``f > tol``, or a closed direction with
+``s_i > -REF``) is admitted again. A pass is accepted only when the Kuhn-Tucker conditions hold
+(right signs, no criterion violated by more than ``tol``): before issue 7 an excluded
+Drucker-Prager was never re-admitted and about one random cyclic history in four ended steps
+with ``f_D`` up to 1e8 ``tol`` and status 0. If the corrections cycle (8 passes:
+non-associated flow, corners), the active sets are searched, fewest active surfaces first (each
+direction inactive, Rankine or, crack open, reclosure or full closure; Drucker-Prager off or
+on) by a closest-point (backward Euler) solve per set (:func:`_closest_point`), and the first
+that satisfies the Kuhn-Tucker conditions is taken. Drucker-Prager is skipped with three
+Rankine constraints (their corner ``R_t (1, 1, 1)`` satisfies it, ``delta R_t = C_min <= C``),
+and so, in the cutting-plane passes, with three Rankine-type ones; a closed direction
+prescribes a strain increment, not a stress, and does not count. A singular or ill-conditioned
+system (a multiplier increment above 1) involving Drucker-Prager drops it for the pass. The
+kernel returns status 1 when no active set satisfies the conditions (a pass not converged in
+``MAX_RETURN_ITER`` iterations and no set found), 2 when a linear system is singular; the state
+is written, with ``lambda_D`` never decreased (a negative Drucker-Prager increment of the last
+iterate is removed, stress kept equal to ``C0 : (eps - eps_pR - eps_pD)``).
+
+Repeated eigenvalues. The eigen solver's basis of a repeated eigenspace (and its order)
+depends on the frame. Where a choice is made per direction in such a space, the basis is taken
+from the state instead (:func:`_refine_basis`: rotated to diagonalise another tensor of the
+state there, ordered by its diagonal terms, then the next tensor if that one is isotropic
+there), so that the law is objective:
+
+* trial stress with repeated principal values: by ``eps_pR`` (reclosure criterion
+  ``e_i . eps_pR . e_i``), then ``W``, then the element's edges (Hillerborg lengths ``L_i``);
+* ``W`` (basis of the ``W_max`` update) with a repeated positive eigenvalue: by ``W_max``,
+  then the edges;
+* ``W_max`` (crack basis) with a repeated eigenvalue (one crack: ``(0, 0, w)``): by ``W``
+  (``w_i,cur`` of the reclosure), then the edges.
+
+The edge tensor ``a1 a1^T + 2 a2 a2^T + 3 a3 a3^T`` (m^2, three edges of the hexahedron from
+its node 0) has distinct eigenvalues also for a cube. Eigenvalues are repeated when equal to
+``DEGENERATE_REL = 1e-12`` of the largest (round-off is ~1e-16); outside such spaces nothing
+changes. Before issue 7 random cracked histories depended on the frame (459 of 2000 with
+generic directions, 737 of 3000 with directions along the axes or with equal normal strains,
+by a median of 9 % of the stresses or damages); after it, 0 of 4000 and 2 of 3000 (a
+sensitivity of the law to differences at the return mapping's tolerance, near crack closure or
+nearly repeated principal stresses, not a choice of basis:
+tests/test_endo3d_objectivity.py::test_cracked_state_objectivity_residual).
 
 Damage (Hillerborg regularisation)
 ----------------------------------
@@ -61,7 +106,8 @@ Damage (Hillerborg regularisation)
   crack basis is the eigenbasis of ``W_max``, with eigenvalues ``w_i``.
 * Tensile damage per crack: ``d_t,i = 1 - (w_k/(w_k + w_i))^2``, ``w_k = G_ft/R_t`` (m).
 * Reclosure: ``rho_i = (w_r/(w_r + w_i,cur))^2``, ``w_r = GFR/REF`` (m), with ``w_i,cur`` the
-  diagonal term of the current ``W`` in the crack basis (choice).
+  diagonal term of the current ``W`` in the crack basis (choice; in a repeated eigenspace of
+  ``W_max`` the basis diagonalises ``W``, see above).
 * Pre-peak compressive damage: ``s_eq = max(0, sqrt(J2) - delta p)``, ``x = min(1, s_eq/C_max)``;
   ``d_cpp = d_pic x`` while ``0 < lambda_D < lambda_pk``, else ``d_pic x^((1-d_pic)/d_pic)``
   (``0`` when ``d_pic = 0``); irreversible (running maximum).
@@ -103,13 +149,15 @@ Properties of the law as specified (checked in tests/test_endo3d*.py)
 * ``s_eq = sqrt(J2) - delta p`` is positive in tension as well: a tensile history raises
   ``d_cpp`` (0.68 at the tensile peak with the study's parameters); it acts on compressive
   stresses only.
-* Drucker-Prager is also skipped when reclosure/closure constraints fix the remaining principal
-  stresses (three Rankine-type constraints: the stress is prescribed, f_D cannot be enforced).
+* Drucker-Prager is also skipped, in the cutting-plane passes, when reclosure constraints fix
+  the remaining principal stresses (three Rankine-type constraints: the stress is prescribed;
+  ``f_D`` can then be enforced only through the hardening, which the active-set search tries).
 * Not derived from a potential: with nu > 0 the principal split of the effective stress, and the
   recovery of ``rho`` at ``s~ = -REF``, can make a closed strain cycle return more work than it
   received (up to ``REF^2/(2E)`` per direction and closure for the latter); with
   ``beta > delta`` the Drucker-Prager flow dissipates ``dlam (C + (delta - beta) p) < 0`` at
-  high pressure (:func:`endo3d_params` warns).
+  high pressure (:func:`endo3d_params` warns; the case schema refuses it): a yz shear cycle
+  with ``beta = 1.5``, ``delta = 0`` then ratchets the effective pressure up to 100 R_c.
 
 Data layout (plain float64 arrays, for numba)
 ---------------------------------------------
@@ -197,8 +245,18 @@ N_STATE = 38
 
 #: Maximal number of cutting-plane iterations of the return mapping.
 MAX_RETURN_ITER = 100
+#: Maximal number of passes of the return mapping (changes of its active set).
+MAX_RESTARTS = 8
+#: Eigenvalues (of the trial stress, W, W_max) equal to within this fraction of the largest
+#: are one repeated eigenvalue (the eigen solver's round-off is ~1e-16 of it), whose
+#: eigenspace gets a frame-independent basis (:func:`_refine_basis`).
+DEGENERATE_REL = 1e-12
 
 _SQRT3 = math.sqrt(3.0)
+
+#: A plastic strain at the compressive peak below this fraction of eps_pic_c is round-off of
+#: ``eps_pic_c - R_c,eff/E`` (each term is computed to a few ulps) and is set to exactly zero.
+_PEAK_ROUND_OFF = 16.0 * np.finfo(np.float64).eps
 
 
 # --------------------------------------------------------------------------------------------
@@ -229,7 +287,11 @@ def endo3d_params(
     (E, R_t, G_ft, R_c, REF, GFR, eps_kdc > 0; -1 < nu < 0.5; 0 <= delta, beta < sqrt 3;
     0 <= DCPK <= 1; R_t < R_c,eff; C_min <= C_max). Warns when ``eps_pic_t`` differs from
     ``R_t/E`` by more than 1 % (the law ignores it: its tensile peak is at ``R_t/E``) and when
-    ``beta > delta`` (negative plastic dissipation at pressures above ``C/(beta - delta)``).
+    ``beta > delta`` (negative plastic dissipation at pressures above ``C/(beta - delta)``;
+    kept for studies of the kernel, the case schema refuses it). The plastic strain at the
+    compressive peak ``eps_pl,pk = eps_pic_c - R_c,eff/E`` is exactly 0 when the cap DCPK does
+    not bind, and is set to 0 below ``16 eps_machine eps_pic_c`` (round-off of the difference,
+    which made ``lambda_pk`` ~ 1e-19 and the hardening slope ~ 1e26 Pa, issue 7).
     Returns a float64 vector of length ``N_PARAMS`` indexed by the ``P_*`` constants.
     """
     vals = {
@@ -283,18 +345,25 @@ def endo3d_params(
     if DCPK > 0.0 and eps_pic_c > R_c / E:
         eps_c = eps_pic_c
         if DCPK >= 1.0 - R_c / (E * eps_pic_c):
-            # cap not binding: the peak is reached without plastic strain (lambda_pk = 0);
-            # written so that round-off cannot leave a tiny positive eps_pl,pk
+            # cap not binding: the peak is reached without plastic strain, eps_pl,pk = 0
+            # exactly (eps_pic_c - (E eps_pic_c)/E is a few 1e-20 for 1 value in 10)
             d_pic = 1.0 - R_c / (E * eps_pic_c)
             rc_eff = E * eps_pic_c
+            eps_pl_pk = 0.0
         else:
             d_pic = DCPK
             rc_eff = R_c / (1.0 - d_pic)
+            eps_pl_pk = eps_c - rc_eff / E
     else:
         d_pic = 0.0
         eps_c = R_c / E
         rc_eff = R_c
-    eps_pl_pk = max(0.0, eps_c - rc_eff / E)
+        eps_pl_pk = 0.0
+    if eps_pl_pk <= _PEAK_ROUND_OFF * eps_c:
+        # below the round-off of eps_pic_c - R_c,eff/E (a cap DCPK within a few ulps of
+        # 1 - R_c/(E eps_pic_c)): no plastic strain at the peak. A round-off lambda_pk would
+        # make the hardening slope 2 (C_max - C_min)/lambda_pk absurd (1e26 Pa and more).
+        eps_pl_pk = 0.0
     lambda_pk = 3.0 * eps_pl_pk / (_SQRT3 - beta)
     c_min = R_t * delta
     c_max = rc_eff * (1.0 / _SQRT3 - delta / 3.0)
@@ -459,6 +528,279 @@ def _eig_sym3(A, w, V):
 
 
 @njit(cache=True)
+def _sort_desc(w, V):
+    """Sort the eigenvalues ``w`` (3,) in decreasing order, with the columns of ``V``."""
+    for a in range(2):
+        for b in range(2 - a):
+            if w[b] < w[b + 1]:
+                tmp = w[b]
+                w[b] = w[b + 1]
+                w[b + 1] = tmp
+                for r in range(3):
+                    tmp = V[r, b]
+                    V[r, b] = V[r, b + 1]
+                    V[r, b + 1] = tmp
+
+
+@njit(cache=True)
+def _label_equal(w, tol, g):
+    """``g[i]``: the smallest index ``j`` with ``w_j`` equal to ``w_i`` to within ``tol``
+    (linked: ``w_0 ~ w_2 ~ w_1`` is one group)."""
+    e01 = abs(w[1] - w[0]) <= tol
+    e02 = abs(w[2] - w[0]) <= tol
+    e12 = abs(w[2] - w[1]) <= tol
+    g[0] = 0
+    g[1] = 1
+    g[2] = 2
+    if e01 or (e02 and e12):
+        g[1] = 0
+    if e02 or (e01 and e12):
+        g[2] = 0
+    elif e12:
+        g[2] = 1
+
+
+@njit(cache=True)
+def _count_shared(g):
+    """Number of labels of ``g`` (3,) that another index shares (0, 2 or 3)."""
+    n = 0
+    for i in range(3):
+        for j in range(3):
+            if i != j and g[i] == g[j]:
+                n += 1
+                break
+    return n
+
+
+@njit(cache=True)
+def _equal_groups(w, g, tol_abs):
+    """Label the eigenvalues ``w`` (3,) by groups of equal values, to within the larger of
+    ``DEGENERATE_REL`` of the largest ``|w_i|`` and ``tol_abs`` (:func:`_label_equal`).
+    Returns the number of indices that share a group (0: all distinct)."""
+    tol = max(DEGENERATE_REL * max(abs(w[0]), max(abs(w[1]), abs(w[2]))), tol_abs)
+    _label_equal(w, tol, g)
+    return _count_shared(g)
+
+
+@njit(cache=True)
+def _refine_basis(w, V, g, A, tol_abs):
+    """Give the repeated eigenspaces of a tensor a basis that turns with the state.
+
+    ``w`` (3,), ``V`` (3, 3): eigenvalues and eigenvectors (columns) of a symmetric tensor;
+    ``g`` (3,): groups of equal eigenvalues (:func:`_equal_groups`); ``A`` (3, 3): another
+    symmetric tensor of the state. In each group the columns are rotated so that ``V^T A V``
+    is diagonal there and ordered by increasing diagonal term (``w`` follows its columns), and
+    the group is split where those terms differ by more than ``tol``, the larger of
+    ``DEGENERATE_REL`` times the largest ``|A_ij|`` and ``tol_abs`` (the round-off level of
+    ``A``, in its units: a closed crack leaves ``W`` at 1e-15 of ``W_max``, not zero).
+    Returns the number of columns still sharing a group. The eigen solver's basis of a
+    repeated eigenspace, and its order, depend on the frame (Jacobi sweeps from the axes);
+    refined by tensors of the state (which turn with the frame), they do not.
+    """
+    if not (g[0] == g[1] and g[1] == g[2]):
+        for p in range(3):
+            for q in range(p + 1, 3):
+                if g[p] == g[q]:
+                    if _refine_pair(w, V, p, q, A, tol_abs) != 0:
+                        return 2  # A does not tell the two directions apart either
+                    g[q] = q
+                    return 0
+        return 0
+    amax = 0.0
+    for i in range(3):
+        for j in range(3):
+            amax = max(amax, abs(A[i, j]))
+    tol = max(DEGENERATE_REL * amax, tol_abs)
+    if amax <= tol:
+        return 3
+    B = np.empty((3, 3))
+    for k in range(3):
+        for m in range(3):
+            acc = 0.0
+            for i in range(3):
+                for j in range(3):
+                    acc += V[i, k] * A[i, j] * V[j, m]
+            B[k, m] = acc
+    b = np.empty(3)
+    U = np.empty((3, 3))
+    _eig_sym3(B, b, U)
+    order = np.empty(3, dtype=np.int64)  # indices by increasing b (bubble sort of three)
+    for k in range(3):
+        order[k] = k
+    for a in range(2):
+        for k in range(2 - a):
+            if b[order[k]] > b[order[k + 1]]:
+                tmp_i = order[k]
+                order[k] = order[k + 1]
+                order[k + 1] = tmp_i
+    Vn = np.empty((3, 3))
+    wn = np.empty(3)
+    bn = np.empty(3)
+    for k in range(3):
+        ok = order[k]
+        wn[k] = w[ok]
+        bn[k] = b[ok]
+        for i in range(3):
+            acc = 0.0
+            for m in range(3):
+                acc += V[i, m] * U[m, ok]
+            Vn[i, k] = acc
+    for k in range(3):
+        w[k] = wn[k]
+        for i in range(3):
+            V[i, k] = Vn[i, k]
+    _label_equal(bn, tol, g)
+    return _count_shared(g)
+
+
+@njit(cache=True)
+def _has_repeated(w, tol_abs):
+    """Whether two of the eigenvalues ``w`` (3,) are equal to within the larger of
+    ``DEGENERATE_REL`` of the largest ``|w_i|`` and ``tol_abs`` (``w = 0`` counts)."""
+    tol = max(DEGENERATE_REL * max(abs(w[0]), max(abs(w[1]), abs(w[2]))), tol_abs)
+    return abs(w[1] - w[0]) <= tol or abs(w[2] - w[0]) <= tol or abs(w[2] - w[1]) <= tol
+
+
+@njit(cache=True)
+def _refine_pair(w, V, p, q, A, tol_abs):
+    """:func:`_refine_basis` for one pair ``p < q`` of equal eigenvalues, without work arrays:
+    rotate columns ``p``, ``q`` of ``V`` to diagonalise ``A`` on their plane, order them by
+    increasing diagonal term (``w`` follows). Returns 0 when done, 1 when ``A`` vanishes on
+    the plane, 2 when it is isotropic there (1 and 2: ``V`` unchanged; to within
+    ``max(DEGENERATE_REL max |A_ij|, tol_abs)``)."""
+    amax = 0.0
+    for i in range(3):
+        for j in range(3):
+            amax = max(amax, abs(A[i, j]))
+    tol = max(DEGENERATE_REL * amax, tol_abs)
+    if amax <= tol:
+        return 1
+    bpp = 0.0
+    bqq = 0.0
+    bpq = 0.0
+    for i in range(3):
+        for j in range(3):
+            a = A[i, j]
+            bpp += V[i, p] * a * V[j, p]
+            bqq += V[i, q] * a * V[j, q]
+            bpq += V[i, p] * a * V[j, q]
+    if abs(bpq) <= tol and abs(bqq - bpp) <= tol:
+        return 1 if abs(bpp) <= tol and abs(bqq) <= tol else 2
+    if bpq != 0.0:
+        # the Jacobi rotation that zeroes the (p, q) term (as in _eig_sym3)
+        theta = (bqq - bpp) / (2.0 * bpq)
+        t = 1.0 / (abs(theta) + math.sqrt(theta * theta + 1.0))
+        if theta < 0.0:
+            t = -t
+        c = 1.0 / math.sqrt(t * t + 1.0)
+        sn = t * c
+        for r in range(3):
+            vrp = V[r, p]
+            vrq = V[r, q]
+            V[r, p] = c * vrp - sn * vrq
+            V[r, q] = sn * vrp + c * vrq
+        bpp, bqq = bpp - t * bpq, bqq + t * bpq
+    if bpp > bqq:
+        for r in range(3):
+            tmp = V[r, p]
+            V[r, p] = V[r, q]
+            V[r, q] = tmp
+        tmp = w[p]
+        w[p] = w[q]
+        w[q] = tmp
+    return 0
+
+
+@njit(cache=True)
+def _pair_value(w):
+    """``|w_i|`` of the repeated eigenvalue of ``w`` (3,) when exactly two are equal to within
+    ``DEGENERATE_REL`` of the largest (else +inf): lets a caller skip a pair at zero."""
+    t = DEGENERATE_REL * max(abs(w[0]), max(abs(w[1]), abs(w[2])))
+    e01 = abs(w[1] - w[0]) <= t
+    e02 = abs(w[2] - w[0]) <= t
+    e12 = abs(w[2] - w[1]) <= t
+    if (1 if e01 else 0) + (1 if e02 else 0) + (1 if e12 else 0) != 1:
+        return np.inf
+    if e01:
+        return abs(w[0])
+    if e02:
+        return abs(w[0])
+    return abs(w[1])
+
+
+@njit(cache=True)
+def _state_basis(w, V, A, tol_abs, xe, zero_tol):
+    """Frame-independent basis of the repeated eigenspaces of the eigenvectors ``V`` (columns,
+    eigenvalues ``w``): refined by the tensor ``A`` (round-off level ``tol_abs``), then by the
+    element's edges (:func:`_refine_basis`, :func:`_edge_tensor`). A pair whose eigenvalue is
+    zero (to within ``zero_tol``) and on whose plane ``A`` vanishes is left as it is: the
+    callers' results do not depend on its basis then (one crack: no damage across that plane;
+    the common case, kept free of work arrays)."""
+    tol = DEGENERATE_REL * max(abs(w[0]), max(abs(w[1]), abs(w[2])))
+    e01 = abs(w[1] - w[0]) <= tol
+    e02 = abs(w[2] - w[0]) <= tol
+    e12 = abs(w[2] - w[1]) <= tol
+    if (1 if e01 else 0) + (1 if e02 else 0) + (1 if e12 else 0) == 1:
+        p = 0 if (e01 or e02) else 1
+        q = 1 if e01 else 2
+        code = _refine_pair(w, V, p, q, A, tol_abs)
+        if code == 2 or (code == 1 and abs(w[p]) > zero_tol):
+            Et = np.empty((3, 3))
+            _edge_tensor(xe, Et)
+            _refine_pair(w, V, p, q, Et, 0.0)
+        return
+    grp = np.empty(3, dtype=np.int64)
+    if _equal_groups(w, grp, 0.0) > 0 and _refine_basis(w, V, grp, A, tol_abs) > 0:
+        Et = np.empty((3, 3))
+        _edge_tensor(xe, Et)
+        _refine_basis(w, V, grp, Et, 0.0)
+
+
+@njit(cache=True)
+def _trial_basis(s, Q, epsR, state_in, xe, open_tol):
+    """Frame-independent basis of the repeated eigenspaces of the trial stress (principal
+    values ``s`` (Pa), directions ``Q``): refined by eps_pR (round-off ``open_tol``), then by
+    the crack opening W (round-off 1e-12 of W_max, m), then by the element's edges; the
+    principal values of a group are then set to their mean (they differ by round-off)."""
+    grp = np.empty(3, dtype=np.int64)
+    _equal_groups(s, grp, 0.0)
+    Wn = np.empty((3, 3))
+    _from6(state_in, S_W, Wn)
+    w_tol = 0.0
+    for k in range(6):
+        w_tol = max(w_tol, DEGENERATE_REL * abs(state_in[S_W_MAX + k]))
+    if _refine_basis(s, Q, grp, epsR, open_tol) > 0 and _refine_basis(s, Q, grp, Wn, w_tol) > 0:
+        Et = np.empty((3, 3))
+        _edge_tensor(xe, Et)
+        _refine_basis(s, Q, grp, Et, 0.0)
+    _equal_groups(s, grp, 0.0)
+    for i in range(3):
+        acc = 0.0
+        cnt = 0
+        for j in range(3):
+            if grp[j] == grp[i]:
+                acc += s[j]
+                cnt += 1
+        s[i] = acc / cnt
+
+
+@njit(cache=True)
+def _edge_tensor(xe, Et):
+    """``Et = a1 a1^T + 2 a2 a2^T + 3 a3 a3^T`` (m^2) from three edges of the hexahedron, node
+    0 to nodes 1, 3 and 4 (hex8 order): a tensor of the element with distinct eigenvalues
+    (also for a cube), the last tie-break of :func:`_refine_basis`."""
+    for i in range(3):
+        for j in range(3):
+            Et[i, j] = 0.0
+    for k in range(3):
+        nk = 1 if k == 0 else (3 if k == 1 else 4)
+        c = float(k + 1)
+        for i in range(3):
+            for j in range(3):
+                Et[i, j] += c * (xe[nk, i] - xe[0, i]) * (xe[nk, j] - xe[0, j])
+
+
+@njit(cache=True)
 def _solve_small(A, b, n, x):
     """Solve the leading ``n x n`` block ``A x = b`` by Gauss elimination with partial
     pivoting (``A`` and ``b`` are overwritten). Returns False when singular."""
@@ -508,7 +850,13 @@ def _extent(xe, V, i):
 
 @njit(cache=True)
 def _cohesion(lam_d, prm):
-    """Drucker-Prager cohesion C (Pa) and its slope H = dC/dlambda_D (Pa) at ``lam_d``."""
+    """Drucker-Prager cohesion C (Pa) and its slope H = dC/dlambda_D (Pa) at ``lam_d >= 0``.
+
+    ``C = C_min + (C_max - C_min)(2x - x^2)``, ``H = 2 (C_max - C_min)(1 - x)/lambda_pk`` with
+    ``x = lambda_D/lambda_pk < 1``; ``C = C_max``, ``H = 0`` for ``x >= 1`` and when
+    ``lambda_pk = 0`` (no division by it). For the iterates of the return mapping with a
+    negative increment see :func:`_cohesion_iterate`.
+    """
     c_min = prm[P_C_MIN]
     c_max = prm[P_C_MAX]
     lpk = prm[P_LAMBDA_PK]
@@ -516,6 +864,22 @@ def _cohesion(lam_d, prm):
         x = lam_d / lpk
         return c_min + (c_max - c_min) * (2.0 * x - x * x), (c_max - c_min) * 2.0 * (1.0 - x) / lpk
     return c_max, 0.0
+
+
+@njit(cache=True)
+def _cohesion_iterate(lam_n, dlam, c_n, h_n, prm):
+    """Cohesion C (Pa) and slope H (Pa) at an iterate ``lambda_D = lam_n + dlam`` of the return
+    mapping, ``c_n, h_n = _cohesion(lam_n)`` at the start of the step.
+
+    ``dlam >= 0``: :func:`_cohesion`. ``dlam < 0`` (a transient iterate: a pass that ends with
+    a negative increment drops Drucker-Prager): the tangent at the start of the step,
+    ``C = C_n + H_n dlam``, ``H = H_n``. Extrapolating the parabola instead gave, with a small
+    lambda_pk (1e-13), cohesions of -1e37 Pa and slopes of 1e41 Pa, or a cohesion that jumps
+    between C_min and C_max within the round-off of ``lam_n + dlam``: the iteration stalled.
+    """
+    if dlam >= 0.0:
+        return _cohesion(lam_n + dlam, prm)
+    return c_n + h_n * dlam, h_n
 
 
 @njit(cache=True)
@@ -563,6 +927,533 @@ def _crack_damage(S, P, d, nup, out):
 
 
 # --------------------------------------------------------------------------------------------
+# Return mapping
+# --------------------------------------------------------------------------------------------
+
+#: Index of Drucker-Prager in the exclusion flags of the return mapping (0-2: Rankine on each
+#: principal direction, 3-5: reclosure on each principal direction).
+_EXCL_D = 6
+
+
+@njit(cache=True, inline="always")
+def _return_pass(s_trial, r, closed, excl, lam_d_n, c_n, h_n, params, open_tol, s, dlR, depD,
+                 mode, kind, Jm, fv, xs, dev, nD, xR):
+    """One pass of the cutting-plane return mapping from the principal trial stress ``s_trial``
+    (Pa). ``r`` (3,): ``e_i . eps_pR . e_i`` at the start of the step; ``closed`` (3,): the
+    directions fully closed in this step (prescribed ``dlambda_i = -r_i``); ``excl`` (7,):
+    the surfaces not to activate (see ``_EXCL_D``). ``mode`` starts empty; a violated surface
+    is added and kept (consistency condition ``f = 0``) to the end of the pass.
+
+    Written: ``s`` (3,) the stress (Pa), ``dlR`` (3,) the Rankine/reclosure multipliers,
+    ``depD`` (3,) the principal Drucker-Prager plastic strain increments, ``mode`` (4,);
+    the others are work arrays. Returns ``(code, dlambda_D, iterations)``, ``code`` 0 when no
+    criterion is violated by more than the tolerance, 1 when not converged in
+    ``MAX_RETURN_ITER`` iterations, 2 when the linearised system is singular.
+    """
+    E_lame = params[P_LAME]
+    G = params[P_G]
+    K = params[P_K]
+    M = params[P_M]
+    rt = params[P_RT]
+    ref = params[P_REF]
+    delta = params[P_DELTA]
+    beta = params[P_BETA]
+    tol = params[P_TOL]
+    tr_f = 0.0
+    for i in range(3):
+        s[i] = s_trial[i]
+        dlR[i] = -r[i] if closed[i] else 0.0
+        depD[i] = 0.0
+        mode[i] = 0
+        tr_f += dlR[i]
+    for i in range(3):
+        s[i] -= E_lame * tr_f + 2.0 * G * dlR[i]
+    mode[3] = 0
+    dlD = 0.0
+    n_it = 0
+    for _it in range(MAX_RETURN_ITER):
+        n_it += 1
+        C, H = _cohesion_iterate(lam_d_n, dlD, c_n, h_n, params)
+        mean = (s[0] + s[1] + s[2]) / 3.0
+        for i in range(3):
+            dev[i] = s[i] - mean
+        q = math.sqrt(0.5 * (dev[0] * dev[0] + dev[1] * dev[1] + dev[2] * dev[2]))
+        fD = q + delta * mean - C  # sqrt(J2) - delta p - C, p = -mean
+
+        violated = False
+        for i in range(3):
+            if closed[i]:
+                continue
+            if mode[i] == 1:
+                if abs(s[i] - rt) > tol:
+                    violated = True
+            elif mode[i] == -1:
+                if abs(s[i] + ref) > tol:
+                    violated = True
+            elif s[i] - rt > tol and not excl[i]:
+                mode[i] = 1
+                violated = True
+            elif s[i] + ref < -tol and r[i] + dlR[i] > open_tol and not excl[3 + i]:
+                mode[i] = -1
+                violated = True
+        ntens = 0
+        for i in range(3):
+            if mode[i] != 0:
+                ntens += 1
+        if ntens == 3:
+            # Drucker-Prager skipped when the three Rankine criteria are active (and, by
+            # extension, when reclosure fixes the remaining principal stresses: the three
+            # principal stresses are then prescribed and f_D cannot be enforced). A closed
+            # direction prescribes its plastic strain increment, not its stress: it does not
+            # count.
+            mode[3] = 0
+        elif mode[3] == 1:
+            if abs(fD) > tol:
+                violated = True
+        elif fD > tol and not excl[_EXCL_D]:
+            mode[3] = 1
+            violated = True
+        if not violated:
+            return 0, dlD, n_it
+
+        qpos = q > 1e-14 * (abs(mean) + rt)
+        n = 0
+        for i in range(3):
+            if mode[i] != 0:
+                kind[n] = i
+                n += 1
+        if mode[3] == 1:
+            kind[n] = 3
+            n += 1
+        for a in range(n):
+            ka = kind[a]
+            if ka < 3:
+                fv[a] = s[ka] - rt if mode[ka] == 1 else s[ka] + ref
+                for b in range(n):
+                    kb = kind[b]
+                    if kb < 3:
+                        Jm[a, b] = M if ka == kb else E_lame
+                    else:
+                        Jm[a, b] = (G * dev[ka] / q if qpos else 0.0) + K * beta
+            else:
+                fv[a] = fD
+                for b in range(n):
+                    kb = kind[b]
+                    if kb < 3:
+                        Jm[a, b] = (G * dev[kb] / q if qpos else 0.0) + delta * K
+                    else:
+                        Jm[a, b] = (G if qpos else 0.0) + K * beta * delta + H
+        if not _solve_small(Jm, fv, n, xs):
+            return 2, dlD, n_it
+        for a in range(n):
+            # a multiplier increment above 1 (a strain of 100 %) or not finite: the system is
+            # numerically singular
+            if not abs(xs[a]) <= 1.0:
+                return 2, dlD, n_it
+        for i in range(3):
+            xR[i] = 0.0
+        xD = 0.0
+        for a in range(n):
+            if kind[a] < 3:
+                xR[kind[a]] = xs[a]
+            else:
+                xD = xs[a]
+        if xD > 0.0 and qpos and G * xD > q:
+            xD = q / G  # do not go past the apex of the cone
+        for i in range(3):
+            nD[i] = (dev[i] / (2.0 * q) if qpos else 0.0) + beta / 3.0
+        tr_de = 0.0
+        for i in range(3):
+            tr_de += xR[i] + xD * nD[i]
+        for i in range(3):
+            s[i] -= E_lame * tr_de + 2.0 * G * (xR[i] + xD * nD[i])
+            dlR[i] += xR[i]
+            depD[i] += xD * nD[i]
+        dlD += xD
+    return 1, dlD, n_it
+
+
+@njit(cache=True)
+def _cp_residual(s_trial, r, closed, mode, kind, n, dp, dlR, dlD, lam_d_n, c_n, h_n, params, s,
+                 dev, fv):
+    """Residuals (Pa) of :func:`_closest_point` at the multipliers ``dlR`` (the closed and
+    inactive directions are set here), ``dlD``: writes ``s`` (final stress), ``dev`` (the
+    deviator of ``s*``) and ``fv``; returns ``(q*, 1 - G dlD/q*, H, max |residual|)``."""
+    E_lame = params[P_LAME]
+    G = params[P_G]
+    K = params[P_K]
+    beta = params[P_BETA]
+    for i in range(3):
+        if closed[i]:
+            dlR[i] = -r[i]
+        elif mode[i] == 0:
+            dlR[i] = 0.0
+    tr_d = dlR[0] + dlR[1] + dlR[2]
+    for i in range(3):
+        s[i] = s_trial[i] - E_lame * tr_d - 2.0 * G * dlR[i]
+    mean = (s[0] + s[1] + s[2]) / 3.0
+    for i in range(3):
+        dev[i] = s[i] - mean
+    q = math.sqrt(0.5 * (dev[0] * dev[0] + dev[1] * dev[1] + dev[2] * dev[2]))
+    phi = 1.0
+    if dp:
+        if not q > 0.0:
+            return q, 0.0, 0.0, np.inf  # no deviator: no Drucker-Prager direction
+        phi = 1.0 - G * dlD / q
+    for i in range(3):
+        s[i] = mean - K * beta * dlD + phi * dev[i]
+    C, H = _cohesion_iterate(lam_d_n, dlD, c_n, h_n, params)
+    res = 0.0
+    for a in range(n):
+        i = kind[a]
+        fv[a] = s[i] - params[P_RT] if mode[i] == 1 else s[i] + params[P_REF]
+        res = max(res, abs(fv[a]))
+    if dp:
+        fv[n] = q - G * dlD + params[P_DELTA] * (mean - K * beta * dlD) - C
+        res = max(res, abs(fv[n]))
+    if not res < np.inf:
+        res = np.inf
+    return q, phi, H, res
+
+
+@njit(cache=True)
+def _closest_point(s_trial, r, closed, mode, lam_d_n, params, s, dlR, depD, dev, kind, Jm, fv,
+                   xs, x0):
+    """Closest-point (backward Euler) return for a given active set: the fallback of the
+    return mapping when its cutting-plane passes cycle.
+
+    ``mode`` (4,): the active set (as in :func:`_return_pass`); ``closed`` (3,): the directions
+    fully closed (``dlambda_i = -r_i``). With ``D_i = dlambda_i`` (Rankine, reclosure, closure),
+    ``s* = s_trial - C0 : D`` (Pa), its mean ``mean*`` and deviator ``dev*``,
+    ``q* = sqrt(J2(s*))``, the Drucker-Prager flow taken at the final stress keeps the
+    direction of ``dev*``:
+
+        s = (mean* - K beta dlambda_D) 1 + (1 - G dlambda_D / q*) dev*,
+        f_D = q* - G dlambda_D + delta (mean* - K beta dlambda_D) - C(lambda_n + dlambda_D)
+
+    (Pa), and ``d eps_pD,i = dlambda_D (dev*_i / (2 q*) + beta/3)``. The active criteria
+    (``s_i - R_t``, ``s_i + REF``, ``f_D``, Pa) are solved by Newton's method with the exact
+    Jacobian and a backtracking line search on the largest residual, from the Rankine-type
+    solution without Drucker-Prager; converged at the tolerance of the return mapping. Writes
+    ``s``, ``dlR``, ``depD``; returns ``(code, dlambda_D)``, code 0 when converged with
+    ``G dlambda_D <= q*`` (not past the apex of the cone), 1 otherwise. Unlike those of the
+    cutting-plane passes (normals at the iterates), its multipliers are those of the
+    projection, whose signs the Kuhn-Tucker check can trust.
+    """
+    G = params[P_G]
+    K = params[P_K]
+    delta = params[P_DELTA]
+    beta = params[P_BETA]
+    tol = params[P_TOL]
+    c_n, h_n = _cohesion(lam_d_n, params)
+    n = 0
+    for i in range(3):
+        dlR[i] = 0.0
+        if mode[i] != 0:
+            kind[n] = i
+            n += 1
+    dlD = 0.0
+    # the Rankine-type multipliers without Drucker-Prager (linear: one Newton step), then all
+    for phase in range(2):
+        dp = phase == 1 and mode[3] == 1
+        if phase == 1 and not dp:
+            break
+        m_ = n + (1 if dp else 0)
+        q, phi, H, res = _cp_residual(s_trial, r, closed, mode, kind, n, dp, dlR, dlD, lam_d_n,
+                                      c_n, h_n, params, s, dev, fv)
+        converged = False
+        for _it in range(MAX_RETURN_ITER):
+            if res <= tol:
+                converged = True
+                break
+            if not res < np.inf:
+                return 1, dlD
+            for a in range(n):
+                i = kind[a]
+                for b in range(n):
+                    j = kind[b]
+                    # ds_i/d(dlambda_j), with dq*/d(dlambda_j) = -G dev*_j/q*
+                    dphi = G * dlD / (q * q) * (-G * dev[j] / q) if dp else 0.0
+                    kron = 1.0 if i == j else 0.0
+                    Jm[a, b] = -K - phi * 2.0 * G * (kron - 1.0 / 3.0) + dev[i] * dphi
+                if dp:
+                    Jm[a, n] = -K * beta - G * dev[i] / q
+            if dp:
+                for b in range(n):
+                    Jm[n, b] = -G * dev[kind[b]] / q - delta * K
+                Jm[n, n] = -G - delta * K * beta - H
+            for a in range(m_):
+                x0[a] = fv[a]
+            if not _solve_small(Jm, x0, m_, xs):
+                return 1, dlD
+            # backtracking on the largest residual
+            step = 1.0
+            for a in range(n):
+                x0[a] = dlR[kind[a]]
+            d0 = dlD
+            res0 = res
+            for _ls in range(30):
+                for a in range(n):
+                    dlR[kind[a]] = x0[a] - step * xs[a]
+                if dp:
+                    dlD = d0 - step * xs[n]
+                q, phi, H, res = _cp_residual(s_trial, r, closed, mode, kind, n, dp, dlR, dlD,
+                                              lam_d_n, c_n, h_n, params, s, dev, fv)
+                if res < res0:
+                    break
+                step *= 0.5
+            if not res < res0:
+                return 1, dlD
+        if not converged:
+            return 1, dlD
+    if mode[3] == 1:
+        q, phi, H, res = _cp_residual(s_trial, r, closed, mode, kind, n, True, dlR, dlD, lam_d_n,
+                                      c_n, h_n, params, s, dev, fv)
+        if not phi >= 0.0:
+            return 1, dlD
+        for i in range(3):
+            depD[i] = dlD * (dev[i] / (2.0 * q) + beta / 3.0)
+    else:
+        for i in range(3):
+            depD[i] = 0.0
+    return 0, dlD
+
+
+@njit(cache=True)
+def _dp_violated(s, lam_d_n, dlD, c_n, h_n, params, mode):
+    """Whether the principal stress ``s`` (Pa) violates Drucker-Prager by more than the
+    tolerance, ``f_D = sqrt(J2) - delta p - C(lambda_n + dlambda_D) > tol``, where it is to be
+    enforced (fewer than three Rankine-type constraints active in ``mode``)."""
+    ntens = 0
+    for i in range(3):
+        if mode[i] != 0:
+            ntens += 1
+    if ntens == 3:
+        return False
+    C, _H = _cohesion_iterate(lam_d_n, dlD, c_n, h_n, params)
+    mean = (s[0] + s[1] + s[2]) / 3.0
+    q2 = 0.0
+    for i in range(3):
+        q2 += (s[i] - mean) * (s[i] - mean)
+    return math.sqrt(0.5 * q2) + params[P_DELTA] * mean - C > params[P_TOL]
+
+
+@njit(cache=True)
+def _kkt_holds(s, r, dlR, dlD, mode, closed, lam_d_n, c_n, h_n, params, open_tol):
+    """Kuhn-Tucker conditions of a converged pass: active Rankine multipliers >= 0, active
+    reclosure multipliers <= 0 and not past the full closure (``r_i + dlambda_i >= 0``), the
+    Drucker-Prager multiplier >= 0 (and zero when it is skipped), and no inactive criterion
+    violated by more than the tolerance (Pa)."""
+    rt = params[P_RT]
+    ref = params[P_REF]
+    tol = params[P_TOL]
+    for i in range(3):
+        if closed[i]:
+            # fully closed: held closed by a compression beyond the reclosure stress
+            if s[i] + ref > tol:
+                return False
+            continue
+        if mode[i] == 1:
+            if dlR[i] < 0.0:
+                return False
+        elif mode[i] == -1:
+            if dlR[i] > 0.0 or r[i] + dlR[i] < -open_tol:
+                return False
+        else:
+            if s[i] - rt > tol:
+                return False
+            if s[i] + ref < -tol and r[i] + dlR[i] > open_tol:
+                return False
+    if mode[3] == 1:
+        return dlD >= 0.0
+    if dlD != 0.0:
+        return False
+    return not _dp_violated(s, lam_d_n, dlD, c_n, h_n, params, mode)
+
+
+@njit(cache=True)
+def _trial_admissible(s, r, c_n, params, open_tol):
+    """Whether the principal trial stress ``s`` (Pa) violates no criterion by more than the
+    tolerance: ``s_i - R_t``, ``-(s_i + REF)`` where the crack is open (``r_i > open_tol``),
+    ``f_D`` with ``C(lambda_n) = c_n``. The first iteration of :func:`_return_pass` then stops
+    with nothing active: the step is elastic."""
+    rt = params[P_RT]
+    ref = params[P_REF]
+    tol = params[P_TOL]
+    for i in range(3):
+        if s[i] - rt > tol:
+            return False
+        if s[i] + ref < -tol and r[i] > open_tol:
+            return False
+    mean = (s[0] + s[1] + s[2]) / 3.0
+    q2 = 0.0
+    for i in range(3):
+        q2 += (s[i] - mean) * (s[i] - mean)
+    return not (math.sqrt(0.5 * q2) + params[P_DELTA] * mean - c_n > tol)
+
+
+@njit(cache=True)
+def _return_mapping(s, r, lam_d_n, c_n, h_n, params, open_tol, dlR, depD):
+    """Return mapping from the principal trial stress ``s`` (3,) (Pa, overwritten by the
+    returned stress), ``r`` (3,) = ``e_i . eps_pR . e_i`` at the start of the step,
+    ``lambda_n``, ``C(lambda_n)``, ``H(lambda_n)`` (Pa); writes the Rankine/reclosure
+    multipliers ``dlR`` (3,) and the principal Drucker-Prager plastic strain increments
+    ``depD`` (3,). Returns ``(status, dlambda_D, iterations)``, status as
+    :func:`endo3d_update`. Algorithm: module docstring (passes of :func:`_return_pass`, active
+    set corrections, then a closest-point search over the active sets)."""
+    E_lame = params[P_LAME]
+    G = params[P_G]
+    rt = params[P_RT]
+    ref = params[P_REF]
+    tol = params[P_TOL]
+    s_trial = s.copy()
+    mode = np.zeros(4, dtype=np.int64)
+    excl = np.zeros(7, dtype=np.bool_)  # surfaces not to activate (see _EXCL_D)
+    closed = np.zeros(3, dtype=np.bool_)
+    kind = np.zeros(4, dtype=np.int64)
+    Jm = np.empty((4, 4))
+    fv = np.empty(4)
+    xs = np.empty(4)
+    dev = np.empty(3)
+    nD = np.empty(3)
+    xR = np.empty(3)
+    n_iter = 0
+    status = 1
+    dlD = 0.0
+    for _restart in range(MAX_RESTARTS):
+        code, dlD, it = _return_pass(s_trial, r, closed, excl, lam_d_n, c_n, h_n, params,
+                                     open_tol, s, dlR, depD, mode, kind, Jm, fv, xs, dev, nD, xR)
+        n_iter += it
+        if code == 2:
+            if mode[3] == 1 and not excl[_EXCL_D]:
+                # the Rankine/reclosure block (diagonal M, off-diagonal lam) is always regular:
+                # the degeneracy comes with Drucker-Prager (its flow no longer changes f_D once
+                # the other constraints are enforced); redo the pass without it
+                excl[_EXCL_D] = True
+                continue
+            status = 2
+            break
+        if code == 1:
+            break
+        # corrections of the active set, one kind per restart, in this order (the multipliers
+        # of a pass that needs a correction of one kind say nothing about the next kinds):
+        # (1) Drucker-Prager flowed and was then skipped (three Rankine-type constraints): its
+        #     flow is in the pass's plastic strains; redo the pass without it;
+        # (2) a reclosure went past the full closure: that direction is closed (prescribed
+        #     increment -r_i);
+        # (3) multipliers of the wrong sign: the most wrong one is excluded (one at a time: the
+        #     others change once it is gone; all multipliers are strains);
+        # (4) an excluded surface that the final stress violates is admitted again, a closed
+        #     direction whose stress is above -REF is opened again (decided on an earlier
+        #     pass, with another active set, neither is final).
+        redo = False
+        if mode[3] == 0 and dlD != 0.0:
+            excl[_EXCL_D] = True
+            redo = True
+        if not redo:
+            for i in range(3):
+                if mode[i] == -1 and r[i] + dlR[i] < -open_tol:
+                    closed[i] = True
+                    redo = True
+        if not redo:
+            # (ties, to round-off, go to the lowest index: directions of a repeated principal
+            # stress are ordered by the state, see _refine_basis)
+            worst = -1
+            wrong = 0.0
+            for i in range(3):
+                if mode[i] == 1 and -dlR[i] > wrong * (1.0 + 1e-9):
+                    worst = i
+                    wrong = -dlR[i]
+                elif mode[i] == -1 and dlR[i] > wrong * (1.0 + 1e-9):
+                    worst = i
+                    wrong = dlR[i]
+            if -dlD > wrong * (1.0 + 1e-9):
+                worst = _EXCL_D
+            elif worst >= 0 and mode[worst] == -1:
+                worst += 3
+            if worst >= 0:
+                excl[worst] = True
+                redo = True
+        if not redo:
+            for i in range(3):
+                if closed[i] and s[i] + ref > tol:
+                    # a closure decided on an earlier pass that the final stress does not hold
+                    closed[i] = False
+                    redo = True
+                if mode[i] != 0 or closed[i]:
+                    continue
+                if excl[i] and s[i] - rt > tol:
+                    excl[i] = False
+                    redo = True
+                if excl[3 + i] and s[i] + ref < -tol and r[i] + dlR[i] > open_tol:
+                    excl[3 + i] = False
+                    redo = True
+            if excl[_EXCL_D] and _dp_violated(s, lam_d_n, dlD, c_n, h_n, params, mode):
+                excl[_EXCL_D] = False
+                redo = True
+        if not redo:
+            status = 0
+            break
+    if status == 1:
+        # the rules cycle (non-associated flow, corners, closures): try the active sets, fewest
+        # active surfaces first, each direction inactive, Rankine, or, if its crack is open,
+        # reclosure or full closure, and Drucker-Prager off or on; the first pass that
+        # converges to a point satisfying the Kuhn-Tucker conditions is the answer
+        found = False
+        wk = np.empty(4)
+        for size in range(5):
+            for code4 in range(128):
+                c = code4
+                cnt = 0
+                ntens = 0
+                nrecl = 0
+                ok = True
+                for i in range(3):
+                    opt = c % 4  # 0 inactive, 1 Rankine, 2 reclosure, 3 closed
+                    c //= 4
+                    if opt >= 2 and not r[i] > open_tol:
+                        ok = False
+                    mode[i] = 1 if opt == 1 else (-1 if opt == 2 else 0)
+                    closed[i] = opt == 3
+                    if opt != 0:
+                        cnt += 1
+                    if opt == 1 or opt == 2:
+                        ntens += 1
+                    if opt == 2:
+                        nrecl += 1
+                mode[3] = c  # 0 or 1
+                if mode[3] == 1 and ntens == 3 and nrecl == 0:
+                    # Drucker-Prager is skipped with three Rankine constraints (their corner,
+                    # R_t (1, 1, 1), satisfies it: delta R_t <= C_min <= C); with a reclosure
+                    # among them the corner can violate it, and the hardening (H > 0) can
+                    # restore it: that set is tried
+                    ok = False
+                cnt += mode[3]
+                if not ok or cnt != size:
+                    continue
+                code, dlD = _closest_point(s_trial, r, closed, mode, lam_d_n, params, s, dlR,
+                                           depD, dev, kind, Jm, fv, xs, wk)
+                n_iter += 1
+                if code == 0 and _kkt_holds(s, r, dlR, dlD, mode, closed, lam_d_n, c_n, h_n,
+                                            params, open_tol):
+                    found = True
+                    break
+            if found:
+                status = 0
+                break
+    if status != 0 and dlD < 0.0:
+        # the iterate written when the return mapping fails must not lower lambda_D: remove
+        # its Drucker-Prager flow (the stress stays C0 : (eps - eps_pR - eps_pD))
+        tr_d = depD[0] + depD[1] + depD[2]
+        for i in range(3):
+            s[i] += E_lame * tr_d + 2.0 * G * depD[i]
+            depD[i] = 0.0
+        dlD = 0.0
+
+    return status, dlD, n_iter
+
+
+# --------------------------------------------------------------------------------------------
 # The Gauss-point kernel
 # --------------------------------------------------------------------------------------------
 
@@ -576,20 +1467,18 @@ def endo3d_update(eps, state_in, params, xe, state_out, sigma):
     ``params`` (N_PARAMS,): from :func:`endo3d_params`.
     ``xe`` (8, 3): node coordinates (m) of the hexahedron, for the Hillerborg lengths.
     ``state_out`` (N_STATE,): written. ``sigma`` (6,): apparent stress (Pa), true shear, written.
-    Returns 0, or 1 when the return mapping did not converge in ``MAX_RETURN_ITER`` iterations
-    or 8 restarts, or 2 when its linear system was (numerically) singular; in both cases the
-    last iterate is written and the caller should retry the step (e.g. with a smaller one).
+    Returns 0 (the written state satisfies the Kuhn-Tucker conditions of the return mapping),
+    or 1 when no active set satisfies them (cutting-plane passes not converged or cycling,
+    and the closest-point search found none), or 2 when its linear system was (numerically)
+    singular; in both cases the last iterate is written (``lambda_D`` not decreased) and the
+    caller should retry the step (e.g. with a smaller one).
     """
     E_lame = params[P_LAME]
     G = params[P_G]
-    K = params[P_K]
     M = params[P_M]
     rt = params[P_RT]
-    ref = params[P_REF]
     delta = params[P_DELTA]
     beta = params[P_BETA]
-    tol = params[P_TOL]
-    status = 0
 
     # ---- trial effective stress ------------------------------------------------------------
     epsR = np.empty((3, 3))
@@ -618,6 +1507,14 @@ def endo3d_update(eps, state_in, params, xe, state_out, sigma):
     s = np.empty(3)
     Q = np.empty((3, 3))
     _eig_sym3(s_tr, s, Q)
+    _sort_desc(s, Q)  # a canonical order: the return mapping's choices go by index
+    # an opening below this strain is round-off (r_i is a projection of the tensor eps_pR)
+    open_tol = 1e-10 * rt / params[P_E]
+    if _has_repeated(s, 0.0):
+        # repeated principal trial stresses: the basis of their eigenspace, where the flows,
+        # the reclosure criterion (e_i . eps_pR . e_i) and the Hillerborg lengths are taken,
+        # from the state: eps_pR, then W, then the element's edges (frame-independent)
+        _trial_basis(s, Q, epsR, state_in, xe, open_tol)
 
     # Rankine plastic strain in the principal directions (for the reclosure criterion)
     r = np.empty(3)
@@ -628,181 +1525,21 @@ def endo3d_update(eps, state_in, params, xe, state_out, sigma):
                 acc += Q[k, i] * epsR[k, m] * Q[m, i]
         r[i] = acc
 
-    # ---- return mapping (cutting plane, principal space) ---------------------------------------
+    # ---- return mapping (principal space) -------------------------------------------------------
     # mode[i] (i < 3): 1 Rankine tension, -1 crack reclosure, 0 inactive on principal direction
-    # i; mode[3]: 1 Drucker-Prager active. A surface gets a mode when it is violated and keeps it
-    # (consistency condition f = 0) until the end of the pass; after convergence a surface whose
-    # cumulative multiplier has the wrong sign is excluded and the pass restarts from the trial
-    # stress; a reclosure that would make e_i . eps_pR . e_i negative is replaced by the full
-    # closure of that direction (prescribed increment -r_i) and the pass restarts.
+    # i; mode[3]: 1 Drucker-Prager active (see _return_mapping). An admissible trial stress
+    # (the common, elastic case) skips it and its work arrays.
     lam_d_n = state_in[S_LAMBDA_D]
-    s_trial = s.copy()
+    c_n, h_n = _cohesion(lam_d_n, params)
     dlR = np.zeros(3)
-    dlD = 0.0
     depD = np.zeros(3)
-    mode = np.zeros(4, dtype=np.int64)
-    excl_t = np.zeros(3, dtype=np.bool_)
-    excl_r = np.zeros(3, dtype=np.bool_)
-    excl_d = False
-    closed = np.zeros(3, dtype=np.bool_)
-    kind = np.zeros(4, dtype=np.int64)
-    Jm = np.empty((4, 4))
-    fv = np.empty(4)
-    xs = np.empty(4)
-    dev = np.empty(3)
-    nD = np.empty(3)
-    xR = np.empty(3)
-    # an opening below this strain is round-off (r_i is a projection of the tensor eps_pR)
-    open_tol = 1e-10 * rt / params[P_E]
-    n_iter = 0
-    status = 1
-    for _restart in range(8):
-        tr_f = 0.0
-        for i in range(3):
-            s[i] = s_trial[i]
-            dlR[i] = -r[i] if closed[i] else 0.0
-            depD[i] = 0.0
-            mode[i] = 0
-            tr_f += dlR[i]
-        for i in range(3):
-            s[i] -= E_lame * tr_f + 2.0 * G * dlR[i]
-        mode[3] = 0
+    if _trial_admissible(s, r, c_n, params, open_tol):
+        status = 0
         dlD = 0.0
-        converged = False
-        singular = False
-        for _it in range(MAX_RETURN_ITER):
-            n_iter += 1
-            C, H = _cohesion(lam_d_n + dlD, params)
-            mean = (s[0] + s[1] + s[2]) / 3.0
-            for i in range(3):
-                dev[i] = s[i] - mean
-            q = math.sqrt(0.5 * (dev[0] * dev[0] + dev[1] * dev[1] + dev[2] * dev[2]))
-            fD = q + delta * mean - C  # sqrt(J2) - delta p - C, p = -mean
-
-            violated = False
-            for i in range(3):
-                if closed[i]:
-                    continue
-                if mode[i] == 1:
-                    if abs(s[i] - rt) > tol:
-                        violated = True
-                elif mode[i] == -1:
-                    if abs(s[i] + ref) > tol:
-                        violated = True
-                elif s[i] - rt > tol and not excl_t[i]:
-                    mode[i] = 1
-                    violated = True
-                elif s[i] + ref < -tol and r[i] + dlR[i] > open_tol and not excl_r[i]:
-                    mode[i] = -1
-                    violated = True
-            ntens = 0
-            for i in range(3):
-                if mode[i] != 0 or closed[i]:
-                    ntens += 1
-            if ntens == 3:
-                # Drucker-Prager skipped when the three Rankine criteria are active (and, by
-                # extension, when reclosure or closure fixes the remaining principal stresses:
-                # the three principal stresses are then prescribed and f_D cannot be enforced)
-                mode[3] = 0
-            elif mode[3] == 1:
-                if abs(fD) > tol:
-                    violated = True
-            elif fD > tol and not excl_d:
-                mode[3] = 1
-                violated = True
-            if not violated:
-                converged = True
-                break
-
-            qpos = q > 1e-14 * (abs(mean) + rt)
-            n = 0
-            for i in range(3):
-                if mode[i] != 0:
-                    kind[n] = i
-                    n += 1
-            if mode[3] == 1:
-                kind[n] = 3
-                n += 1
-            for a in range(n):
-                ka = kind[a]
-                if ka < 3:
-                    fv[a] = s[ka] - rt if mode[ka] == 1 else s[ka] + ref
-                    for b in range(n):
-                        kb = kind[b]
-                        if kb < 3:
-                            Jm[a, b] = M if ka == kb else E_lame
-                        else:
-                            Jm[a, b] = (G * dev[ka] / q if qpos else 0.0) + K * beta
-                else:
-                    fv[a] = fD
-                    for b in range(n):
-                        kb = kind[b]
-                        if kb < 3:
-                            Jm[a, b] = (G * dev[kb] / q if qpos else 0.0) + delta * K
-                        else:
-                            Jm[a, b] = (G if qpos else 0.0) + K * beta * delta + H
-            if not _solve_small(Jm, fv, n, xs):
-                singular = True
-                break
-            for a in range(n):
-                # a multiplier increment above 1 (a strain of 100 %) or not finite: the system
-                # is numerically singular
-                if not abs(xs[a]) <= 1.0:
-                    singular = True
-            if singular:
-                break
-            for i in range(3):
-                xR[i] = 0.0
-            xD = 0.0
-            for a in range(n):
-                if kind[a] < 3:
-                    xR[kind[a]] = xs[a]
-                else:
-                    xD = xs[a]
-            if xD > 0.0 and qpos and G * xD > q:
-                xD = q / G  # do not go past the apex of the cone
-            for i in range(3):
-                nD[i] = (dev[i] / (2.0 * q) if qpos else 0.0) + beta / 3.0
-            tr_de = 0.0
-            for i in range(3):
-                tr_de += xR[i] + xD * nD[i]
-            for i in range(3):
-                s[i] -= E_lame * tr_de + 2.0 * G * (xR[i] + xD * nD[i])
-                dlR[i] += xR[i]
-                depD[i] += xD * nD[i]
-            dlD += xD
-        if singular:
-            if mode[3] == 1 and not excl_d:
-                # the Rankine/reclosure block (diagonal M, off-diagonal lam) is always regular:
-                # the degeneracy comes with Drucker-Prager (its flow no longer changes f_D once
-                # the other constraints are enforced); redo the pass without it
-                excl_d = True
-                continue
-            status = 2
-            break
-        if not converged:
-            status = 1
-            break
-        redo = False
-        for i in range(3):
-            if mode[i] == 1 and dlR[i] < 0.0:
-                excl_t[i] = True
-                redo = True
-            elif mode[i] == -1:
-                if dlR[i] > 0.0:
-                    excl_r[i] = True
-                    redo = True
-                elif r[i] + dlR[i] < -open_tol:
-                    closed[i] = True
-                    redo = True
-        if dlD < 0.0 or (mode[3] == 0 and dlD != 0.0):
-            # wrong sign, or Drucker-Prager flowed and was then skipped (three Rankine-type
-            # constraints): redo the pass without it
-            excl_d = True
-            redo = True
-        if not redo:
-            status = 0
-            break
+        n_iter = 1
+    else:
+        status, dlD, n_iter = _return_mapping(s, r, lam_d_n, c_n, h_n, params, open_tol, dlR,
+                                              depD)
 
     # ---- plastic strains, effective stress -------------------------------------------------------
     lam_d = lam_d_n + dlD
@@ -842,6 +1579,14 @@ def endo3d_update(eps, state_in, params, xe, state_out, sigma):
         ww = np.empty(3)
         Vw = np.empty((3, 3))
         _eig_sym3(W, ww, Vw)
+        w_scale = max(ww[0], max(ww[1], ww[2]))
+        if w_scale > 0.0 and _has_repeated(ww, 0.0):
+            # repeated openings: W_max, then the element, order their eigenspace. With one
+            # crack the repeated eigenvalue is 0, where max(W_max,kk, 0) = W_max,kk whatever
+            # the basis (W_max is positive semi-definite): nothing to do
+            zero = DEGENERATE_REL * w_scale
+            if not (_pair_value(ww) <= zero):
+                _state_basis(ww, Vw, Wm, 0.0, xe, zero)
         for k in range(3):
             ww[k] = max(ww[k], 0.0)
         # W_max in the basis of W: diagonal maxima, off-diagonal terms kept
@@ -872,6 +1617,11 @@ def endo3d_update(eps, state_in, params, xe, state_out, sigma):
     wm = np.empty(3)
     P = np.empty((3, 3))
     _eig_sym3(Wm, wm, P)
+    # repeated eigenvalues of W_max (one crack: (0, 0, w)): the basis of their eigenspace, where
+    # the reclosure takes w_i,cur, from W, then from the element's edges (no crack: no damage)
+    w_scale = max(abs(wm[0]), max(abs(wm[1]), abs(wm[2])))
+    if w_scale > 0.0 and _has_repeated(wm, 0.0):
+        _state_basis(wm, P, W, DEGENERATE_REL * w_scale, xe, DEGENERATE_REL * w_scale)
     w_k = params[P_W_K]
     w_r = params[P_W_R]
     d_t = np.empty(3)
