@@ -203,14 +203,14 @@ def test_pure_compression_stores_and_returns_the_spring_energy(compression_sprin
     assert psi[-1] == 0.0 and psi.max() > 0.0
 
 
-@pytest.mark.xfail(strict=True, reason="local_solve finds no status for a slide whose first "
-                   "diagonal iterate is in tension (issue 7, reported)")
 def test_frictionless_slide_under_a_mildly_coupled_compliance():
     """Found by test_finite_irreversible_and_dissipative: mu = 0, the normal-tangential
     coupling of D = A + C_s only 0.03 of its diagonal; the slide T = (-0.133, 0, 98.65) Pa
     satisfies every condition (solve (D + diag(0, 1/k_t, 1/k_t)) T = u~), but the iteration of
-    ``_slide`` stops at its uncoupled first iterate (normal traction in tension) and the
-    direction scan of ``_slide_by_angle`` brackets no root: ST_AMBIGUOUS."""
+    ``_slide`` stopped at its uncoupled first iterate (normal traction in tension) and the
+    direction scan of ``_slide_by_angle`` bracketed no root: ST_AMBIGUOUS. Fixed (issue 7):
+    the slide is the root N of h(N) = N0 + g.s(mu N) - N, which for mu = 0 is the linear
+    solution."""
     P = jl.joint_params(K_I_spring=1e4, K_II_spring=1e6, d_spring=0.0, sigma_I_e=100.0,
                         K_I_coh=1e4, G_fI=1.0, sigma_II_e=100.0, K_II_coh=1e4, G_fII=1.0,
                         d_coh_initial=0.0, mu=0.0, eta=0.1)
@@ -219,17 +219,23 @@ def test_frictionless_slide_under_a_mildly_coupled_compliance():
     st_ = jl.local_solve(np.array([1.953125e-05, 0.0, 1e-2]), A, np.array([0.0, 0.00494886, 0.0]),
                          1.0, P, jl.KIND_JOINT, T, uc)
     assert st_ == jl.ST_SLIDE
+    D = A + np.diag([P[jl.P_CN_C], P[jl.P_CT], P[jl.P_CT]])
+    kt = P[jl.P_KII]
+    T_exact = np.linalg.solve(D + np.diag([0.0, 1.0 / kt, 1.0 / kt]),
+                              np.array([1.953125e-05, 0.0, 1e-2]))
+    assert T_exact[0] < 0.0
+    assert np.allclose(T, T_exact, rtol=1e-12, atol=1e-12 * np.abs(T_exact).max())
 
 
-@pytest.mark.xfail(strict=True, reason="local_solve finds no status for a slide whose first "
-                   "diagonal iterate is in tension (issue 7, reported)")
 def test_slide_under_a_coupled_compliance_is_objective():
     """Found by a long run of test_objective_in_the_tangent_plane with coupled compliances: the
     same point in two tangent frames (turned by 1 rad) ends with integrities 0.0075 and 0.074.
     The normal predictor is 4.9e-276 m (0 gives the right answer in both frames): in the turned
     frame ``local_solve`` at beta = 0.00747 gives up on the slide (first diagonal iterate in
-    tension by 1e-272 Pa) and returns ST_AMBIGUOUS, and the regula falsi of
-    ``local_solve_implicit`` then settles on another integrity, reported as a plain slide."""
+    tension by 1e-272 Pa) and returned ST_AMBIGUOUS, and the regula falsi of
+    ``local_solve_implicit`` then settled on another integrity, reported as a plain slide.
+    Fixed (issue 7): the slide is found from the bracket [0, |r0| / mu] of h(N), whatever the
+    sign of the uncoupled first iterate, and with invariants of the tangent plane only."""
     P = jl.joint_params(K_I_spring=1e4, K_II_spring=1e6, d_spring=0.0, sigma_I_e=100.0,
                         K_I_coh=1e4, G_fI=1.0, sigma_II_e=100.0, K_II_coh=1e6, G_fII=1.0,
                         d_coh_initial=0.5, mu=1.0, p=1.0, eta=0.1)
@@ -239,6 +245,122 @@ def test_slide_under_a_coupled_compliance_is_objective():
     r = drive(P, A, path)
     q = drive(P, Q @ A @ Q.T, path @ Q.T)
     assert q["beta"][-1] == pytest.approx(r["beta"][-1], rel=1e-9)
+
+
+def test_integrity_search_does_not_crawl_at_a_steep_root():
+    """Found by a long run of test_objective_in_the_tangent_plane (A = 0, also before issue 7's
+    fix of the slide, for about 1 angle in 5): a stiff normal spring (1e16 Pa/m) under
+    compression, 7e13 Pa, with mu_eff = mu (1 - beta) of 7e-8 near beta = 1, so that the
+    slip of the first step grows by 1.7e-4 m over 4e-10 of beta and g(beta) = beta_env - beta
+    falls from +7e-8 to -0.4 there. The Illinois regula falsi crawled back from each overshoot
+    with doubling steps and used up its 100 iterations at beta = 0.99999993, where g = -0.41:
+    the next step, a stick with u_c unchanged, dropped the integrity to 0.59, or not,
+    depending on the tangent frame. Now it bisects after three iterates on the same side."""
+    P = jl.joint_params(K_I_spring=1e16, K_II_spring=1.0 / 5.623413251903491e-09, d_spring=0.0,
+                        sigma_I_e=1e5, K_I_coh=3.1622776601683792e7, G_fI=1e3,
+                        sigma_II_e=100.0, K_II_coh=1e6, G_fII=1.0, d_coh_initial=0.0, mu=1.0,
+                        p=1.0, eta=0.1)
+    path = np.array([[-0.0071027720882688205, 0.0, 0.02766992952647332],
+                     [-0.03162277660168379, 0.0, 0.0]])
+    A = np.zeros((3, 3))
+    r = drive(P, A, path)
+    assert list(r["status"]) == [jl.ST_SLIDE, jl.ST_STICK]
+    # the integrity of the first step is consistent with its cohesive slip (the search
+    # brackets the root to 1e-14 in beta, where g falls by 2e9 per unit of beta)
+    uc1 = r["uc"][0]
+    assert abs(jl.envelope_integrity(*uc1, 1.0, P) - r["beta"][0]) <= 1e-4
+    assert r["beta"][1] == pytest.approx(r["beta"][0], rel=1e-4)
+    for alpha in (0.3, 1.0, 2.0, 2.5, 4.0, 5.5):
+        Q = _turn(alpha)
+        q = drive(P, A, path @ Q.T)
+        assert np.allclose(q["beta"], r["beta"], rtol=1e-7, atol=1e-12)
+
+
+def test_round_off_sized_slip_under_a_coupled_compliance():
+    """Tractions of 1e-156 Pa (a slip of 1e-162 m): written in Pa, the slide's squared norms
+    and 2 x 2 determinants underflow (ZeroDivisionError in a first version of issue 7's fix),
+    and ``phi s / |s|`` went through a subnormal product (7 digits lost, not objective);
+    ``_tangential_slip`` works with the dimensionless ``q = r0 / phi``, norms avoid the
+    squares, and products keep the small factors apart."""
+    zero = np.zeros((3, 3))
+    coupled = (np.array([[2.0, 0.3, -0.4], [0.3, 1.5, 0.2], [-0.4, 0.2, 1.0]])) * 1e-7
+    for mu, d_coh in ((0.0, 0.0), (0.5, 0.5)):  # mu_eff = 0 and 0.25
+        P = jl.joint_params(K_I_spring=1e6, K_II_spring=1e6, d_spring=0.0, sigma_I_e=100.0,
+                            K_I_coh=1e6, G_fI=1.0, sigma_II_e=100.0, K_II_coh=1e6, G_fII=1.0,
+                            d_coh_initial=d_coh, mu=mu, eta=0.1)
+        for A in (zero, coupled):
+            for u in ([0.0, 0.0, 1.3605978243128552e-162], [-1e-162, 3e-162, -2e-162]):
+                path = np.array([[0.0, 0.0, 0.0], u])
+                r = drive(P, A, path)
+                assert np.isfinite(r["T"]).all() and np.isfinite(r["uc"]).all()
+                assert not (r["status"] == jl.ST_AMBIGUOUS).any()
+                if u[0] < 0.0:  # a slide in compression, with friction when mu > 0
+                    assert r["status"][-1] == jl.ST_SLIDE and r["T"][-1, 0] < 0.0
+                Q = _turn(1.0)
+                q = drive(P, Q @ A @ Q.T, path @ Q.T)
+                assert np.allclose(q["T"], r["T"] @ Q.T, rtol=1e-9,
+                                   atol=1e-9 * np.abs(r["T"]).max())
+                assert np.allclose(q["beta"], r["beta"], rtol=1e-12)
+
+
+@pytest.mark.parametrize("case", ["coupled_t2", "stiff_normal_spring"])
+def test_slide_at_zero_normal_traction_under_a_coupled_compliance(case):
+    """Found by long runs of test_objective_in_the_tangent_plane with coupled compliances, mu =
+    0: the second step's slide has T_n = 0 exactly, the boundary with the open status (u_c,n
+    = 0), and h(0) = N0 + g.s is a difference of terms of 66 to 100 Pa.
+
+    * ``coupled_t2``: u~_n = 0, the normal coupled with t2 only; h(0) was -1.8e-15 Pa in one
+      frame, below the round-off allowed for it (1e-13 of N0 and g.s alone).
+    * ``stiff_normal_spring``: u~ = 0 after a slip; the normal spring compliance 1e-11 m/Pa
+      against 1e-6 tangentially, and the partial pivoting of the stick's solve took
+      N0 = 65.8 Pa from a difference of terms 4500 times larger: h(0) = -3e-11 Pa.
+
+    Taken for a tension: no status (ST_AMBIGUOUS), in some frames and not in others, with a
+    first version of issue 7's fix (and in every frame for the first case before it). Now N0
+    is recomputed from the cofactors of D (invariant under a diagonal scaling of D), whose
+    terms bound the round-off of h."""
+    if case == "coupled_t2":
+        P = jl.joint_params(K_I_spring=1e8, K_II_spring=1e6, d_spring=0.0, sigma_I_e=100.0,
+                            K_I_coh=1e6, G_fI=1.0, sigma_II_e=100.0, K_II_coh=1e10, G_fII=1.0,
+                            d_coh_initial=0.0, mu=0.0, eta=0.1)
+        A = np.array([[11.0, 0.0, 10.0], [0.0, 1.0, 0.0], [10.0, 0.0, 11.0]]) / 3e7
+        path = np.array([[0.0, 0.0, -1e-4], [0.0, 1e-4, 0.0]])
+    else:
+        P = jl.joint_params(K_I_spring=1e11, K_II_spring=1e6, d_spring=0.0, sigma_I_e=100.0,
+                            K_I_coh=1e6, G_fI=1.0, sigma_II_e=100.0, K_II_coh=1e6, G_fII=1.0,
+                            d_coh_initial=0.0, mu=0.0, eta=0.1)
+        A = np.array([[3.5, 5.0, 0.0], [5.0, 11.0, 0.0], [0.0, 0.0, 1.0]]) / 3e10
+        path = np.array([[0.0, -1e-4, 0.0], [0.0, 0.0, 0.0]])
+    r = drive(P, A, path)
+    assert r["status"][-1] == jl.ST_SLIDE and r["T"][-1, 0] <= 0.0
+    for alpha in (0.5, 1.0, 2.0, 3.0, 4.5):
+        Q = _turn(alpha)
+        q = drive(P, Q @ A @ Q.T, path @ Q.T)
+        assert not (q["status"] == jl.ST_AMBIGUOUS).any()
+        assert np.abs(q["T"] - r["T"] @ Q.T).max() <= 1e-9 * np.abs(r["T"]).max()
+
+
+def test_stick_under_a_tiny_friction_bound_and_a_coupled_compliance():
+    """Found by a long run of test_objective_in_the_tangent_plane with coupled compliances:
+    mu_eff = 1e-13, so the friction bound is 1e-11 Pa under 100 Pa of compression, and the
+    same predictor twice. In the second step the friction residual r0 = T0_t - k_t u_c,t is a
+    difference of 2e-3 Pa tractions whose round-off (eps |G_tn v_n| ~ 5e-15 Pa) is 5e-4 of
+    the bound: the stick test failed in one solve and held in another. The slide then started
+    from a bracket with no sign change (a first version of issue 7's fix returned N at its
+    end, 6e-3 Pa off); before issue 7, no status in one frame. Now the slide's own solve
+    returns the stick when it holds there."""
+    P = jl.joint_params(K_I_spring=1e6, K_II_spring=1e9, d_spring=0.125, sigma_I_e=100.0,
+                        K_I_coh=1e6, G_fI=1.0, sigma_II_e=100.0, K_II_coh=1e8, G_fII=1.0,
+                        d_coh_initial=0.99944, mu=1e-13, p=1.0, eta=0.1)
+    A = np.array([[0.44, 0.4, 0.0], [0.4, 0.44, 0.0], [0.0, 0.0, 0.44]]) / 1.05e9
+    path = np.array([[-0.00011428571428571428, 0.0, 0.0]] * 2)
+    r = drive(P, A, path)
+    for alpha in (0.0, 1.0, 2.0, 3.5):
+        Q = _turn(alpha)
+        q = drive(P, Q @ A @ Q.T, path @ Q.T)
+        assert not (q["status"] == jl.ST_AMBIGUOUS).any()
+        assert np.abs(q["T"] - r["T"] @ Q.T).max() <= 1e-12 * np.abs(r["T"]).max()
+        assert np.all(q["T"][:, 0] == pytest.approx(r["T"][0, 0], rel=1e-13))
 
 
 def test_round_off_sized_openings_do_not_underflow():
