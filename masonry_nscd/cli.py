@@ -131,11 +131,13 @@ def run(
         outdir = output or Path("results") / case.name
     import signal
 
-    from masonry_nscd.run import RunFailure, RunInputError, RunOutputError, run_case
+    from masonry_nscd.run import TERMINATE, RunFailure, RunInputError, RunOutputError, run_case
 
     def _terminate(signum, frame):  # SIGTERM ends the run like Ctrl-C: outputs are kept
+        TERMINATE.set()  # in case the exception is lost (raised inside a library)
         raise KeyboardInterrupt
 
+    TERMINATE.clear()
     signal.signal(signal.SIGTERM, _terminate)
     try:
         res = run_case(case, outdir, overwrite=overwrite, echo=typer.echo,

@@ -30,6 +30,7 @@ import csv
 import io
 import math
 import os
+import threading
 import time
 import traceback
 from collections.abc import Callable, Iterator
@@ -44,6 +45,11 @@ CSV_COLUMNS = [
     "failed_gauss_points",
 ]
 
+
+#: Set by a signal handler (``masonry run`` on SIGTERM) that also raises KeyboardInterrupt: the
+#: step loop raises it again at the next step, should the handler's exception have been lost
+#: (a SIGTERM 16 s into a run, while numba was loading its kernels, left the run going).
+TERMINATE = threading.Event()
 
 #: A step that ends with a residual (relative change of the contact forces between the last
 #: iterates) above this has lost its solution: the run stops (RunFailure) rather than record it.
@@ -310,6 +316,8 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
 
     try:
         while True:
+            if TERMINATE.is_set():
+                raise KeyboardInterrupt
             where = (f"step {integ.step_index + 1} ({stage_at(case, integ.t + h)} stage, "
                      f"t = {integ.t + h:.6g} s)")
             try:

@@ -87,6 +87,32 @@ def reference(tmp_path_factory):
 # --------------------------------------------------------------------------------------------
 
 
+def test_a_lost_sigterm_still_stops_the_run_at_the_next_step(tmp_path, monkeypatch):
+    """The SIGTERM handler of ``masonry run`` sets ``run.TERMINATE`` and raises; if a library
+    swallows the exception (numba loading its kernels), the step loop raises it at the next
+    step and the outputs are those of an interrupted run."""
+    from masonry_nscd import run as run_mod
+
+    orig = Integrator.step
+
+    def step_and_lose_the_signal(self):
+        rep = orig(self)
+        if rep.step == 12:
+            run_mod.TERMINATE.set()  # the handler ran; its KeyboardInterrupt was lost
+        return rep
+
+    monkeypatch.setattr(Integrator, "step", step_and_lose_the_signal)
+    out = tmp_path / "run"
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_case(load_case(SMOKE), out, **quiet)
+    finally:
+        run_mod.TERMINATE.clear()
+    rows = (out / "force_displacement.csv").read_text().splitlines()
+    assert len(rows) == 1 + 12  # header and steps 1 to 12: step 13 was never made
+    assert read_resume_point(out).step == 10
+
+
 def test_interrupted_run_resumes_to_the_uninterrupted_curve(tmp_path, monkeypatch, reference):
     out = tmp_path / "run"
     _interrupt_at(monkeypatch, 37)
