@@ -541,10 +541,18 @@ class Supports(_Section):
     ``top_vertical``: ``load`` - the top beam is free in y and carries the vertical stress of
     ``loading.vertical_stress`` (the study); ``fixed`` - the top beam is held in y (then the
     vertical stress must be 0).
+
+    ``top_rotation``: ``fixed`` - the top beam stays level (the wall bends in double
+    curvature, the usual shear test); ``free`` - it may rotate in the wall's plane (about z),
+    the wall then works as a cantilever. model.md blocks the rotations (the default);
+    docs/validation.md shows how much the initial stiffness depends on it.
     """
 
     top_vertical: Literal["load", "fixed"] = Field(
         "load", description="top beam in y: load (free, carries sigma_N) or fixed (held)"
+    )
+    top_rotation: Literal["fixed", "free"] = Field(
+        "fixed", description="in-plane rotation of the top beam: fixed (level) or free"
     )
     top_beam_mass_kg: Real = Field(
         500.0, ge=1.0, le=1e7, description="mass of the rigid top steel beam (kg)"

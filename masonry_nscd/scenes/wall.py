@@ -15,7 +15,7 @@ Contacts (all permanent):
 
 The upper beam: x driven (velocity ramp to the loading rate), y loaded by the vertical
 stress times the wall's plan area (or held, ``supports.top_vertical: fixed``), z and rotations
-blocked. The lower beam is fixed. Gravity acts on the units (lumped masses), not on the beams.
+blocked (the in-plane one free with ``supports.top_rotation: free``). The lower beam is fixed. Gravity acts on the units (lumped masses), not on the beams.
 """
 
 from __future__ import annotations
@@ -104,8 +104,14 @@ def build_wall(case) -> WallScene:
                5: at_rest}
     if case.supports.top_vertical == "fixed":
         imposed[Y] = at_rest
-    upper = RigidBody(center=(width / 2, height + 0.1, t / 2), mass=case.supports.top_beam_mass_kg,
-                      inertia=np.ones(3), imposed_velocity=imposed, label="upper beam")
+    m_beam = case.supports.top_beam_mass_kg
+    # in-plane rotational inertia of a beam as long as the wall and 0.2 m tall (kg m^2); the
+    # other two rotations are held
+    inertia = np.array([1.0, 1.0, m_beam * (width ** 2 + 0.2 ** 2) / 12.0])
+    if case.supports.top_rotation == "free":
+        del imposed[5]
+    upper = RigidBody(center=(width / 2, height + 0.1, t / 2), mass=m_beam,
+                      inertia=inertia, imposed_velocity=imposed, label="upper beam")
     bodies += [lower, upper]
     i_low, i_up = nu_, nu_ + 1
     dof0 = dof_offsets(bodies)
