@@ -88,20 +88,21 @@ def test_running_a_sweep_again_skips_the_finished_runs(local_sweep, tmp_path):
 
 
 def test_a_failed_run_is_reported_and_the_others_finish(scheduler, tmp_path):
-    # massless blocks (1e-30 kg/m3): the solver fails in the first step, a clean RunFailure
-    args = ["--set", "blocks.density_kg_m3=2000,1e-30", "--scheduler", scheduler,
-            "-o", str(tmp_path)]
+    # one solver iteration per step: the forces still change by ~100 % when it stops, and the
+    # run ends in the first step with a clean RunFailure
+    args = ["--set", "solver.max_iterations=20000,1", "--set", "solver.check_every=1",
+            "--scheduler", scheduler, "-o", str(tmp_path)]
     res = _sweep(*args)
     assert res.exit_code == 1, res.output
     ok, failed = _table(tmp_path / "sweep.csv")
-    assert (ok["run"], ok["status"], failed["run"], failed["status"]) == \
-        ("density_kg_m3=2000", "ok", "density_kg_m3=1e-30", "failed")
+    assert (ok["status"], failed["status"]) == ("ok", "failed")
+    assert (ok["run"], failed["run"]) == ("max_iterations=20000", "max_iterations=1")
     assert "step 1" in failed["message"] and failed["peak_force_kN"] == ""
     assert float(ok["peak_force_kN"]) > 0
-    assert "1 of 2 runs did not finish: density_kg_m3=1e-30 (failed)" in res.output
+    assert f"1 of 2 runs did not finish: {failed['run']} (failed)" in res.output
     res = _sweep(*args)  # again: the finished run is kept, the failed one is tried again
     assert res.exit_code == 1
-    assert "density_kg_m3=2000: kept" in res.output and "density_kg_m3=1e-30: failed" in res.output
+    assert f"{ok['run']}: kept" in res.output and f"{failed['run']}: failed" in res.output
 
 
 def test_bad_values_stop_the_sweep_before_any_run(tmp_path):
@@ -146,7 +147,8 @@ def test_morris_indices_of_the_peak_force(scheduler, tmp_path):
 
 def test_sensitivity_refuses_to_analyse_runs_that_failed(scheduler, tmp_path):
     res = CliRunner().invoke(app, [
-        "sensitivity", CASE, *SHORT, "--param", "blocks.density_kg_m3=1e-30:2e-30",
+        "sensitivity", CASE, *SHORT, "--set", "solver.max_iterations=1", "--set",
+        "solver.check_every=1", "--param", "joint.mu=0.5:0.9",
         "--samples", "2", "--scheduler", scheduler, "-o", str(tmp_path)])
     assert res.exit_code == 1
     assert "no analysis: 4 of 4 runs have no peak_force_kN" in res.output
