@@ -359,6 +359,7 @@ class _Pattern:
             place = lu.perm_c.astype(np.int64)
             self.order = np.argsort(place)
             self.slot = self._slots(place[self._rows], place[self._cols])
+            self._rows = self._cols = None  # not needed again (16 bytes per triplet)
             return lu
         lu = spla.splu(self.matrix(vals), permc_spec="NATURAL", diag_pivot_thresh=0.0,
                        options=opts)
