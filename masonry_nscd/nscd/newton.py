@@ -403,16 +403,13 @@ class NewtonSolver:
         # and value of the largest residual entry) per iteration, for diagnosis; None (the
         # default) records nothing
         self.trace = None
-        # refactorise when the residual falls by less than this per iteration
+        # refactorise when the residual falls by less than this per iteration, two in a row
         self.slow_rate = 0.6
         # depth of the Anderson acceleration of the chord iterations (0: plain chord steps)
         self.anderson = 5
         # the solutions (body velocities, glue impulses) of the last two steps, for the
         # predictor of the next one
         self._solutions: list[tuple[np.ndarray, np.ndarray]] = []
-        # refactorisation policy: "rate" (one iteration slower than slow_rate) or "rate2"
-        # (two in a row)
-        self.policy = "rate2"
 
     def set_iteration_mhat(self, mhat_jac: np.ndarray) -> None:
         """Use other body blocks (same layout as ``mhat``) in the Newton matrix."""
@@ -589,11 +586,10 @@ class NewtonSolver:
                 res = max(res, dc / cscale if cscale > 0 else (0.0 if dc == 0 else math.inf))
             if it > 1 and res <= self.tolerance:
                 break
-            # refactorise only when the iterations converge slower than 0.6 per iteration: an LU
-            # of the wall costs about as much as five iterations
-            slow = it > 2 and res > self.slow_rate * prev
-            if self.policy == "rate2":
-                slow = slow and it > 3 and prev > self.slow_rate * prev2
+            # refactorise only when two iterations in a row converged slower than slow_rate: an
+            # LU of the wall costs about fifteen iterations, and the accelerated iterations do
+            # not shrink the residual steadily (one slow iteration is no sign of a stale matrix)
+            slow = it > 3 and res > self.slow_rate * prev and prev > self.slow_rate * prev2
             fresh = self.lu is None or slow
             if fresh:
                 self._refresh(state[4])
