@@ -476,6 +476,39 @@ def _to6(A, v, off):
 
 
 @njit(cache=True)
+def _jacobi_tangent(app, aqq, apq):
+    """``t = tan(phi)`` of the Jacobi rotation that zeroes the (p, q) term of a symmetric
+    matrix with diagonal terms ``app``, ``aqq`` (``apq != 0``); the smaller root, |phi| <= pi/4.
+    After the rotation the diagonal terms are ``app - t apq`` and ``aqq + t apq``."""
+    theta = (aqq - app) / (2.0 * apq)
+    t = 1.0 / (abs(theta) + math.sqrt(theta * theta + 1.0))
+    return -t if theta < 0.0 else t
+
+
+@njit(cache=True)
+def _rotate_columns(M, p, q, c, s):
+    """Columns ``p``, ``q`` of the 3-row ``M`` turned by the rotation of cosine ``c``, sine
+    ``s``: ``(M_p, M_q) := (c M_p - s M_q, s M_p + c M_q)``."""
+    for r in range(3):
+        mrp = M[r, p]
+        mrq = M[r, q]
+        M[r, p] = c * mrp - s * mrq
+        M[r, q] = s * mrp + c * mrq
+
+
+@njit(cache=True)
+def _swap_pair(w, V, p, q):
+    """Swap the eigenvalues ``w[p]``, ``w[q]`` and the columns ``p``, ``q`` of ``V``."""
+    tmp = w[p]
+    w[p] = w[q]
+    w[q] = tmp
+    for r in range(3):
+        tmp = V[r, p]
+        V[r, p] = V[r, q]
+        V[r, q] = tmp
+
+
+@njit(cache=True)
 def _eig_sym3(A, w, V):
     """Eigenvalues ``w`` and eigenvectors (columns of ``V``) of a symmetric 3x3 ``A`` by cyclic
     Jacobi rotations (accurate to round-off, also for repeated eigenvalues). ``A`` is untouched.
@@ -500,17 +533,10 @@ def _eig_sym3(A, w, V):
             apq = a[p, q]
             if apq == 0.0:
                 continue
-            theta = (a[q, q] - a[p, p]) / (2.0 * apq)
-            t = 1.0 / (abs(theta) + math.sqrt(theta * theta + 1.0))
-            if theta < 0.0:
-                t = -t
+            t = _jacobi_tangent(a[p, p], a[q, q], apq)
             c = 1.0 / math.sqrt(t * t + 1.0)
             s = t * c
-            for r in range(3):
-                arp = a[r, p]
-                arq = a[r, q]
-                a[r, p] = c * arp - s * arq
-                a[r, q] = s * arp + c * arq
+            _rotate_columns(a, p, q, c, s)
             for r in range(3):
                 apr = a[p, r]
                 aqr = a[q, r]
@@ -518,11 +544,7 @@ def _eig_sym3(A, w, V):
                 a[q, r] = s * apr + c * aqr
             a[p, q] = 0.0
             a[q, p] = 0.0
-            for r in range(3):
-                vrp = V[r, p]
-                vrq = V[r, q]
-                V[r, p] = c * vrp - s * vrq
-                V[r, q] = s * vrp + c * vrq
+            _rotate_columns(V, p, q, c, s)
     for i in range(3):
         w[i] = a[i, i]
 
@@ -533,13 +555,7 @@ def _sort_desc(w, V):
     for a in range(2):
         for b in range(2 - a):
             if w[b] < w[b + 1]:
-                tmp = w[b]
-                w[b] = w[b + 1]
-                w[b + 1] = tmp
-                for r in range(3):
-                    tmp = V[r, b]
-                    V[r, b] = V[r, b + 1]
-                    V[r, b + 1] = tmp
+                _swap_pair(w, V, b, b + 1)
 
 
 @njit(cache=True)
@@ -688,26 +704,12 @@ def _refine_pair(w, V, p, q, A, tol_abs):
         return 1 if abs(bpp) <= tol and abs(bqq) <= tol else 2
     if bpq != 0.0:
         # the Jacobi rotation that zeroes the (p, q) term (as in _eig_sym3)
-        theta = (bqq - bpp) / (2.0 * bpq)
-        t = 1.0 / (abs(theta) + math.sqrt(theta * theta + 1.0))
-        if theta < 0.0:
-            t = -t
+        t = _jacobi_tangent(bpp, bqq, bpq)
         c = 1.0 / math.sqrt(t * t + 1.0)
-        sn = t * c
-        for r in range(3):
-            vrp = V[r, p]
-            vrq = V[r, q]
-            V[r, p] = c * vrp - sn * vrq
-            V[r, q] = sn * vrp + c * vrq
+        _rotate_columns(V, p, q, c, t * c)
         bpp, bqq = bpp - t * bpq, bqq + t * bpq
     if bpp > bqq:
-        for r in range(3):
-            tmp = V[r, p]
-            V[r, p] = V[r, q]
-            V[r, q] = tmp
-        tmp = w[p]
-        w[p] = w[q]
-        w[q] = tmp
+        _swap_pair(w, V, p, q)
     return 0
 
 
