@@ -187,9 +187,16 @@ def test_monotonic_paths(prm, n, amp, h):
     h=size,
 )
 def test_cyclic_nonproportional_paths(prm, a, b, c, amp, f, h):
+    """Damages never decrease, and a return mapping that reports convergence (status 0, as
+    ``run`` asserts) leaves the effective stress in the admissible set: Rankine and
+    Drucker-Prager hold to the tolerance. Before issue 7 about one random cyclic history in
+    four had converged steps with f_D up to 1e8 tolerances (a Drucker-Prager excluded on one
+    pass was never admitted again)."""
     hist = segments([amp * a, -f * amp * b, amp * c, np.zeros(6)], 15)
     _S, states = run(prm, hist, h)
     check_monotone(states)
+    for state in states[1:]:
+        assert drucker_prager_excess(prm, state) <= 0.0
 
 
 @SETTINGS
@@ -213,27 +220,6 @@ def test_closed_proportional_cycle_dissipates(prm, n, amp, ra, rb, h):
     gross = float(np.sum(np.abs(dW)))
     bound = 3.0 * prm[m.P_REF] ** 2 / prm[m.P_E]
     assert dW.sum() >= -bound - 1e-3 * gross, (dW.sum(), gross, bound)
-
-
-@SETTINGS
-@given(
-    prm=material(),
-    a=direction(),
-    b=direction(),
-    c=direction(),
-    amp=amplitude,
-    f=st.floats(0.2, 2.0),
-    h=size,
-)
-def test_converged_states_are_admissible(prm, a, b, c, amp, f, h):
-    """A return mapping that reports convergence (status 0) leaves the effective stress in the
-    admissible set: Rankine and Drucker-Prager hold to the tolerance. Before issue 7 about one
-    random cyclic history in four had converged steps with f_D up to 1e8 tolerances (a
-    Drucker-Prager excluded on one pass was never admitted again)."""
-    hist = segments([amp * a, -f * amp * b, amp * c, np.zeros(6)], 15)
-    _S, states = run(prm, hist, h)
-    for state in states[1:]:
-        assert drucker_prager_excess(prm, state) <= 0.0
 
 
 def test_shear_cycle_states_are_admissible():
