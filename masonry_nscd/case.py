@@ -665,6 +665,11 @@ class Solver(_Section):
     check_every: Whole = Field(
         5, ge=1, le=1_000_000, description="NLGS sweeps between convergence checks (count)"
     )
+    max_step_halvings: Whole = Field(
+        3, ge=0, le=10,
+        description="a step that does not converge is made again as two of h/2, nested at most "
+        "this many times (count; 0: never, the step is kept as it is)",
+    )
 
     @model_validator(mode="after")
     def _check_iterations(self) -> Solver:

@@ -164,6 +164,7 @@ def _convergence(c: Mapping[str, FloatArray]) -> dict[str, Any]:
         "max_iterations_per_step": int(it.max()) if it is not None and len(it) else None,
         "steps_with_failed_gauss_points": (int(np.sum(c["failed_gauss_points"] > 0))
                                            if "failed_gauss_points" in c else None),
+        "steps_subdivided": int(np.sum(c["substeps"] > 1)) if "substeps" in c else None,
     }
 
 
@@ -518,6 +519,8 @@ def format_summary(s: Mapping[str, Any]) -> list[str]:
         f"{_fmt(s['worst_residual'], '.2e')}"
         + (f"; {s['steps_with_failed_gauss_points']} with failed ENDO3D Gauss points"
            if s.get("steps_with_failed_gauss_points") else "") + ")"
+        + (f"; {s['steps_subdivided']} steps made again as smaller ones"
+           if s.get("steps_subdivided") else "")
         + (f"; their largest force, left out of the peak: {s['peak_force_unconverged_kN']:.4g} kN"
            if s.get("peak_force_unconverged_kN") is not None else ""),
     ]

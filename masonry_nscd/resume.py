@@ -31,7 +31,7 @@ from masonry_nscd.nscd.checkpoint import CheckpointError, load_checkpoint
 CHECKPOINT_NAME = "checkpoint.npz"
 CSV_NAME = "force_displacement.csv"
 _VTU = re.compile(r"^(blocks|joints)_(\d+)\.vtu$")
-_INT_COLUMNS = ("step", "iterations", "converged")
+_INT_COLUMNS = ("step", "iterations", "converged", "failed_gauss_points", "substeps")
 
 
 @dataclass

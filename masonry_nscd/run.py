@@ -42,7 +42,7 @@ import numpy as np
 CSV_COLUMNS = [
     "step", "time_s", "ux_mm", "fx_kN", "uy_mm", "fy_kN", "fx_bottom_kN", "fy_bottom_kN",
     "iterations", "residual", "converged", "max_joint_damage", "max_block_damage", "max_d_cpp",
-    "failed_gauss_points",
+    "failed_gauss_points", "substeps",
 ]
 
 
@@ -296,6 +296,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     n_est = math.ceil(t_end / h)
     every = progress_every or max(1, n_est // 40)
     unconverged, worst = (point.unconverged, point.worst_residual) if resume else (0, 0.0)
+    subdivided = 0  # steps made again as smaller ones (the log shows the first five)
 
     def flush_rows() -> None:
         """Append the pending CSV rows to the file and fsync it; after a failed write the file
@@ -332,6 +333,12 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
                 raise RunFailure(f"{where}: the solver raised {type(exc).__name__}: {exc} "
                                  "(traceback in run.log)") from exc
             worst = max(worst, rep.residual)
+            if rep.substeps > 1:
+                subdivided += 1
+                log(f"step {rep.step} (t = {rep.time:.4f} s): not converged with h = {h:g} s, "
+                    f"made again as {rep.substeps} smaller steps ("
+                    f"{'converged' if rep.converged else 'still not converged'})",
+                    show=subdivided <= 5)
             if not rep.converged:
                 unconverged += 1
                 if rep.material_failures:
@@ -365,7 +372,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
             row = [rep.step, rep.time, 1e3 * ux, 1e-3 * top[0], 1e3 * uy, 1e-3 * top[1],
                    1e-3 * bot[0], 1e-3 * bot[1], rep.sweeps, rep.residual, int(rep.converged),
                    dj, db, float(bf["d_cpp"].max()) if len(hexes) else 0.0,
-                   rep.material_failures]
+                   rep.material_failures, rep.substeps]
             bad = [c for c, v in zip(CSV_COLUMNS, row) if not math.isfinite(v)]
             if bad:
                 raise RunFailure(f"step {rep.step} ({stage_at(case, rep.time)} stage, t = "

@@ -330,11 +330,12 @@ def test_failed_checkpoint_write_keeps_the_previous_one(tmp_path, monkeypatch):
 def test_truncate_csv(tmp_path):
     p = tmp_path / "f.csv"
     head = ",".join(CSV_COLUMNS) + "\r\n"
-    row = "{}," + ",".join("3" if c in ("iterations", "converged") else "1.5"
-                           for c in CSV_COLUMNS[1:]) + "\r\n"
+    ints = ("iterations", "converged", "failed_gauss_points", "substeps")  # read as int
+    row = "{}," + ",".join("3" if c in ints else "1.5" for c in CSV_COLUMNS[1:]) + "\r\n"
     p.write_text(head + "".join(row.format(i) for i in range(1, 8)) + "8,0.1,1", newline="")
     curve = truncate_csv(p, 5, CSV_COLUMNS)
     assert curve["step"] == [1, 2, 3, 4, 5] and curve["fx_kN"] == [1.5] * 5
+    assert curve["substeps"] == [3] * 5 and isinstance(curve["substeps"][0], int)
     with open(p, newline="") as f:
         assert f.read() == head + "".join(row.format(i) for i in range(1, 6))
     with pytest.raises(CheckpointError, match="ends at step 5"):

@@ -411,6 +411,11 @@ class NewtonSolver:
         # predictor of the next one
         self._solutions: list[tuple[np.ndarray, np.ndarray]] = []
 
+    def forget_solutions(self) -> None:
+        """Drop the last steps' solutions: the next step starts from the free velocities (its
+        state does not follow from them, e.g. after a step was subdivided)."""
+        self._solutions = []
+
     def set_iteration_mhat(self, mhat_jac: np.ndarray) -> None:
         """Use other body blocks (same layout as ``mhat``) in the Newton matrix."""
         self.mhat_jac = mhat_jac

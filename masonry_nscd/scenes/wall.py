@@ -163,7 +163,8 @@ def build_wall(case) -> WallScene:
     integ = Integrator(bodies, pts, P, loads, h=sol.time_step_s, theta=sol.theta,
                        tolerance=sol.tolerance, max_iterations=sol.max_iterations,
                        check_every=sol.check_every, method=sol.method, endo3d_params=endo,
-                       endo3d_tau=case.blocks.endo3d.relaxation_time_s)
+                       endo3d_tau=case.blocks.endo3d.relaxation_time_s,
+                       max_halvings=sol.max_step_halvings)
     return WallScene(
         integrator=integ, units=units, course_of_unit=course, top_beam=i_up,
         top_dof_x=int(dof0[i_up] + X), top_dof_y=int(dof0[i_up] + Y),

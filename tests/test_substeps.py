@@ -1,0 +1,66 @@
+"""A step the solver does not finish is made again as two steps of h/2 (``solver.max_step_halvings``).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+
+from masonry_nscd.case import load_case
+from masonry_nscd.run import run_case
+from masonry_nscd.scenes.wall import build_wall
+
+SMOKE = "cases/smoke.yaml"
+
+
+def test_a_subdivided_step_is_two_steps_of_half_the_size():
+    """One iteration per step never converges, so the step at h is made again at h/2; the state
+    it ends in must be, bit for bit, that of an integrator built at h/2 stepped twice (the
+    failed attempt leaves nothing behind). A subdivision starts Newton without its predictor
+    (the last solutions belong to another time), so ``b`` forgets them at the same points."""
+    unconverging = ["solver.max_iterations=1", "solver.check_every=1"]
+    a = build_wall(load_case(SMOKE, [*unconverging, "solver.max_step_halvings=1"])).integrator
+    b = build_wall(load_case(SMOKE, [*unconverging, "solver.max_step_halvings=0",
+                                     "solver.time_step_s=1e-3"])).integrator
+    for _ in range(3):
+        rep = a.step()
+        b.newton.forget_solutions()
+        reps = [b.step(), b.step()]
+        assert rep.substeps == 2 and not rep.converged
+        assert rep.step == a.step_index and a.step_index == b.step_index // 2
+        assert rep.time == a.t and abs(a.t - b.t) < 1e-15
+        assert rep.sweeps > sum(r.sweeps for r in reps)  # the failed attempt counts
+        assert rep.residual == max(r.residual for r in reps)
+        assert np.array_equal(a.u, b.u) and np.array_equal(a.v, b.v)
+        for name in ("u", "U", "uc", "beta", "T", "status"):
+            assert np.array_equal(getattr(a.joints, name), getattr(b.joints, name)), name
+
+
+def _run(tmp_path, name, extra):
+    case = load_case(SMOKE, ["loading.vertical_stress.value_Pa=0", "output.vtu=false",
+                             "output.hdf5=false", f"name={name}", *extra])
+    res = run_case(case, tmp_path / name, echo=lambda m: None)
+    with open(tmp_path / name / "force_displacement.csv") as f:
+        rows = list(csv.DictReader(f))
+    summary = json.loads((tmp_path / name / "summary.json").read_text())
+    return res, rows, summary
+
+
+def test_the_rocking_wall_converges_when_its_hard_steps_are_halved(tmp_path):
+    """The smoke wall with no vertical stress rocks on its joints; at h = 2e-3 s Newton and the
+    Gauss-Seidel sweeps leave steps above the tolerance 1e-8. Halving those steps must leave
+    none, and the run must still end on the grid of h with one CSV row per step of h."""
+    res0, _, _ = _run(tmp_path, "kept", ["solver.max_step_halvings=0"])
+    assert res0.unconverged_steps > 0
+    res, rows, summary = _run(tmp_path, "halved", [])
+    assert res.unconverged_steps == 0
+    assert len(rows) == res.steps == res0.steps
+    h = 2e-3
+    for r in rows:
+        assert abs(float(r["time_s"]) - int(r["step"]) * h) < 1e-12
+        assert float(r["residual"]) <= 1e-8
+    sub = [int(r["substeps"]) for r in rows]
+    assert summary["steps_subdivided"] == sum(s > 1 for s in sub) > 0
+    assert summary["unconverged_steps"] == 0
