@@ -64,3 +64,43 @@ def test_the_rocking_wall_converges_when_its_hard_steps_are_halved(tmp_path):
     sub = [int(r["substeps"]) for r in rows]
     assert summary["steps_subdivided"] == sum(s > 1 for s in sub) > 0
     assert summary["unconverged_steps"] == 0
+
+
+def test_a_step_that_diverges_is_halved_and_named_if_it_still_diverges(monkeypatch):
+    """A NaN at h is tried again at h/2 (here it is gone there); a NaN at every size is
+    raised with the step's number in the run and the smallest size tried."""
+    from masonry_nscd.nscd import integrator as integ_mod
+
+    orig = integ_mod.Integrator._step
+    sizes: list[float] = []
+
+    def step(self, diverge_below=1.5e-3):
+        sizes.append(self.sys.h)
+        if self.step_index == 4 and self.sys.h > diverge_below:
+            self.step_index += 1
+            raise integ_mod.DivergenceError(self.step_index, self.t + self.sys.h,
+                                            "body velocities")
+        return orig(self)
+
+    monkeypatch.setattr(integ_mod.Integrator, "_step", step)
+    a = build_wall(load_case(SMOKE, ["solver.max_step_halvings=2"])).integrator
+    reps = [a.step() for _ in range(6)]
+    assert [r.substeps for r in reps] == [1, 1, 1, 1, 2, 1]
+    assert all(r.converged for r in reps) and a.step_index == 6
+    assert abs(a.t - 6 * 2e-3) < 1e-15 and np.isfinite(a.u).all()
+
+    monkeypatch.setattr(integ_mod.Integrator, "_step",
+                        lambda self: step(self, diverge_below=0.0))
+    b = build_wall(load_case(SMOKE, ["solver.max_step_halvings=2"])).integrator
+    for _ in range(4):
+        b.step()
+    sizes.clear()
+    try:
+        b.step()
+    except integ_mod.DivergenceError as exc:
+        msg = str(exc)
+    else:
+        raise AssertionError("no DivergenceError")
+    assert msg.startswith("step 5 (t = ") and "body velocities not finite" in msg
+    assert "also in steps of 0.001 s and smaller" in msg
+    assert sizes == [2e-3, 1e-3, 5e-4]  # each size once: the first half diverges at every one

@@ -45,7 +45,12 @@ NEWTON_MAX_ITERATIONS = 50  # beyond this, the step is finished by Gauss-Seidel 
 
 
 class DivergenceError(RuntimeError):
-    """The state became NaN or infinite."""
+    """The state became NaN or infinite: ``what`` (e.g. "body velocities") at ``time`` (s), in
+    step ``step`` of the run."""
+
+    def __init__(self, step: int, time: float, what: str, note: str = ""):
+        super().__init__(f"step {step} (t = {time:.6g} s): {what} not finite{note}")
+        self.step, self.time, self.what = step, time, what
 
 
 @dataclass(frozen=True)
@@ -255,14 +260,18 @@ class Integrator:
         from masonry_nscd.nscd.checkpoint import integrator_state
 
         start = integrator_state(self)
-        rep = self._step()
-        return rep if rep.converged else self._subdivide(start, rep)
+        try:
+            rep = self._step()
+        except DivergenceError:  # a smaller step may not diverge
+            rep = None
+        return rep if rep is not None and rep.converged else self._subdivide(start, rep)
 
-    def _subdivide(self, start: dict, failed: StepReport) -> StepReport:
+    def _subdivide(self, start: dict, failed: StepReport | None) -> StepReport:
         """Make the step that began in state ``start`` again as two steps of h/2 (each of which
         may subdivide again), with an integrator of the same scene built at h/2 on first use;
         the state it ends in becomes this integrator's. The iterations of the failed attempt
-        count in the report."""
+        (None: it diverged) count in the report; a divergence at the smallest step is raised
+        with this step's number."""
         from masonry_nscd.nscd.checkpoint import integrator_state, restore_integrator
 
         if self._half is None:
@@ -272,14 +281,20 @@ class Integrator:
         restore_integrator(half, start)
         if half.newton is not None:
             half.newton.forget_solutions()  # its last solutions belong to another time
-        reps = [half.step(), half.step()]
+        number = int(start["step_index"]) + 1
+        try:
+            reps = [half.step(), half.step()]
+        except DivergenceError as exc:
+            raise DivergenceError(number, exc.time, exc.what,
+                                  f" (also in steps of {half.sys.h:g} s and smaller)") from exc
         restore_integrator(self, integrator_state(half))
-        self.step_index = int(start["step_index"]) + 1
+        self.step_index = number
         if self.newton is not None:
             self.newton.forget_solutions()
         bad = [r for r in reps if r.material_failures]
         return StepReport(
-            self.step_index, self.t, failed.sweeps + sum(r.sweeps for r in reps),
+            self.step_index, self.t,
+            (failed.sweeps if failed is not None else 0) + sum(r.sweeps for r in reps),
             max(r.residual for r in reps), all(r.converged for r in reps),
             max(r.ambiguous for r in reps), sum(r.material_failures for r in reps),
             bad[0].material_failure_at if bad else None, sum(r.substeps for r in reps))
@@ -336,7 +351,7 @@ class Integrator:
         self.step_index += 1
         if not (np.isfinite(u1).all() and np.isfinite(v1).all() and np.isfinite(T).all()):
             what = "body velocities" if not np.isfinite(v1).all() else "contact tractions"
-            raise DivergenceError(f"step {self.step_index} (t = {t1:.6g} s): {what} not finite")
+            raise DivergenceError(self.step_index, t1, what)
         self.u, self.v, self.t, self._F0 = u1, v1, t1, F1
         failures, failure_at = 0, None
         if self.material is not None:
