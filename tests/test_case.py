@@ -110,22 +110,13 @@ def test_study_forces_in_kN():
 
 
 def test_elastic_variant_differs_only_by_material():
-    """Same wall and loading; the solver settings differ where the benchmark put each case on
-    its Pareto front (time step 4e-3 s for ENDO3D, 2e-3 s for elastic blocks), with outputs at
-    the same times."""
     endo = load_case(ROOT / "cases" / "wall_0.5MPa.yaml")
     elastic = load_case(ROOT / "cases" / "wall_0.5MPa_elastic.yaml")
     assert elastic.blocks.material == "elastic"
-    a = endo.model_dump(exclude={"name", "description", "solver", "output"})
-    b = elastic.model_dump(exclude={"name", "description", "solver", "output"})
+    a = endo.model_dump(exclude={"name", "description"})
+    b = elastic.model_dump(exclude={"name", "description"})
     a["blocks"]["material"] = "elastic"
     assert a == b
-    sa, sb = endo.solver.model_dump(), elastic.solver.model_dump()
-    assert sa.pop("time_step_s") == 4e-3 and sb.pop("time_step_s") == 2e-3
-    assert sa == sb
-    oa, ob = endo.output.model_dump(), elastic.output.model_dump()
-    assert oa.pop("every_steps") * 4e-3 == ob.pop("every_steps") * 2e-3
-    assert oa == ob
 
 
 def test_smoke_case_is_small():
