@@ -664,8 +664,8 @@ class Solver(_Section):
     )
     max_iterations: Whole = Field(
         20000, ge=1, le=1_000_000_000,
-        description="maximum iterations per step (count; Newton stops at 50 and hands over to "
-        "NLGS sweeps)",
+        description="maximum iterations per step (count; Newton stops at 50, then the step is "
+        "halved, and NLGS sweeps finish it at the smallest step size)",
     )
     check_every: Whole = Field(
         5, ge=1, le=1_000_000, description="NLGS sweeps between convergence checks (count)"
