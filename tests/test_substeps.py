@@ -104,3 +104,18 @@ def test_a_step_that_diverges_is_halved_and_named_if_it_still_diverges(monkeypat
     assert msg.startswith("step 5 (t = ") and "body velocities not finite" in msg
     assert "also in steps of 0.001 s and smaller" in msg
     assert sizes == [2e-3, 1e-3, 5e-4]  # each size once: the first half diverges at every one
+
+
+def test_the_stiffest_springs_of_the_stress_test_converge_by_halving(tmp_path):
+    """The stress test's 1e13 Pa/m springs left 9 of 100 steps above the tolerance at h (and 19
+    at h/2 throughout); with the halving the variant must end ``ok`` (finite, converged, in
+    equilibrium), with halved steps in its CSV."""
+    from masonry_nscd import stress
+
+    variant = next(v for v in stress.VARIANTS if v.name == "spring_1e13")
+    r = stress.run_variant(stress.DEFAULT_BASE, variant, tmp_path / "v")
+    assert r.outcome == "ok", r.message
+    assert r.unconverged_steps == 0 and r.worst_residual <= 1e-8
+    with open(tmp_path / "v" / "force_displacement.csv") as f:
+        substeps = [int(row["substeps"]) for row in csv.DictReader(f)]
+    assert max(substeps) >= 4  # some steps needed h/4 or less
