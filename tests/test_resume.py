@@ -530,3 +530,22 @@ def test_solver_exception_is_a_clean_failure(tmp_path, monkeypatch):
     assert "step 23 (vertical stage" in res.output and "LinAlgError: Singular matrix" in res.output
     assert "Traceback" not in res.output
     assert "Traceback" in (out / "run.log").read_text()
+
+
+def test_resumed_run_with_halved_steps_matches(tmp_path, monkeypatch):
+    """The smoke wall with no vertical stress halves steps (tests/test_substeps.py); the
+    half-step integrator is not checkpointed but built again on the first failure after the
+    resume, and the resumed run must reach the uninterrupted curve, its halved steps included."""
+    sets = ["loading.vertical_stress.value_Pa=0", "output.vtu=false"]
+    ref = tmp_path / "ref"
+    run_case(load_case(SMOKE, sets), ref, **quiet)
+    out = tmp_path / "run"
+    _interrupt_at(monkeypatch, 75)
+    with pytest.raises(KeyboardInterrupt):
+        run_case(load_case(SMOKE, sets), out, **quiet)
+    assert read_resume_point(out).step == 70
+    run_case(load_case(out / "case.yaml"), out, resume=True, **quiet)
+    a, b = _curve(out), _curve(ref)
+    _assert_same_curve(a, b)
+    assert np.array_equal(a["substeps"], b["substeps"]) and (b["substeps"][70:] > 1).any()
+    assert a["converged"].all()
