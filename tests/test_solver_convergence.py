@@ -23,9 +23,11 @@ from masonry_nscd.scenes.wall import build_wall
 
 @pytest.fixture(scope="module")
 def loaded_wall():
+    # the anchor's time step 2e-3 s: at the case's 4e-3 s Gauss-Seidel does not reach 1e-6 in
+    # 20,000 sweeps from this state (Newton does in 3 iterations)
     case = load_case("cases/wall_0.5MPa_elastic.yaml",
                      ["solver.tolerance=1e-10", "loading.horizontal.start_s=0.2",
-                      "loading.horizontal.rate_m_s=0.01"])
+                      "loading.horizontal.rate_m_s=0.01", "solver.time_step_s=2e-3"])
     scene = build_wall(case)
     integ = scene.integrator
     while integ.u[scene.top_dof_x] < 0.2e-3:
@@ -39,6 +41,7 @@ def _next_step(integ: Integrator, method: str, tol: float):
     other.u, other.v, other._dv = integ.u.copy(), integ.v.copy(), integ._dv.copy()
     other.method = method
     other.tolerance = tol
+    other.max_halvings = 0  # this solver alone: no half-step integrator finishing the step
     if method == "nlgs":
         other.newton = None
     else:
@@ -63,7 +66,7 @@ def _rel(integ, a, b):
     return np.linalg.norm(a - b) / np.linalg.norm(b)
 
 
-@pytest.mark.parametrize("method,tol", [("newton", 1e-6), ("nlgs", 1e-6)])
+@pytest.mark.parametrize("method,tol", [("newton", 1e-5), ("newton", 1e-6), ("nlgs", 1e-6)])
 def test_tightening_the_tolerance_tenfold_changes_forces_by_less_than_0_1_percent(
         loaded_wall, method, tol):
     f1, r1 = _next_step(loaded_wall, method, tol)
