@@ -3,6 +3,7 @@ and short runs on the smoke wall (no timing is asserted: the figures depend on t
 
 import csv
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -220,3 +221,21 @@ def test_scaling_on_the_smoke_wall(tmp_path):
     assert all(math.isfinite(float(r["peak_rss_MiB"])) for r in rows)
     assert (tmp_path / "scaling.png").read_bytes()[:8] == PNG_SIGNATURE
     assert "KiB per contact point" in res.output and "log-log slope" in res.output
+
+
+def test_the_reference_run_gets_a_longer_time_limit(tmp_path, monkeypatch):
+    """Without the reference no error can be measured: a loaded machine once stopped the ENDO3D
+    wall's reference at 2594 of 2637 steps with the others' limit of 200 s."""
+    limits = []
+
+    def fake_run(spec, timeout_s=None):
+        if "masonry-warm-" not in spec["outdir"]:
+            limits.append((Path(spec["outdir"]).name, spec["time_limit_s"], timeout_s))
+        return {"status": "failed", "message": "not run", "process_s": 0.0}
+
+    monkeypatch.setattr(bm, "run_in_child", fake_run)
+    monkeypatch.setattr(bm, "plot_bench", lambda rows, path, title: path)
+    bm.bench("cases/smoke.yaml", tmp_path / "b", quick=True, time_limit_s=50.0,
+             echo=lambda m: None)
+    assert limits[0] == ("reference", 200.0, 800.0)
+    assert limits[1:] and all(lim == 50.0 and t == 650.0 for _, lim, t in limits[1:])
