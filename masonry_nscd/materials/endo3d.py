@@ -589,11 +589,41 @@ def _count_shared(g):
 
 
 @njit(cache=True)
+def _in_basis(P, S, out):
+    """``out = P^T S P`` (3x3): the tensor ``S`` in the basis of the columns of ``P``."""
+    for k in range(3):
+        for m in range(3):
+            acc = 0.0
+            for i in range(3):
+                for j in range(3):
+                    acc += P[i, k] * S[i, j] * P[j, m]
+            out[k, m] = acc
+
+
+@njit(cache=True)
+def _eigen_tol(w, tol_abs):
+    """Tolerance for equal eigenvalues ``w`` (3,): the larger of ``DEGENERATE_REL`` of the
+    largest ``|w_i|`` and ``tol_abs``."""
+    return max(DEGENERATE_REL * max(abs(w[0]), max(abs(w[1]), abs(w[2]))), tol_abs)
+
+
+@njit(cache=True)
+def _tensor_tol(A, tol_abs):
+    """``(max |A_ij|, tol)`` of a 3x3 tensor, ``tol`` the larger of ``DEGENERATE_REL`` times
+    that maximum and ``tol_abs``."""
+    amax = 0.0
+    for i in range(3):
+        for j in range(3):
+            amax = max(amax, abs(A[i, j]))
+    return amax, max(DEGENERATE_REL * amax, tol_abs)
+
+
+@njit(cache=True)
 def _equal_groups(w, g, tol_abs):
     """Label the eigenvalues ``w`` (3,) by groups of equal values, to within the larger of
     ``DEGENERATE_REL`` of the largest ``|w_i|`` and ``tol_abs`` (:func:`_label_equal`).
     Returns the number of indices that share a group (0: all distinct)."""
-    tol = max(DEGENERATE_REL * max(abs(w[0]), max(abs(w[1]), abs(w[2]))), tol_abs)
+    tol = _eigen_tol(w, tol_abs)
     _label_equal(w, tol, g)
     return _count_shared(g)
 
@@ -622,21 +652,11 @@ def _refine_basis(w, V, g, A, tol_abs):
                     g[q] = q
                     return 0
         return 0
-    amax = 0.0
-    for i in range(3):
-        for j in range(3):
-            amax = max(amax, abs(A[i, j]))
-    tol = max(DEGENERATE_REL * amax, tol_abs)
+    amax, tol = _tensor_tol(A, tol_abs)
     if amax <= tol:
         return 3
     B = np.empty((3, 3))
-    for k in range(3):
-        for m in range(3):
-            acc = 0.0
-            for i in range(3):
-                for j in range(3):
-                    acc += V[i, k] * A[i, j] * V[j, m]
-            B[k, m] = acc
+    _in_basis(V, A, B)
     b = np.empty(3)
     U = np.empty((3, 3))
     _eig_sym3(B, b, U)
@@ -673,7 +693,7 @@ def _refine_basis(w, V, g, A, tol_abs):
 def _has_repeated(w, tol_abs):
     """Whether two of the eigenvalues ``w`` (3,) are equal to within the larger of
     ``DEGENERATE_REL`` of the largest ``|w_i|`` and ``tol_abs`` (``w = 0`` counts)."""
-    tol = max(DEGENERATE_REL * max(abs(w[0]), max(abs(w[1]), abs(w[2]))), tol_abs)
+    tol = _eigen_tol(w, tol_abs)
     return abs(w[1] - w[0]) <= tol or abs(w[2] - w[0]) <= tol or abs(w[2] - w[1]) <= tol
 
 
@@ -684,11 +704,7 @@ def _refine_pair(w, V, p, q, A, tol_abs):
     increasing diagonal term (``w`` follows). Returns 0 when done, 1 when ``A`` vanishes on
     the plane, 2 when it is isotropic there (1 and 2: ``V`` unchanged; to within
     ``max(DEGENERATE_REL max |A_ij|, tol_abs)``)."""
-    amax = 0.0
-    for i in range(3):
-        for j in range(3):
-            amax = max(amax, abs(A[i, j]))
-    tol = max(DEGENERATE_REL * amax, tol_abs)
+    amax, tol = _tensor_tol(A, tol_abs)
     if amax <= tol:
         return 1
     bpp = 0.0
@@ -896,13 +912,7 @@ def _crack_damage(S, P, d, nup, out):
                 out[i, j] = S[i, j]
         return
     T = np.zeros((3, 3))
-    for k in range(3):
-        for m in range(3):
-            acc = 0.0
-            for i in range(3):
-                for j in range(3):
-                    acc += P[i, k] * S[i, j] * P[j, m]
-            T[k, m] = acc
+    _in_basis(P, S, T)
     A = np.empty((3, 3))
     b = np.empty(3)
     y = np.empty(3)
@@ -1593,13 +1603,7 @@ def endo3d_update(eps, state_in, params, xe, state_out, sigma):
             ww[k] = max(ww[k], 0.0)
         # W_max in the basis of W: diagonal maxima, off-diagonal terms kept
         B = np.empty((3, 3))
-        for k in range(3):
-            for m in range(3):
-                acc = 0.0
-                for i in range(3):
-                    for j in range(3):
-                        acc += Vw[i, k] * Wm[i, j] * Vw[j, m]
-                B[k, m] = acc
+        _in_basis(Vw, Wm, B)
         for k in range(3):
             B[k, k] = max(B[k, k], ww[k])
         for i in range(3):
