@@ -65,6 +65,18 @@ def _interrupt_at(monkeypatch, step: int, exc: BaseException | None = None) -> N
     monkeypatch.setattr(Integrator, "step", step_once)
 
 
+def _reference_and_interrupted(tmp_path, monkeypatch, sets: list[str], step: int):
+    """The smoke case with ``sets`` run whole into ``tmp_path/ref`` and interrupted before step
+    ``step`` into ``tmp_path/run``: ``(ref, out)``."""
+    ref = tmp_path / "ref"
+    run_case(load_case(SMOKE, sets), ref, **quiet)
+    out = tmp_path / "run"
+    _interrupt_at(monkeypatch, step)
+    with pytest.raises(KeyboardInterrupt):
+        run_case(load_case(SMOKE, sets), out, **quiet)
+    return ref, out
+
+
 def _assert_same_curve(a, b, rtol=1e-6):
     assert np.array_equal(a["step"], b["step"])
     assert np.allclose(a["time_s"], b["time_s"], rtol=1e-12)
@@ -167,13 +179,8 @@ def test_resume_drops_what_was_written_after_the_checkpoint(tmp_path, monkeypatc
 
 def test_resumed_endo3d_run_matches_within_the_solver_tolerance(tmp_path, monkeypatch):
     """ENDO3D blocks: Gauss-point states restored; the solver caches rebuilt (other iterates)."""
-    sets = ["blocks.material=endo3d", "output.vtu=false"]
-    ref = tmp_path / "ref"
-    run_case(load_case(SMOKE, sets), ref, **quiet)
-    out = tmp_path / "run"
-    _interrupt_at(monkeypatch, 64)
-    with pytest.raises(KeyboardInterrupt):
-        run_case(load_case(SMOKE, sets), out, **quiet)
+    ref, out = _reference_and_interrupted(
+        tmp_path, monkeypatch, ["blocks.material=endo3d", "output.vtu=false"], 64)
     state, _ = load_checkpoint(out / CHECKPOINT_NAME)
     assert state["material_state"].shape[0] == 8 * 10  # 10 units of one element, 8 points
     run_case(load_case(out / "case.yaml"), out, resume=True, **quiet)
@@ -536,13 +543,8 @@ def test_resumed_run_with_halved_steps_matches(tmp_path, monkeypatch):
     """The smoke wall with no vertical stress halves steps (tests/test_substeps.py); the
     half-step integrator is not checkpointed but built again on the first failure after the
     resume, and the resumed run must reach the uninterrupted curve, its halved steps included."""
-    sets = ["loading.vertical_stress.value_Pa=0", "output.vtu=false"]
-    ref = tmp_path / "ref"
-    run_case(load_case(SMOKE, sets), ref, **quiet)
-    out = tmp_path / "run"
-    _interrupt_at(monkeypatch, 75)
-    with pytest.raises(KeyboardInterrupt):
-        run_case(load_case(SMOKE, sets), out, **quiet)
+    ref, out = _reference_and_interrupted(
+        tmp_path, monkeypatch, ["loading.vertical_stress.value_Pa=0", "output.vtu=false"], 75)
     assert read_resume_point(out).step == 70
     run_case(load_case(out / "case.yaml"), out, resume=True, **quiet)
     a, b = _curve(out), _curve(ref)
