@@ -403,13 +403,13 @@ def _child_run(spec: Mapping[str, Any]) -> dict[str, Any]:
 def _child_steps(spec: Mapping[str, Any]) -> dict[str, Any]:
     """Build a wall and step it ``steps`` times (``kind: steps``); see :func:`run_in_child`."""
     from masonry_nscd.case import load_case
-    from masonry_nscd.scenes.wall import build_wall
+    from masonry_nscd.scenes import build_scene
 
     case = load_case(spec["case"], spec["overrides"])
     t0 = time.perf_counter()
-    scene = build_wall(case)
+    scene = build_scene(case)
+    integ = scene.integrator()
     build_s = time.perf_counter() - t0
-    integ = scene.integrator
     step_s, sweeps = [], []
     for _ in range(int(spec["steps"])):
         t1 = time.perf_counter()
@@ -417,7 +417,7 @@ def _child_steps(spec: Mapping[str, Any]) -> dict[str, Any]:
         step_s.append(time.perf_counter() - t1)
         sweeps.append(rep.sweeps)
     return {"status": "ok", "message": "", "build_s": build_s, "step_s": step_s,
-            "sweeps": sweeps, "units": len(scene.units), "contact_points": int(integ.sys.npt),
+            "sweeps": sweeps, "units": len(scene.structure), "contact_points": int(integ.sys.npt),
             "dofs": int(integ.sys.ndof)}
 
 
@@ -577,7 +577,7 @@ def _fmt_csv(v: Any) -> Any:
 
 def write_rows(path: Path, rows: Sequence[Any], columns: Sequence[str]) -> None:
     """Write dataclass rows as a CSV file atomically (NaN as an empty field)."""
-    from masonry_nscd.io.vtu import atomic_write
+    from masonry_nscd.io.atomic import atomic_write
 
     buf = io.StringIO()
     w = csv.writer(buf)

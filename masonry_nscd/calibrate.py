@@ -238,7 +238,7 @@ def _unmeasured(param: str, e: Evaluation, f_lo: float, f_hi: float) -> str:
 def write_calibrated_case(case, result: Calibration, path: Path) -> None:
     """Write the calibrated case (every default filled in) with a header saying how."""
     from masonry_nscd.case import case_to_yaml
-    from masonry_nscd.io.vtu import atomic_write
+    from masonry_nscd.io.atomic import atomic_write
 
     header = (f"# calibrated by `masonry calibrate`: {result.param} = {result.value:.10g} gives "
               f"an initial stiffness of {result.stiffness_kN_mm:.6g} kN/mm\n"
@@ -251,7 +251,7 @@ def write_calibrated_case(case, result: Calibration, path: Path) -> None:
 
 def write_report(result: Calibration, path: Path) -> None:
     """Write ``calibration.json``."""
-    from masonry_nscd.io.vtu import atomic_write
+    from masonry_nscd.io.atomic import atomic_write
 
     text = json.dumps(result.to_json(), indent=2, allow_nan=False) + "\n"
     atomic_write(path, lambda p: Path(p).write_text(text))

@@ -68,8 +68,11 @@ __all__ = [
     "GravityStage",
     "HorizontalStage",
     "Joint",
+    "Lintel",
     "Loading",
+    "Opening",
     "Output",
+    "PatternCourse",
     "Solver",
     "StressStage",
     "Supports",
@@ -156,8 +159,43 @@ def _problems(problems: list[tuple[str, str]]) -> None:
 # ---------------------------------------------------------------------------------------------
 
 
+class PatternCourse(_Section):
+    """One course of a pattern bond with its own unit height (lengths in m)."""
+
+    units: list[Annotated[Real, Field(ge=0.005, le=10.0)]] = Field(
+        min_length=1, max_length=500, description="unit lengths, left to right (m)"
+    )
+    height_m: Real | None = Field(
+        None, ge=0.01, le=10.0, description="unit height of this course (m; null: unit_height_m)"
+    )
+
+
+class Lintel(_Section):
+    """A lintel over an opening: one linear elastic unit (the blocks' E, nu and density; rigid
+    in a wall of rigid blocks) spanning the opening and bearing on the units beside it."""
+
+    height_m: Real = Field(
+        gt=0.0, le=10.0, description="height of the lintel (m): that of whole courses above "
+        "the opening"
+    )
+    bearing_m: Real = Field(
+        gt=0.0, le=10.0, description="length the lintel rests on beyond each side (m)"
+    )
+
+
+class Opening(_Section):
+    """A rectangular opening (window, door), measured from the wall's lower left corner (m).
+    Its bottom and top edges lie in bed joints, or at the bottom or top of the wall."""
+
+    x_m: Real = Field(ge=0.0, le=1000.0, description="left edge (m)")
+    y_m: Real = Field(ge=0.0, le=1000.0, description="bottom edge (m)")
+    width_m: Real = Field(gt=0.0, le=1000.0, description="width (m)")
+    height_m: Real = Field(gt=0.0, le=1000.0, description="height (m)")
+    lintel: Lintel | None = Field(None, description="a lintel over the opening (null: none)")
+
+
 class Wall(_Section):
-    """Geometry of the wall: units, joints, bond and mesh (lengths in m).
+    """Geometry of the wall: units, joints, bond, openings and mesh (lengths in m).
 
     The wall lies in the x-y plane (x along the wall, y up, z through the thickness). Courses are
     counted from the bottom, the first (bottom) course is odd. Between two units, along a course
@@ -165,7 +203,7 @@ class Wall(_Section):
     mortar and the unit-mortar interface are one contact interface with an initial gap equal to
     the joint thickness.
 
-    Bond:
+    Bond (the layouts are built in ``masonry_nscd/scenes/layout.py``):
 
     - ``stack``: every course has ``units_per_course`` whole units, head joints aligned.
     - ``running``: odd courses (1st, 3rd, ...) have ``units_per_course`` whole units; even courses
@@ -175,8 +213,16 @@ class Wall(_Section):
           2 half + (n - 1) length + n joint = n length + (n - 1) joint
           =>  half = (length - joint) / 2        (0.145 m for 0.300 m units and 10 mm joints)
 
-    Overall size: ``wall_length_m = n length + (n - 1) joint`` (1.85 m by default),
-    ``wall_height_m = courses height + (courses - 1) joint`` (1.20 m by default).
+    - ``pattern``: the courses of ``pattern``, each a list of unit lengths left to right or a
+      mapping ``{units: [...], height_m: ...}`` for another unit height, repeated up the wall
+      to ``courses`` courses; every course as long as the first.
+
+    ``openings``: rectangles ``{x_m, y_m, width_m, height_m}`` from the lower left corner, each
+    with an optional ``lintel: {height_m, bearing_m}``; units inside are removed, units across
+    an edge cut at it.
+
+    Overall size (running, stack): ``wall_length_m = n length + (n - 1) joint`` (1.85 m by
+    default), ``wall_height_m = courses height + (courses - 1) joint`` (1.20 m by default).
     """
 
     unit_length_m: Real = Field(
@@ -194,16 +240,28 @@ class Wall(_Section):
     )
     courses: Whole = Field(11, ge=1, le=200, description="number of courses (count)")
     units_per_course: Whole = Field(
-        6, ge=1, le=500, description="number of whole units in a full (odd) course (count)"
+        6, ge=1, le=500, description="number of whole units in a full (odd) course (count; "
+        "running and stack bonds)"
     )
-    bond: Literal["running", "stack"] = Field(
-        "running", description="running: even courses offset by half a unit; stack: aligned"
+    bond: Literal["running", "stack", "pattern"] = Field(
+        "running", description="running: even courses offset by half a unit; stack: aligned; "
+        "pattern: the courses of wall.pattern"
     )
     half_unit_length_m: Real = Field(
         0.145,
         ge=0.005,
         le=10.0,
         description="length of the half units at both ends of even courses, running bond (m)",
+    )
+    pattern: list[list[Annotated[Real, Field(ge=0.005, le=10.0)]] | PatternCourse] | None = Field(
+        None, min_length=1, max_length=200,
+        description="bond pattern: courses of unit lengths (m), left to right, repeated up the "
+        "wall; a course may be {units: [...], height_m: ...} (null unless bond is pattern)",
+    )
+    openings: list[Opening] = Field(
+        default_factory=list, max_length=100,
+        description="rectangular openings {x_m, y_m, width_m, height_m, lintel}, from the lower "
+        "left corner (m)",
     )
     elements_per_unit: tuple[ElementCount, ElementCount, ElementCount] = Field(
         (2, 2, 1),
@@ -218,15 +276,21 @@ class Wall(_Section):
 
     @property
     def wall_length_m(self) -> float:
-        """Length of the wall along x (m): ``n * unit_length + (n - 1) * joint``."""
+        """Length of the wall along x (m): ``n * unit_length + (n - 1) * joint`` (running,
+        stack), the length of the first course (pattern)."""
+        if self.bond == "pattern":
+            from masonry_nscd.scenes.layout import wall_size
+
+            return wall_size(self)[0]
         n = self.units_per_course
         return n * self.unit_length_m + (n - 1) * self.joint_thickness_m
 
     @property
     def wall_height_m(self) -> float:
         """Height of the wall, without the steel beams (m)."""
-        c = self.courses
-        return c * self.unit_height_m + (c - 1) * self.joint_thickness_m
+        from masonry_nscd.scenes.layout import wall_size
+
+        return wall_size(self)[1]
 
     @model_validator(mode="after")
     def _check_bond(self) -> Wall:
@@ -257,6 +321,19 @@ class Wall(_Section):
                         ),
                     )
                 )
+        if self.bond == "pattern" and self.pattern is None:
+            problems.append(("pattern", ("missing; bond 'pattern' needs the list of courses, "
+                             "e.g. [[0.21, 0.21, 0.11], [0.11, 0.21, 0.21]] (unit lengths, m)")))
+        if self.bond != "pattern" and self.pattern is not None:
+            problems.append(("pattern", (f"given with bond {self.bond!r}; set bond: pattern to "
+                             "use it, or remove it")))
+        if not problems:
+            from masonry_nscd.scenes.layout import LayoutError, unit_boxes
+
+            try:
+                unit_boxes(self)
+            except LayoutError as exc:
+                problems.append((exc.field, exc.message))
         _problems(problems)
         return self
 
@@ -534,28 +611,51 @@ class Joint(_Section):
 
 
 class Supports(_Section):
-    """Boundary conditions. The wall is glued to a clamped steel beam below and to a rigid steel
-    beam above; the top beam's out-of-plane displacement and rotations are blocked, its x motion
-    is driven by the horizontal stage.
+    """Boundary conditions: the test rig. The wall is glued to a clamped steel beam below and
+    to a rigid steel beam above (or its outer courses are clamped in them); the top beam's
+    out-of-plane displacement and rotations are blocked, its x motion is driven by the
+    horizontal stage.
 
     ``top_vertical``: ``load`` - the top beam is free in y and carries the vertical stress of
     ``loading.vertical_stress`` (the study); ``fixed`` - the top beam is held in y (then the
-    vertical stress must be 0).
+    vertical stress must be 0); ``load_then_fixed`` - the vertical stress is applied, then the
+    beam is held at the height it has reached when the horizontal stage starts (the vertical
+    reaction varies as the wall dilates or rocks).
 
     ``top_rotation``: ``fixed`` - the top beam stays level (the wall bends in double
     curvature, the usual shear test); ``free`` - it may rotate in the wall's plane (about z),
     the wall then works as a cantilever. model.md blocks the rotations (the default);
     docs/validation.md shows how much the initial stiffness depends on it.
+
+    ``load_height_m``: the height above the wall's top of the point whose horizontal
+    displacement is imposed and recorded as U_x (the shear span of a cantilever test is the
+    wall's height plus this; with a level top beam it changes nothing). 0.1 m is the centre of
+    the 0.2 m tall beam.
+
+    ``clamped_courses``: the courses at the bottom and at the top of the wall embedded in the
+    steel beams (0: none, the wall glued to the beams as in the study; 1: the outer course at
+    each end). A clamped course moves with its beam (its weight is the beam's), and the bed
+    joint between it and the wall is a mortar joint of the joint law.
     """
 
-    top_vertical: Literal["load", "fixed"] = Field(
-        "load", description="top beam in y: load (free, carries sigma_N) or fixed (held)"
+    top_vertical: Literal["load", "fixed", "load_then_fixed"] = Field(
+        "load", description="top beam in y: load (free, carries sigma_N), fixed (held) or "
+        "load_then_fixed (held from the start of the horizontal stage)"
     )
     top_rotation: Literal["fixed", "free"] = Field(
         "fixed", description="in-plane rotation of the top beam: fixed (level) or free"
     )
     top_beam_mass_kg: Real = Field(
         500.0, ge=1.0, le=1e7, description="mass of the rigid top steel beam (kg)"
+    )
+    load_height_m: Real = Field(
+        0.1, ge=0.0, le=100.0,
+        description="height above the wall's top where U_x is imposed (m; 0.1: the beam's "
+        "centre)",
+    )
+    clamped_courses: Whole = Field(
+        0, ge=0, le=10,
+        description="courses embedded in each steel beam, bottom and top (count; 0: glued)",
     )
 
 
@@ -779,6 +879,21 @@ class Case(_Section):
                     ),
                 )
             )
+        clamped = self.supports.clamped_courses
+        if clamped and 2 * clamped >= self.wall.courses:
+            problems.append(("supports.clamped_courses", (
+                f"got {clamped}; with {self.wall.courses} courses no course would be left "
+                f"between the beams: at most {(self.wall.courses - 1) // 2}")))
+        if clamped:
+            from masonry_nscd.scenes.layout import course_levels
+
+            levels = course_levels(self.wall)
+            free = (levels[clamped - 1][1], levels[-clamped][0])
+            for i, op in enumerate(self.wall.openings):
+                if op.y_m < free[0] - 1e-9 or op.y_m + op.height_m > free[1] + 1e-9:
+                    problems.append((f"wall.openings[{i}]", (
+                        f"reaches into a clamped course (the wall between the beams spans y = "
+                        f"{free[0]:.6g} to {free[1]:.6g} m)")))
         if self.supports.top_vertical == "fixed" and stress != 0.0:
             problems.append(
                 (

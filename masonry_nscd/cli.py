@@ -66,10 +66,14 @@ def validate(
     case = _load_case_or_exit(case_file, overrides)
     from masonry_nscd.case import case_to_yaml
 
+    from masonry_nscd.scenes.layout import unit_boxes
+
     w, loading = case.wall, case.loading
+    openings = f", {len(w.openings)} opening{'s' if len(w.openings) > 1 else ''}" \
+        if w.openings else ""
     summary = (
-        f"{case.name}: {w.units_per_course} units per course x {w.courses} courses "
-        f"({w.bond} bond, {w.wall_length_m:.3f} x {w.wall_height_m:.3f} m), "
+        f"{case.name}: {len(unit_boxes(w))} units in {w.courses} courses "
+        f"({w.bond} bond{openings}, {w.wall_length_m:.3f} x {w.wall_height_m:.3f} m), "
         f"blocks {case.blocks.material}, joints {case.joint.law}, "
         f"sigma_N = {loading.vertical_stress.value_Pa / 1e6:g} MPa "
         f"({case.vertical_force_N / 1e3:g} kN), U_x to {loading.horizontal.target_m * 1e3:g} mm, "
@@ -108,8 +112,8 @@ def run(
             _fail("--resume OUTDIR continues the run in OUTDIR with its own case.yaml: give "
                   "no CASE.yaml, -o, --set or --overwrite with it", 2)
         outdir = resume
+        from masonry_nscd.io.recorder import read_resume_point
         from masonry_nscd.nscd.checkpoint import CheckpointError
-        from masonry_nscd.resume import read_resume_point
 
         if not outdir.is_dir():
             _fail(f"--resume {outdir}: no such run folder", 2)
@@ -176,10 +180,10 @@ def point_joint(
     if path not in PATHS:
         _fail(f"--path must be one of {', '.join(PATHS)}, got {path!r}", 2)
     case = _load_case_or_exit(case_file, overrides)
-    from masonry_nscd.scenes.wall import joint_params_from_case
+    from masonry_nscd.contact.laws import params_from_case
 
     try:
-        curve = drive_joint_point(joint_params_from_case(case), path, to, steps=steps,
+        curve = drive_joint_point(params_from_case(case.joint), path, to, steps=steps,
                                   normal_stress=normal_stress)
     except ValueError as exc:
         _fail(str(exc), 1)

@@ -1,4 +1,4 @@
-r"""Load histories: smooth tanh ramps.
+r"""Load histories (functions of time) and the external loads they scale.
 
 A ramp goes from 0 at ``start`` to 1 at ``start + duration`` (s) along
 
@@ -8,14 +8,27 @@ with ``k = 3``: an S-curve whose slope at both ends is ``k (1 - tanh(k)^2) / tan
 3 % of its mid-ramp slope, so loads start and stop with no shock. Forces are the ramp times their
 full value; the horizontal displacement is driven through its velocity, ``rate * s(t)``, so that
 the top beam starts moving smoothly and then moves at constant rate.
+
+External loads are a sum of fixed patterns (N per dof) scaled by histories:
+``F(t) = sum_k history_k(t) pattern_k`` (:class:`Loads`).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
 
 K_TANH = 3.0
+
+History = Callable[[float], float]
+
+
+def at_rest(t: float) -> float:
+    """The history of a dof held still: zero velocity at all times."""
+    return 0.0
 
 
 def smooth_step(t: float, start: float, duration: float) -> float:
@@ -38,3 +51,21 @@ class Ramp:
 
     def __call__(self, t: float) -> float:
         return self.value * smooth_step(t, self.start, self.duration)
+
+
+@dataclass
+class Loads:
+    """External loads: ``F(t) = sum_k history_k(t) * pattern_k`` (N)."""
+
+    patterns: list[np.ndarray] = field(default_factory=list)
+    histories: list[History] = field(default_factory=list)
+
+    def add(self, pattern: np.ndarray, history: History) -> None:
+        self.patterns.append(np.asarray(pattern, dtype=float))
+        self.histories.append(history)
+
+    def at(self, t: float, ndof: int) -> np.ndarray:
+        F = np.zeros(ndof)
+        for p, h in zip(self.patterns, self.histories):
+            F += h(t) * p
+        return F

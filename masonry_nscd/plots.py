@@ -24,9 +24,11 @@ Figures
     * the pre-peak compressive damage ``d_cpp``;
     * block tensile cracking: the largest tensile damage ``d_t`` of the element;
     * joints: the cohesion lost since the start, ``1 - beta`` (0 as built, 1 cohesion lost),
-      at the contact points of the bed and head joints, drawn as short segments in the middle
-      of the joint, as long as the points' tributary length. ``d_coh = 1 - beta b`` starts at
-      ``d_coh_initial`` (0.99944 in the study), so ``d_coh`` itself would be one colour.
+      at the contact points of the scene's joint groups (bed and head joints, not the glue),
+      drawn as short segments in the middle of the joint (half the point's gap from it, along
+      its normal), as long as the points' tributary length. ``d_coh = 1 - beta (1 - d_0)``
+      starts at ``d_coh_initial`` (0.99944 in the study), so ``d_coh`` itself would be one
+      colour.
 
     Coordinates are the reference ones, or the deformed ones with the displacements
     multiplied by ``magnify`` (``magnify = 0``: undeformed).
@@ -45,20 +47,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 from masonry_nscd.report import (
-    WallFields,
+    RunFields,
     compute_summary,
     horizontal_stage_start,
     output_steps,
+    push_stage_start,
     read_curve_csv,
-    read_wall_fields,
-    unit_at_point,
-    unit_places,
+    read_fields,
+    read_scene_info,
 )
 
 #: The study's initial stiffness of the wall (kN/mm), the same for the three vertical stresses.
 REFERENCE_STIFFNESS_KN_MM = 71.0
 DAMAGE_CMAP = "YlOrRd"
-_BED, _HEAD = 0, 1
 
 
 class PlotInputError(ValueError):
@@ -71,6 +72,7 @@ class RunData:
 
     outdir: Path
     case: Any  # masonry_nscd.case.Case
+    scene: dict[str, Any]  # scene.json
     curve: dict[str, NDArray[np.float64]]
     summary: dict[str, Any]
     label: str = ""
@@ -93,13 +95,13 @@ def load_run(outdir: Path | str) -> RunData:
     except CaseError as exc:
         raise PlotInputError(f"{outdir}: cannot read its case.yaml: {exc.messages[0]}") from None
     try:
+        scene = read_scene_info(outdir)
         curve = read_curve_csv(csv_path)
     except (OSError, ValueError) as exc:
-        raise PlotInputError(f"{csv_path}: {exc}") from None
-    hz = case.loading.horizontal
-    summary = compute_summary(curve, target_ux_mm=1e3 * hz.target_m,
-                              horizontal_start_s=hz.start_s)
-    return RunData(outdir, case, curve, summary)
+        raise PlotInputError(f"{exc}") from None
+    summary = compute_summary(curve, target_ux_mm=1e3 * scene["target_m"],
+                              horizontal_start_s=push_stage_start(scene))
+    return RunData(outdir, case, scene, curve, summary)
 
 
 def label_runs(runs: Sequence[RunData]) -> None:
@@ -115,7 +117,7 @@ def _slug(text: str) -> str:
 
 def _save(fig, path: Path) -> Path:
     """Save a figure as PNG atomically."""
-    from masonry_nscd.io.vtu import atomic_write
+    from masonry_nscd.io.atomic import atomic_write
 
     atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=120))
     return path
@@ -129,7 +131,7 @@ def _save(fig, path: Path) -> Path:
 def _stage(run: RunData) -> tuple[NDArray, NDArray, NDArray]:
     """``ux_mm``, ``fx_kN`` and the converged mask of the horizontal stage."""
     c = run.curve
-    i0 = horizontal_stage_start(c, run.case.loading.horizontal.start_s)
+    i0 = horizontal_stage_start(c, push_stage_start(run.scene))
     ok = c["converged"][i0:] != 0 if "converged" in c else np.ones(len(c["ux_mm"]) - i0, bool)
     return c["ux_mm"][i0:], c["fx_kN"][i0:], ok
 
@@ -201,79 +203,64 @@ def nearest_output_step(run: RunData, ux_mm: float) -> int:
     return known[int(best[-1])]
 
 
-def nodal_displacements(fields: WallFields, material: str) -> NDArray[np.float64]:
-    """Displacement of every mesh node (nn, 3), m, from the step's dofs ``u``.
-
-    The units are the first bodies of the system: a deformable unit has 3 dofs per node, in
-    the order of the mesh; a rigid unit 6 (translation and small rotation about its centre).
-    """
-    nodes, u = fields.nodes_m, fields.u
-    if u is None:
-        return np.zeros_like(nodes)
-    if material != "rigid":
-        return np.asarray(u[:nodes.size], dtype=float).reshape(-1, 3)
-    out = np.zeros_like(nodes)
-    for i in range(int(fields.block_of_element.max()) + 1):
-        ids = np.unique(fields.hexes[fields.block_of_element == i])
-        q = u[6 * i:6 * i + 6]
-        centre = 0.5 * (nodes[ids].min(axis=0) + nodes[ids].max(axis=0))
-        out[ids] = q[:3] + np.cross(q[3:], nodes[ids] - centre)
-    return out
-
-
-def _element_polygons(fields: WallFields, disp: NDArray, magnify: float) -> NDArray:
+def _element_polygons(fields: RunFields, disp: NDArray, magnify: float) -> NDArray:
     """(ne, 4, 2) corners of each element's z-min face (VTK order: counter-clockwise), m."""
     xy = fields.nodes_m[:, :2] + magnify * disp[:, :2]
     return xy[fields.hexes[:, :4]]
 
 
-def joint_segments(fields: WallFields, joint_thickness_m: float, disp: NDArray,
+def joint_segments(fields: RunFields, joint_ids: Sequence[int], disp: NDArray,
                    magnify: float) -> tuple[NDArray, NDArray]:
     """Segments ``(n, 2, 2)`` (m) in the middle of the joints, and their ``1 - beta``.
 
-    The contact points of a bed or head joint that share (x, y) (they differ in z) are merged:
-    the segment is as long as their area over the wall's thickness, its value the largest.
-    With ``magnify``, a segment moves with the face of the unit that carries its points
-    (displacement interpolated linearly along the face's edge).
+    The contact points of ``joint_ids`` groups that share (x, y) (they differ in z) are merged:
+    the segment lies half the gap from them across the joint (along the normal, which points
+    from the antagonist to the candidate), across the normal in the wall's plane, as long as
+    their area over the wall's thickness; its value the largest. With ``magnify``, a segment
+    moves with the face of the candidate body (displacement interpolated linearly along the
+    face's edge at the front of the wall).
     """
-    idx = np.flatnonzero(np.isin(fields.contact_group, (_BED, _HEAD)))
+    idx = np.flatnonzero(np.isin(fields.contact_group, joint_ids))
     if not idx.size:
         return np.zeros((0, 2, 2)), np.zeros(0)
     thickness = float(np.ptp(fields.nodes_m[:, 2])) or 1.0
-    places = unit_places(fields.nodes_m, fields.hexes, fields.block_of_element)
-    keys: dict[tuple[int, float, float], list[int]] = {}
+    keys: dict[tuple[float, float], list[int]] = {}
     for a in idx:
         x, y = fields.contact_points_m[a, :2]
-        keys.setdefault((int(fields.contact_group[a]), round(x, 6), round(y, 6)), []).append(a)
+        keys.setdefault((round(x, 6), round(y, 6)), []).append(a)
     segs, vals = [], []
-    for (group, x, y), members in keys.items():
+    for members in keys.values():
+        a = members[0]
+        n = fields.contact_frame[a, 0, :2]
+        along = np.array([-n[1], n[0]]) / (np.linalg.norm(n) or 1.0)
+        mid = fields.contact_points_m[a, :2] - 0.5 * fields.contact_gap_m[a] * n
         half = 0.5 * float(fields.contact_area_m2[members].sum()) / thickness
-        if group == _BED:
-            seg = np.array([[x - half, y], [x + half, y]]) - (0.0, 0.5 * joint_thickness_m)
-        else:
-            seg = np.array([[x, y - half], [x, y + half]]) - (0.5 * joint_thickness_m, 0.0)
+        seg = np.array([mid - half * along, mid + half * along])
         if magnify:
-            seg = seg + magnify * _face_displacement(fields, places, disp, x, y, group)
+            seg = seg + magnify * _face_displacement(fields, disp, a, along)
         segs.append(seg)
         vals.append(float(1.0 - fields.joint_beta[members].min()))
     return np.array(segs), np.array(vals)
 
 
-def _face_displacement(fields: WallFields, places, disp: NDArray, x: float, y: float,
-                       group: int) -> NDArray:
-    """In-plane displacement (m) at a contact point: linear along the z-min edge of the face of
-    the unit that carries it (bottom face for a bed joint, left face for a head joint)."""
-    i = unit_at_point(places, x, y, group)
-    if i is None:
+def _face_displacement(fields: RunFields, disp: NDArray, a: int, along: NDArray) -> NDArray:
+    """In-plane displacement (m) at contact point ``a``: linear along the front (z-min) edge of
+    the candidate body's face that carries it."""
+    body = int(fields.contact_bodies[a, 0])
+    if body not in fields.structure_bodies:
         return np.zeros(2)
-    p, nodes = places[i], fields.nodes_m
-    ids = np.unique(fields.hexes[fields.block_of_element == i])
-    ids = ids[nodes[ids, 2] <= nodes[:, 2].min() + 1e-9]
-    axis, along, at = (1, 0, p.y0) if group == _BED else (0, 1, p.x0)
-    ids = ids[np.abs(nodes[ids, axis] - at) < 1e-6]
-    ids = ids[np.argsort(nodes[ids, along])]
-    s = x if group == _BED else y
-    return np.array([np.interp(s, nodes[ids, along], disp[ids, d]) for d in (0, 1)])
+    k = int(np.flatnonzero(fields.structure_bodies == body)[0])
+    ids = np.unique(fields.hexes[fields.block_of_element == k])
+    nodes = fields.nodes_m
+    x = fields.contact_points_m[a]
+    n = fields.contact_frame[a, 0]
+    ids = ids[(nodes[ids, 2] <= nodes[:, 2].min() + 1e-9)
+              & (np.abs((nodes[ids] - x) @ n) < 1e-6 * max(1.0, np.abs(x).max()))]
+    if not ids.size:
+        return np.zeros(2)
+    s = nodes[ids, :2] @ along
+    order = np.argsort(s)
+    return np.array([np.interp(x[:2] @ along, s[order], disp[ids[order], d]) for d in (0, 1)])
 
 
 def plot_damage_map(run: RunData, step: int, path: Path, magnify: float = 0.0) -> Path:
@@ -282,10 +269,13 @@ def plot_damage_map(run: RunData, step: int, path: Path, magnify: float = 0.0) -
     from matplotlib.figure import Figure
 
     case = run.case
-    fields = read_wall_fields(run.outdir / "results.h5", step, case.joint.d_coh_initial)
-    disp = nodal_displacements(fields, case.blocks.material)
+    fields = read_fields(run.outdir / "results.h5", step)
+    disp = fields.nodal_displacement_m if fields.nodal_displacement_m is not None \
+        else np.zeros_like(fields.nodes_m)
     polys = _element_polygons(fields, disp, magnify)
-    segs, jvals = joint_segments(fields, case.wall.joint_thickness_m, disp, magnify)
+    groups = list(run.scene["groups"])
+    segs, jvals = joint_segments(fields, [groups.index(g) for g in run.scene["joint_groups"]],
+                                 disp, magnify)
     fig = Figure(figsize=(14, 9.5), layout="constrained")
     axes = fig.subplots(2, 2)
     panels = [

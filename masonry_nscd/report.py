@@ -1,15 +1,18 @@
 """The summary of a run: initial stiffness, peak, force at the target, convergence, damages.
 
 Everything is computed from the force-displacement curve (the columns of
-``force_displacement.csv``, see :mod:`masonry_nscd.run`) and, where the run wrote it, from the
-last output step of ``results.h5``. Units are in the key names (``_kN``, ``_mm``, ``_kN_mm``,
-``_m``, ``_s``); damages, residuals and counts are dimensionless.
+``force_displacement.csv``, see :mod:`masonry_nscd.run`), from what the run folder keeps of the
+scene (``scene.json``: the stage whose curve is read, the target, the joint groups, the names
+and places of the bodies) and, where the run wrote it, from the last output step of
+``results.h5``. Units are in the key names (``_kN``, ``_mm``, ``_kN_mm``, ``_m``, ``_s``);
+damages, residuals and counts are dimensionless.
 
 Definitions (also in ``docs/choices.md``, "Run summary")
 --------------------------------------------------------
 Horizontal stage
-    The rows with ``time_s >= loading.horizontal.start_s`` when the case is known; otherwise the
-    rows from the last one with ``ux_mm <= 0`` before ``ux_mm`` first becomes positive.
+    The rows with ``time_s`` at or after the start of the scene's push stage (``horizontal`` on
+    a wall) when it is known; otherwise the rows from the last one with ``ux_mm <= 0`` before
+    ``ux_mm`` first becomes positive.
 Peak
     The largest ``fx_kN`` of the horizontal stage (the push is towards +x) and its ``ux_mm``,
     over the converged steps only (the force of a step whose solver did not converge can be
@@ -31,19 +34,20 @@ Force at the target
 Largest damages
     Read at the last output step of ``results.h5``: every damage is irreversible, so the last
     step holds the largest values. Blocks: ``d_c`` (post-peak compressive damage, crushing),
-    ``d_cpp`` (pre-peak compressive damage), ``d_t`` (largest tensile crack damage); joints (bed
-    and head joints, not the glue): ``d_coh = 1 - beta b`` with ``b = 1 - d_coh_initial``, and
-    the integrity ``beta`` (1 as built, 0 once the cohesion is lost). Each comes with where it
-    is: the unit (index as in ``block_of_element``), its course counted from 1 at the bottom,
-    its position in the course counted from 1 at the left end (x = 0), and the wall-face
-    coordinates x, y (m) of the element centre or of the contact point (contact points lie on
-    the face of the unit above a bed joint, or right of a head joint). A largest value of 0
-    (or an intact joint, ``beta = 1``) has no location (``None``).
+    ``d_cpp`` (pre-peak compressive damage), ``d_t`` (largest tensile crack damage); joints (the
+    scene's joint groups, not the glue): ``d_coh = 1 - beta (1 - d_0)`` with ``d_0`` the damage
+    of the point's law as built (``d_coh_initial``), and the integrity ``beta`` (1 as built, 0
+    once the cohesion is lost). Each comes with where it is: the unit (index as in
+    ``block_of_element``) and its name, the place keys its builder gave (on a wall: its course
+    counted from 1 at the bottom, its position in the course counted from 1 at the left end),
+    and the coordinates x, y (m) of the element centre or of the contact point (which lies on
+    the face of the joint's candidate body: the unit above a bed joint, right of a head
+    joint). A largest value of 0 (or an intact joint, ``beta = 1``) has no location
+    (``None``).
 """
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 from collections.abc import Callable, Mapping, Sequence
@@ -54,12 +58,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from masonry_nscd.io.runfolder import read_curve_csv
+
 #: Fractions of the peak force between which the initial stiffness is measured.
 STIFFNESS_FRACTIONS = (0.10, 0.40)
 #: A joint point whose integrity ``beta`` is below this has lost its cohesion (counted).
 COHESION_LOST_BETA = 0.01
-#: Contact-point groups of the wall (masonry_nscd.scenes.wall): 0 bed, 1 head, 2-3 glue.
-_BED, _HEAD = 0, 1
 
 FloatArray = NDArray[np.float64]
 
@@ -196,114 +200,49 @@ def _num(x: float | None) -> float | None:
 
 
 # ---------------------------------------------------------------------------------------------
-# Where things are in the wall
+# The fields of one output step, and where things are
 # ---------------------------------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class UnitPlace:
-    """Where a unit sits: course from 1 at the bottom, position from 1 at the left end, box (m)."""
+def read_scene_info(outdir: Path | str) -> dict[str, Any]:
+    """What the run folder keeps of its scene (``scene.json``)."""
+    from masonry_nscd.io import runfolder as rf
 
-    course: int
-    position: int
-    units_in_course: int
-    x0: float
-    x1: float
-    y0: float
-    y1: float
-
-
-def unit_places(nodes_m: FloatArray, hexes: NDArray[np.int64],
-                block_of_element: NDArray[np.int64]) -> list[UnitPlace]:
-    """The place of every unit, from the mesh alone (reference coordinates, m).
-
-    Courses are the distinct bottom heights of the units (to 0.1 mm), counted from the bottom;
-    positions the order of the left ends in a course.
-    """
-    n_units = int(block_of_element.max()) + 1 if len(block_of_element) else 0
-    boxes = []
-    for i in range(n_units):
-        pts = nodes_m[np.unique(hexes[block_of_element == i])]
-        boxes.append((pts[:, 0].min(), pts[:, 0].max(), pts[:, 1].min(), pts[:, 1].max()))
-    levels = sorted({round(b[2], 4) for b in boxes})
-    places: list[UnitPlace | None] = [None] * n_units
-    for k, level in enumerate(levels):
-        members = sorted((b[0], i) for i, b in enumerate(boxes) if round(b[2], 4) == level)
-        for p, (_, i) in enumerate(members):
-            places[i] = UnitPlace(k + 1, p + 1, len(members), *boxes[i])
-    return places  # type: ignore[return-value]
-
-
-def describe_unit(place: UnitPlace, courses: int) -> str:
-    """``course 1 (bottom), unit 6 of 6 (right end)``."""
-    course = f"course {place.course}"
-    if place.course == 1:
-        course += " (bottom)"
-    elif place.course == courses:
-        course += " (top)"
-    unit = f"unit {place.position} of {place.units_in_course}"
-    if place.units_in_course > 1 and place.position == 1:
-        unit += " (left end)"
-    elif place.units_in_course > 1 and place.position == place.units_in_course:
-        unit += " (right end)"
-    return f"{course}, {unit}"
-
-
-def unit_at_point(places: Sequence[UnitPlace], x: float, y: float, group: int,
-                  tol: float = 1e-6) -> int | None:
-    """The unit carrying a joint contact point: the one whose box holds ``(x, y)``; on a bed
-    joint the unit above, on a head joint the unit on the right."""
-    found = [i for i, p in enumerate(places)
-             if p.x0 - tol <= x <= p.x1 + tol and p.y0 - tol <= y <= p.y1 + tol]
-    if not found:
-        return None
-    key = (lambda i: places[i].y0) if group == _BED else (lambda i: places[i].x0)
-    return max(found, key=key)
-
-
-def describe_joint_point(places: Sequence[UnitPlace], x: float, y: float, group: int,
-                         courses: int) -> str:
-    """``bed joint between courses 1 and 2, under unit 3 of 7`` or ``head joint in course 2
-    (bottom), between units 3 and 4``."""
-    i = unit_at_point(places, x, y, group)
-    if i is None:
-        return f"joint point at x = {x:.3f} m, y = {y:.3f} m"
-    p = places[i]
-    if group == _BED:
-        return (f"bed joint between courses {p.course - 1} and {p.course}, under unit "
-                f"{p.position} of {p.units_in_course} of course {p.course}")
-    course = describe_unit(p, courses).split(",")[0]
-    return f"head joint in {course}, between units {p.position - 1} and {p.position}"
-
-
-# ---------------------------------------------------------------------------------------------
-# Fields of one output step
-# ---------------------------------------------------------------------------------------------
+    path = Path(outdir) / rf.SCENE
+    try:
+        return json.loads(path.read_text())
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{path} is missing: the run folder was written by an older "
+                                "version of masonry_nscd (run the case again)") from None
 
 
 @dataclass
-class WallFields:
-    """The mesh and the damage fields of one output step (SI units, damages dimensionless)."""
+class RunFields:
+    """The mesh and the fields of one output step (SI units, damages dimensionless)."""
 
     nodes_m: FloatArray  # (nn, 3) reference coordinates
     hexes: NDArray[np.int64]  # (ne, 8) VTK order: the z-min face first, counter-clockwise
-    block_of_element: NDArray[np.int64]  # (ne,)
+    block_of_element: NDArray[np.int64]  # (ne,) position of the element's body in the structure
+    structure_bodies: NDArray[np.int64]  # (nb,) scene index of each structure body
     contact_points_m: FloatArray  # (npt, 3)
-    contact_group: NDArray[np.int64]  # (npt,) 0 bed, 1 head, 2 glue bottom, 3 glue top
+    contact_group: NDArray[np.int64]  # (npt,) joint group id (scene.json "groups")
+    contact_bodies: NDArray[np.int64]  # (npt, 2) candidate and antagonist body (scene indices)
     contact_area_m2: FloatArray  # (npt,)
+    contact_frame: FloatArray  # (npt, 3, 3) rows n (antagonist to candidate), t, s
+    contact_gap_m: FloatArray  # (npt,)
+    contact_initial_damage: FloatArray  # (npt,) d_0 of the point's law
     d_c: FloatArray  # (ne,) post-peak compressive damage
     d_cpp: FloatArray  # (ne,) pre-peak compressive damage
     d_t: FloatArray  # (ne,) largest tensile damage
     joint_beta: FloatArray  # (npt,) integrity, 1 as built
-    d_coh_initial: float  # b = 1 - d_coh_initial
     step: int
     time_s: float
-    u: FloatArray | None = None  # (ndof,) generalised displacements, m and rad
+    nodal_displacement_m: FloatArray | None = None  # (nn, 3)
 
     @property
     def joint_d_coh(self) -> FloatArray:
-        """Total cohesive damage ``1 - beta b`` per contact point."""
-        return 1.0 - self.joint_beta * (1.0 - self.d_coh_initial)
+        """Total cohesive damage ``1 - beta (1 - d_0)`` per contact point."""
+        return 1.0 - self.joint_beta * (1.0 - self.contact_initial_damage)
 
 
 def output_steps(h5_path: Path | str) -> list[tuple[int, float]]:
@@ -318,13 +257,9 @@ def output_steps(h5_path: Path | str) -> list[tuple[int, float]]:
     return sorted(out)
 
 
-def read_wall_fields(h5_path: Path | str, step: int | None = None,
-                     d_coh_initial: float | None = None) -> WallFields | None:
-    """The fields of output ``step`` (default: the last one) of a results file.
-
-    ``d_coh_initial``: the case's ``joint.d_coh_initial`` (default: read from the file's case).
-    ``None`` if the file has no complete output step.
-    """
+def read_fields(h5_path: Path | str, step: int | None = None) -> RunFields | None:
+    """The fields of output ``step`` (default: the last one) of a results file; ``None`` if
+    the file has no complete output step."""
     from masonry_nscd.io.results_h5 import _open_for_reading
 
     steps = output_steps(h5_path)
@@ -337,39 +272,44 @@ def read_wall_fields(h5_path: Path | str, step: int | None = None,
         g = f["steps"][f"{step:06d}"]
         data = {k: ds[()] for k, ds in g.items()}
         time_s = float(g.attrs["time"])
-        if d_coh_initial is None:
-            d_coh_initial = _d_coh_initial(f["case/yaml"].asstr()[()])
     ne = len(mesh["hexes"])
-    return WallFields(
+    return RunFields(
         nodes_m=mesh["nodes_m"], hexes=mesh["hexes"], block_of_element=mesh["block_of_element"],
-        contact_points_m=mesh["contact_points_m"], contact_group=mesh["contact_group"],
-        contact_area_m2=mesh.get("contact_area_m2", np.ones(len(mesh["contact_group"]))),
+        structure_bodies=mesh["structure_bodies"], contact_points_m=mesh["contact_points_m"], contact_group=mesh["contact_group"],
+        contact_bodies=mesh["contact_bodies"], contact_area_m2=mesh["contact_area_m2"],
+        contact_frame=mesh["contact_frame"], contact_gap_m=mesh["contact_gap_m"],
+        contact_initial_damage=mesh["contact_initial_damage"],
         d_c=data.get("element_d_c", np.zeros(ne)), d_cpp=data.get("element_d_cpp", np.zeros(ne)),
         d_t=data.get("element_d_t", np.zeros(ne)), joint_beta=data["joint_beta"],
-        d_coh_initial=d_coh_initial, step=int(step), time_s=time_s, u=data.get("u"))
+        step=int(step), time_s=time_s, nodal_displacement_m=data.get("nodal_displacement_m"))
 
 
-def _d_coh_initial(case_yaml: str) -> float:
-    from masonry_nscd.case import case_from_dict, read_yaml
+def body_names(scene: Mapping[str, Any]) -> dict[int, str]:
+    """Scene body index -> name."""
+    return dict(enumerate(scene["bodies"]))
 
-    return case_from_dict(read_yaml(case_yaml)).joint.d_coh_initial
 
-
-def largest_damages(fields: WallFields) -> dict[str, Any]:
+def largest_damages(fields: RunFields, scene: Mapping[str, Any]) -> dict[str, Any]:
     """The largest block and joint damages of one output step, and where they are."""
-    places = unit_places(fields.nodes_m, fields.hexes, fields.block_of_element)
-    courses = max((p.course for p in places), default=0)
     centres = fields.nodes_m[fields.hexes].mean(axis=1)
     out: dict[str, Any] = {}
     for name, values in (("block_d_c", fields.d_c), ("block_d_cpp", fields.d_cpp),
                          ("block_d_t", fields.d_t)):
-        out[name] = _block_entry(values, centres, fields.block_of_element, places, courses)
-    out["joint_d_coh"] = _joint_entry(fields, places, courses)
+        out[name] = _block_entry(values, centres, fields.block_of_element, scene)
+    out["joint_d_coh"] = _joint_entry(fields, scene)
     return out
 
 
+def _place(scene: Mapping[str, Any], k: int) -> dict[str, Any]:
+    """The builder's keys of structure body ``k`` (its name as ``where``)."""
+    info = dict(scene["structure"][k])
+    keys = {"where": info.pop("name"), "unit_index": k}
+    keys.update({key: v for key, v in info.items() if key not in ("body", "kind")})
+    return keys
+
+
 def _block_entry(values: FloatArray, centres: FloatArray, block_of_element: NDArray[np.int64],
-                 places: Sequence[UnitPlace], courses: int) -> dict[str, Any]:
+                 scene: Mapping[str, Any]) -> dict[str, Any]:
     if not len(values):
         return {"value": None, "where": None}
     e = int(np.argmax(values))
@@ -377,37 +317,37 @@ def _block_entry(values: FloatArray, centres: FloatArray, block_of_element: NDAr
         np.sum(values > 0.5))}
     if not values[e] > 0.0:
         return {**entry, "where": None}
-    i = int(block_of_element[e])
-    p = places[i]
-    return {**entry, "where": describe_unit(p, courses), "element": e, "unit_index": i,
-            "course": p.course, "position_in_course": p.position,
-            "units_in_course": p.units_in_course, "x_m": _num(centres[e, 0]),
-            "y_m": _num(centres[e, 1])}
+    return {**entry, **_place(scene, int(block_of_element[e])), "element": e,
+            "x_m": _num(centres[e, 0]), "y_m": _num(centres[e, 1])}
 
 
-def _joint_entry(fields: WallFields, places: Sequence[UnitPlace],
-                 courses: int) -> dict[str, Any]:
-    joints = np.flatnonzero(np.isin(fields.contact_group, (_BED, _HEAD)))
+def _joint_entry(fields: RunFields, scene: Mapping[str, Any]) -> dict[str, Any]:
+    groups = list(scene["groups"])
+    joint_ids = [groups.index(g) for g in scene["joint_groups"]]
+    joints = np.flatnonzero(np.isin(fields.contact_group, joint_ids))
     if not joints.size:
         return {"value": None, "where": None}
     beta = fields.joint_beta[joints]
     a = int(joints[np.argmin(beta)])
     entry: dict[str, Any] = {
         "value": _num(fields.joint_d_coh[a]), "beta": _num(fields.joint_beta[a]),
-        "d_coh_initial": fields.d_coh_initial, "joint_points": int(joints.size),
+        "d_coh_initial": _num(fields.contact_initial_damage[a]),
+        "joint_points": int(joints.size),
         "points_cohesion_lost": int(np.sum(beta < COHESION_LOST_BETA)),
     }
     if not fields.joint_beta[a] < 1.0:
         return {**entry, "where": None}
     x, y = (float(v) for v in fields.contact_points_m[a, :2])
-    group = int(fields.contact_group[a])
-    i = unit_at_point(places, x, y, group)
-    where = describe_joint_point(places, x, y, group, courses)
-    entry.update({"where": where, "point": a, "joint": "bed" if group == _BED else "head",
-                  "x_m": x, "y_m": y})
-    if i is not None:
-        entry.update({"unit_index": i, "course": places[i].course,
-                      "position_in_course": places[i].position})
+    group = groups[int(fields.contact_group[a])]
+    names = body_names(scene)
+    cand, ant = (int(b) for b in fields.contact_bodies[a])
+    entry.update({"where": f"{group} joint between {names[ant]} and {names[cand]}",
+                  "point": a, "joint": group, "x_m": x, "y_m": y})
+    structure = [s["body"] for s in scene["structure"]]
+    if cand in structure:
+        place = _place(scene, structure.index(cand))
+        place.pop("where")
+        entry.update(place)
     return entry
 
 
@@ -416,10 +356,17 @@ def _joint_entry(fields: WallFields, places: Sequence[UnitPlace],
 # ---------------------------------------------------------------------------------------------
 
 
+def push_stage_start(scene: Mapping[str, Any]) -> float:
+    """Start (s) of the scene's push stage, whose force-displacement curve is summarised."""
+    return next(st["start_s"] for st in scene["stages"] if st["name"] == scene["push_stage"])
+
+
 def compute_summary(curve: Mapping[str, Sequence[float]], *, target_ux_mm: float | None = None,
-                    horizontal_start_s: float | None = None, fields: WallFields | None = None,
+                    horizontal_start_s: float | None = None, fields: RunFields | None = None,
+                    scene: Mapping[str, Any] | None = None,
                     fractions: tuple[float, float] = STIFFNESS_FRACTIONS) -> dict[str, Any]:
-    """The run summary from the curve and, if given, the fields of the last output step.
+    """The run summary from the curve and, if given, the fields of the last output step (with
+    the scene's ``scene.json``, which says where things are).
 
     A pure function: see the module docstring for the definitions. Keys carry their units.
     """
@@ -435,66 +382,45 @@ def compute_summary(curve: Mapping[str, Sequence[float]], *, target_ux_mm: float
         out["damage_step"] = fields.step
         out["damage_time_s"] = fields.time_s
         out["damage_ux_mm"] = _num(ux_by_step.get(fields.step))
-        out["largest_damage"] = largest_damages(fields)
+        out["largest_damage"] = largest_damages(fields, scene)
     return out
-
-
-def read_curve_csv(path: Path | str) -> dict[str, FloatArray]:
-    """The columns of ``force_displacement.csv`` as float arrays.
-
-    A last row cut by an interruption (fewer fields, or text that is not a number) is dropped.
-    """
-    with open(path, newline="") as f:
-        reader = csv.reader(f)
-        header = next(reader, None)
-        if header is None:
-            raise ValueError(f"{path}: empty file, no header")
-        rows = []
-        for row in reader:
-            try:
-                values = [float(v) for v in row]
-            except ValueError:
-                break
-            if len(values) != len(header):
-                break
-            rows.append(values)
-    data = np.array(rows, dtype=float).reshape(-1, len(header))
-    return {name: data[:, j] for j, name in enumerate(header)}
 
 
 def summarize_run(outdir: Path | str,
                   curve: Mapping[str, Sequence[float]] | None = None) -> dict[str, Any]:
     """The summary of a finished or interrupted run folder.
 
-    Reads ``case.yaml``, ``force_displacement.csv`` (or takes ``curve``, e.g. the run's
-    in-memory curve when the CSV may not be flushed) and the last output step of
+    Reads ``case.yaml``, ``scene.json``, ``force_displacement.csv`` (or takes ``curve``, e.g.
+    the run's in-memory curve when the CSV may not be flushed) and the last output step of
     ``results.h5`` when there is one.
     """
     from masonry_nscd.case import load_case
+    from masonry_nscd.io import runfolder as rf
 
     outdir = Path(outdir)
-    case = load_case(outdir / "case.yaml")
+    case = load_case(outdir / rf.CASE)
+    scene = read_scene_info(outdir)
     if curve is None:
-        curve = read_curve_csv(outdir / "force_displacement.csv")
-    h5 = outdir / "results.h5"
-    fields = read_wall_fields(h5, d_coh_initial=case.joint.d_coh_initial) \
-        if h5.exists() else None
-    hz = case.loading.horizontal
+        curve = read_curve_csv(outdir / rf.CSV)
+    h5 = outdir / rf.RESULTS
+    fields = read_fields(h5) if h5.exists() else None
+    start = push_stage_start(scene)
     head = {"case_name": case.name, "block_material": case.blocks.material,
             "vertical_stress_MPa": case.loading.vertical_stress.value_Pa / 1e6,
             "vertical_force_kN": case.vertical_force_N / 1e3,
-            "horizontal_start_s": hz.start_s, "stiffness_definition": (
+            "horizontal_start_s": start, "stiffness_definition": (
                 "secant between the first crossings of 10 % and 40 % of the peak force in the "
                 "horizontal stage, displacements interpolated linearly")}
-    return {**head, **compute_summary(curve, target_ux_mm=1e3 * hz.target_m,
-                                      horizontal_start_s=hz.start_s, fields=fields)}
+    return {**head, **compute_summary(curve, target_ux_mm=1e3 * scene["target_m"],
+                                      horizontal_start_s=start, fields=fields, scene=scene)}
 
 
 def write_summary(outdir: Path | str, summary: Mapping[str, Any]) -> Path:
     """Write ``summary.json`` in ``outdir`` atomically; returns its path."""
-    from masonry_nscd.io.vtu import atomic_write
+    from masonry_nscd.io import runfolder as rf
+    from masonry_nscd.io.atomic import atomic_write
 
-    path = Path(outdir) / "summary.json"
+    path = Path(outdir) / rf.SUMMARY
     text = json.dumps(summary, indent=2, allow_nan=False) + "\n"
     atomic_write(path, lambda p: Path(p).write_text(text))
     return path

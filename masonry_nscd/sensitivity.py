@@ -208,7 +208,7 @@ def analyse(prob: dict[str, Any], method: str, X, Y, seed: int) -> list[dict[str
 
 def write_indices(path: Path, method: str, rows: Sequence[dict[str, Any]]) -> Path:
     """``indices.csv``: ``parameter`` then the index columns of the method."""
-    from masonry_nscd.io.vtu import atomic_write
+    from masonry_nscd.io.atomic import atomic_write
 
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
@@ -244,7 +244,7 @@ def plot_indices(path: Path, method: str, rows: Sequence[dict[str, Any]], output
     import numpy as np
     from matplotlib.figure import Figure
 
-    from masonry_nscd.io.vtu import atomic_write
+    from masonry_nscd.io.atomic import atomic_write
 
     names = [r["parameter"] for r in rows]
     y = np.arange(len(rows))

@@ -145,11 +145,11 @@ def select(quick: bool = False, names: list[str] | None = None) -> list[Variant]
 
 
 def _read_curve(path: Path) -> dict[str, np.ndarray]:
-    with open(path, newline="") as f:
-        rows = list(csv.DictReader(f))
-    if not rows:
-        return {}
-    return {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
+    """The CSV's columns, or none where the run wrote no row."""
+    from masonry_nscd.io.runfolder import read_curve_csv
+
+    curve = read_curve_csv(path)
+    return curve if len(curve.get("step", ())) else {}
 
 
 def _non_finite_outputs(outdir: Path) -> str | None:
@@ -171,13 +171,12 @@ def _non_finite_outputs(outdir: Path) -> str | None:
     return None
 
 
-def wall_weight_kN(case) -> float:
-    """Weight of the units of the wall (kN)."""
-    from masonry_nscd.scenes.wall import unit_boxes
+def wall_weight_kN(scene, gravity_m_s2: float) -> float:
+    """Weight of the structure of a scene (its units, kN)."""
+    from masonry_nscd.model import body_mass
 
-    w = case.wall
-    volume = sum(length * w.unit_height_m * w.thickness_m for *_, length in unit_boxes(w))
-    return volume * case.blocks.density_kg_m3 * case.loading.gravity.value_m_s2 / 1e3
+    mass = sum(body_mass(scene.bodies[i]) for i in scene.structure)
+    return mass * gravity_m_s2 / 1e3
 
 
 def equilibrium_error(curve: dict[str, np.ndarray], weight_kN: float, h_s: float,
@@ -200,32 +199,23 @@ def equilibrium_error(curve: dict[str, np.ndarray], weight_kN: float, h_s: float
     return float(np.abs(change - impulse).max() / scale)
 
 
-def wall_momentum(case, outdir: Path) -> tuple[tuple[int, int], tuple[np.ndarray, ...]] | None:
-    """The last two output steps of results.h5 and the wall's momentum (x, y) at each, N s;
-    None without two output steps."""
+def wall_momentum(scene, outdir: Path) -> tuple[tuple[int, int], tuple[np.ndarray, ...]] | None:
+    """The last two output steps of results.h5 and the momentum (x, y) of the scene's
+    structure at each, N s; None without two output steps."""
     import h5py
 
-    from masonry_nscd.model import Block
-    from masonry_nscd.scenes.wall import build_wall
+    from masonry_nscd.model import body_momentum, dof_offsets
 
     with h5py.File(outdir / "results.h5", "r") as f:
         names = sorted(f["steps"]) if "steps" in f else []
         if len(names) < 2:
             return None
         vs = [np.asarray(f["steps"][k]["v"]) for k in names[-2:]]
-    scene = build_wall(case)
-    dof0 = scene.integrator.sys.body_dof0
+    dof0 = dof_offsets(scene.bodies)
     out = []
     for v in vs:
-        p = np.zeros(2)
-        for i, body in enumerate(scene.integrator.bodies[:len(scene.units)]):
-            vb = v[dof0[i]:dof0[i + 1]]
-            if isinstance(body, Block):
-                m = body.lumped_mass()
-                p += [np.dot(m[0::3], vb[0::3]), np.dot(m[1::3], vb[1::3])]
-            else:  # rigid: the first dofs are the velocity of the centre of mass
-                p += body.mass * vb[:2]
-        out.append(p)
+        p = sum(body_momentum(scene.bodies[i], v[dof0[i]:dof0[i + 1]]) for i in scene.structure)
+        out.append(np.asarray(p)[:2])
     return (int(names[-2]), int(names[-1])), tuple(out)
 
 
@@ -260,9 +250,12 @@ def run_variant(base_path: Path, variant: Variant, outdir: Path,
         return result("error", f"{type(exc).__name__}: {exc}")
     curve = _read_curve(outdir / "force_displacement.csv")
     worst = float(np.max(curve["residual"], initial=0.0)) if curve else math.nan
-    mom = wall_momentum(case, outdir) if case.output.hdf5 else None
-    eq = (equilibrium_error(curve, wall_weight_kN(case), case.solver.time_step_s, *mom)
-          if mom is not None else math.nan)
+    from masonry_nscd.scenes import build_scene
+
+    scene = build_scene(case)
+    mom = wall_momentum(scene, outdir) if case.output.hdf5 else None
+    eq = (equilibrium_error(curve, wall_weight_kN(scene, case.loading.gravity.value_m_s2),
+                            case.solver.time_step_s, *mom) if mom is not None else math.nan)
     bad = _non_finite_outputs(outdir)
     args = {"steps": res.steps, "worst": worst, "unconverged": res.unconverged_steps, "eq": eq}
     if bad is not None:
@@ -288,7 +281,7 @@ CSV_HEADER = [f.name for f in fields(StressResult)]
 
 def write_table(path: Path, results: list[StressResult]) -> None:
     """Write ``stress.csv`` atomically."""
-    from masonry_nscd.io.vtu import atomic_write
+    from masonry_nscd.io.atomic import atomic_write
 
     buf = io.StringIO()
     w = csv.writer(buf)

@@ -344,7 +344,7 @@ def _outputs(run_dir: Path) -> dict[str, Any]:
 
 
 def _write_marker(run_dir: Path, point: Point, record: RunRecord) -> None:
-    from masonry_nscd.io.vtu import atomic_write
+    from masonry_nscd.io.atomic import atomic_write
 
     text = json.dumps({"status": record.status, "message": record.message,
                        "run_time_s": record.run_time_s, "outputs": record.outputs,
@@ -510,7 +510,7 @@ def format_cell(value: Any) -> str:
 def write_table(path: Path, points: Sequence[Point], records: dict[str, RunRecord],
                 param_paths: Sequence[str]) -> Path:
     """Write the table of the runs recorded so far (see the module docstring), atomically."""
-    from masonry_nscd.io.vtu import atomic_write
+    from masonry_nscd.io.atomic import atomic_write
 
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
@@ -534,8 +534,10 @@ def plot_overlay(points: Sequence[Point], records: Sequence[RunRecord], runs_dir
 
     from masonry_nscd.case import case_from_dict, read_yaml
     from masonry_nscd.plots import RunData, plot_curves
+    from masonry_nscd.report import read_scene_info
 
     runs = [RunData(runs_dir / p.name, case_from_dict(read_yaml(p.case_yaml)),
+                    read_scene_info(runs_dir / p.name),
                     {k: np.asarray(v, dtype=float) for k, v in r.curve.items()},
                     r.outputs, label=p.name)
             for p, r in zip(points, records, strict=True) if r.ok and r.curve]
@@ -550,7 +552,7 @@ def plot_overlay(points: Sequence[Point], records: Sequence[RunRecord], runs_dir
 def prepare_outdir(outdir: Path, marker: str, description: dict[str, Any]) -> None:
     """Create OUTDIR, or reuse it if it holds a batch of the same kind (``marker`` file);
     refuse any other folder that is not empty (:class:`SweepError`). Writes the marker."""
-    from masonry_nscd.io.vtu import atomic_write
+    from masonry_nscd.io.atomic import atomic_write
 
     if outdir.exists() and not outdir.is_dir():
         raise SweepError(f"output path {outdir} exists and is not a folder")

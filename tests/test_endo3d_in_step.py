@@ -8,11 +8,13 @@ the height must be the uniaxial curve of the material-point driver (same element
 
 import numpy as np
 
-from masonry_nscd.contact import joint_law as jl
-from masonry_nscd.contact.points import dof_offsets, face_contacts
+from masonry_nscd.contact.laws import fczm as jl
+from masonry_nscd.fe.hex8 import box_mesh
+from masonry_nscd.loading import Loads, at_rest
 from masonry_nscd.materials.endo3d import endo3d_params
 from masonry_nscd.materials.point_driver import drive_block_path
-from masonry_nscd.model import MAT_ENDO3D, Block, Loads, RigidBody, at_rest
+from masonry_nscd.model import MAT_ENDO3D, Block, RigidBody, dof_offsets
+from masonry_nscd.model.detection import contact_points
 from masonry_nscd.nscd.integrator import Integrator
 
 H = 0.1
@@ -27,17 +29,18 @@ def _params():
 
 def test_endo3d_cube_in_compression_follows_the_point_driver():
     rate = 2e-3 * H  # shortening velocity, m/s: strain rate 2e-3 /s
-    cube = Block(origin=(0, 0, 0), size=(H, H, H), divisions=(1, 1, 1), E=E, nu=NU,
-                 density=2000.0, material=MAT_ENDO3D)
-    bottom = RigidBody.fixed(center=(H / 2, -0.05, H / 2))
+    cube = Block.box((0, 0, 0), (H, H, H), (1, 1, 1), E=E, nu=NU, density=2000.0,
+                     material=MAT_ENDO3D)
+    plate = np.array([H, 0.1, H])
+    Xb, cb = box_mesh(np.array([0.0, -0.1, 0.0]), plate, (1, 1, 1))
+    bottom = RigidBody.fixed(center=(H / 2, -0.05, H / 2), X=Xb, conn=cb)
+    Xt, ct = box_mesh(np.array([0.0, H, 0.0]), plate, (1, 1, 1))
     top = RigidBody(center=(H / 2, H + 0.05, H / 2), mass=1.0, inertia=np.ones(3),
                     imposed_velocity={0: at_rest, 1: lambda t: -rate, 2: at_rest, 3: at_rest, 4: at_rest,
-                                      5: at_rest})
+                                      5: at_rest}, X=Xt, conn=ct, support=True)
     bodies = [cube, bottom, top]
     dof0 = dof_offsets(bodies)
-    kw = {"gap": 0.0, "tangent": (1, 0, 0), "kind": jl.KIND_JOINT, "law": 0, "group": 0}
-    pts = face_contacts(bodies, dof0, 0, cube, 1, False, [(1, None)], **kw)
-    pts += face_contacts(bodies, dof0, 0, cube, 1, True, [(2, None)], **kw)
+    pts = contact_points(bodies, lambda joint, ant: (0, jl.KIND_JOINT, 0), max_gap=0.0)
     # frictionless joints with springs 100 times stiffer than the cube (the strain is read on
     # the cube itself, so the spring's share of the shortening does not matter)
     P = jl.joint_params(mu=0.0, d_spring=0.0, K_I_spring=100 * E / H, K_II_spring=100 * E / H)

@@ -1,7 +1,7 @@
 """Property tests of the joint law over the whole parameter ranges of the case schema (hypothesis).
 
 One contact point of unit area is driven along random histories of its relative displacement,
-with the integrity consistent with the end of each step (``joint_law.local_solve_implicit``,
+with the integrity consistent with the end of each step (``contact.laws.fczm.solve``,
 as in the NSCD step and the point driver), either directly (``A = 0``, a rigid loading device)
 or through a compliance ``A`` (the rest of a system, as in the Gauss-Seidel sweeps). Along
 every history:
@@ -30,8 +30,8 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from masonry_nscd.case import CaseError, case_from_dict
-from masonry_nscd.contact import joint_law as jl
-from masonry_nscd.scenes.wall import joint_params_from_case
+from masonry_nscd.contact.laws import fczm as jl
+from masonry_nscd.contact.laws import params_from_case
 
 SETTINGS = settings(max_examples=60, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
@@ -66,7 +66,7 @@ def joint_params(draw) -> np.ndarray:
         case = case_from_dict({"joint": joint})
     except CaseError:
         assume(False)
-    return joint_params_from_case(case)
+    return params_from_case(case.joint)
 
 
 def _scale(P: np.ndarray) -> float:
@@ -109,7 +109,7 @@ def drive(P, A, path):
     out = {k: [] for k in ("u", "T", "uc", "beta", "status")}
     for ut in path:
         ut = np.ascontiguousarray(ut, dtype=float)
-        st_, beta = jl.local_solve_implicit(ut, A, uc_old, beta, P, jl.KIND_JOINT, T, uc)
+        st_, beta = jl.solve(ut, A, uc_old, beta, P, T, uc)
         uc_old[:] = uc
         for k, v in (("u", ut - A @ T), ("T", T.copy()), ("uc", uc.copy()), ("beta", beta),
                      ("status", st_)):
@@ -217,7 +217,7 @@ def test_frictionless_slide_under_a_mildly_coupled_compliance():
     A = np.array([[11.0, 0.0, 10.0], [0.0, 1.0, 0.0], [10.0, 0.0, 11.0]]) / 3e7
     T, uc = np.zeros(3), np.zeros(3)
     st_ = jl.local_solve(np.array([1.953125e-05, 0.0, 1e-2]), A, np.array([0.0, 0.00494886, 0.0]),
-                         1.0, P, jl.KIND_JOINT, T, uc)
+                         1.0, P, T, uc)
     assert st_ == jl.ST_SLIDE
     D = A + np.diag([P[jl.P_CN_C], P[jl.P_CT], P[jl.P_CT]])
     kt = P[jl.P_KII]
@@ -233,7 +233,7 @@ def test_slide_under_a_coupled_compliance_is_objective():
     The normal predictor is 4.9e-276 m (0 gives the right answer in both frames): in the turned
     frame ``local_solve`` at beta = 0.00747 gives up on the slide (first diagonal iterate in
     tension by 1e-272 Pa) and returned ST_AMBIGUOUS, and the regula falsi of
-    ``local_solve_implicit`` then settled on another integrity, reported as a plain slide.
+    ``solve`` then settled on another integrity, reported as a plain slide.
     Fixed (issue 7): the slide is found from the bracket [0, |r0| / mu] of h(N), whatever the
     sign of the uncoupled first iterate, and with invariants of the tangent plane only."""
     P = jl.joint_params(K_I_spring=1e4, K_II_spring=1e6, d_spring=0.0, sigma_I_e=100.0,

@@ -13,7 +13,7 @@ import numpy as np
 from masonry_nscd.case import load_case
 from masonry_nscd.materials import blocks
 from masonry_nscd.run import run_case
-from masonry_nscd.scenes.wall import build_wall
+from masonry_nscd.scenes import build_scene
 
 SMOKE = Path(__file__).resolve().parents[1] / "cases" / "smoke.yaml"
 
@@ -64,9 +64,9 @@ def test_failed_gauss_points_are_counted_and_located(tmp_path, monkeypatch):
 def test_failed_points_finds_the_points_the_batch_counted():
     """``failed_points`` runs the kernel point by point: on a state the kernel handles, none."""
     case = load_case(SMOKE, ["blocks.material=endo3d"])
-    scene = build_wall(case)
-    mat = scene.integrator.material
-    u = np.zeros(scene.integrator.sys.ndof)
+    integ = build_scene(case).integrator()
+    mat = integ.material
+    u = np.zeros(integ.sys.ndof)
     fint = np.zeros_like(u)
     mat.internal_forces(u, fint)
     assert mat.failures == 0 and len(mat.failed_points()) == 0

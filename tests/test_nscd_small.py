@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from masonry_nscd.contact import joint_law as jl
+from masonry_nscd.contact.laws import fczm as jl
 from masonry_nscd.contact.point_driver import drive_joint_history
 from masonry_nscd.scenes.small import block_between_plates, block_on_support, column
 
@@ -88,20 +88,19 @@ def test_nscd_single_contact_with_free_rigid_partner_equals_standalone_law():
     """A rigid body of finite mass on one contact point, loaded by forces: the tractions of the
     NSCD step equal those of the stand-alone law driven by the same relative displacements."""
     size = (0.1, 0.1, 0.1)
-    from masonry_nscd.contact.points import dof_offsets, face_contacts
-    from masonry_nscd.loading import Ramp
-    from masonry_nscd.model import Block, Loads, RigidBody, at_rest
+    from masonry_nscd.fe.hex8 import box_mesh
+    from masonry_nscd.loading import Loads, Ramp, at_rest
+    from masonry_nscd.model import RigidBody
+    from masonry_nscd.model.detection import contact_points
     from masonry_nscd.nscd.integrator import Integrator
 
     body = RigidBody.box((0, 0, 0), size, 2000.0,
                          imposed_velocity={d: at_rest for d in (2, 3, 4, 5)})
-    support = RigidBody.fixed(center=(0.05, -0.05, 0.05))
-    geom = Block(origin=(0, 0, 0), size=size, divisions=(1, 1, 1), E=1.0, nu=0.0,
-                 density=1.0)
+    Xs, cs = box_mesh(np.array([0.0, -0.1, 0.0]), np.array(size), (1, 1, 1))
+    support = RigidBody.fixed(center=(0.05, -0.05, 0.05), X=Xs, conn=cs)
     bodies = [body, support]
-    dof0 = dof_offsets(bodies)
-    pts = face_contacts(bodies, dof0, 0, geom, 1, False, [(1, None)], gap=0.0,
-                        tangent=(1, 0, 0), kind=jl.KIND_JOINT, law=0, group=0, n_gauss=1)
+    pts = contact_points(bodies, lambda joint, ant: (0, jl.KIND_JOINT, 0), max_gap=0.0,
+                         n_gauss=1)
     assert len(pts) == 1
     P = jl.joint_params(d_coh_initial=0.0)
     loads = Loads()

@@ -12,7 +12,8 @@ from masonry_nscd.report import (
     first_crossing,
     largest_damages,
     read_curve_csv,
-    read_wall_fields,
+    read_fields,
+    read_scene_info,
     secant_stiffness,
     summarize_run,
     write_summary,
@@ -151,23 +152,26 @@ def test_largest_damages_say_where_they_are(smoke_run):
     """The smoke wall's mesh (3 courses, 3 and 4 units, one element per unit) with damage
     put by hand: the report names the unit, its course and position, and x, y."""
     out, _ = smoke_run
-    f = read_wall_fields(out / "results.h5")
+    f = read_fields(out / "results.h5")
     right_bottom = int(np.flatnonzero(f.block_of_element == 2)[0])  # 3rd unit of course 1
     f.d_c[right_bottom] = 0.7
     f.d_t[:] = 0.0
     f.d_t[int(np.flatnonzero(f.block_of_element == 3)[0])] = 0.4  # half unit, course 2, left
-    # a bed-joint point under the 2nd unit of course 2 (x from 0.155 to 0.455 m, y0 = 0.11 m)
+    # a bed-joint point under the 2nd unit of course 2 (x from 0.155 to 0.455 m, y0 = 0.11 m),
+    # over the 2nd unit of course 1 (x from 0.31 to 0.61 m)
     bed = np.flatnonzero((f.contact_group == 0) & (np.abs(f.contact_points_m[:, 1] - 0.11) < 1e-9)
-                         & (np.abs(f.contact_points_m[:, 0] - 0.3) < 0.14))
+                         & (f.contact_points_m[:, 0] > 0.31) & (f.contact_points_m[:, 0] < 0.455))
     f.joint_beta[bed[0]] = 0.25
-    d = largest_damages(f)
+    d = largest_damages(f, read_scene_info(out))
     assert d["block_d_c"]["where"] == "course 1 (bottom), unit 3 of 3 (right end)"
     assert (d["block_d_c"]["x_m"], d["block_d_c"]["y_m"]) == pytest.approx((0.77, 0.05))
     assert d["block_d_c"]["unit_index"] == 2 and d["block_d_c"]["value"] == 0.7
     assert d["block_d_t"]["where"] == "course 2, unit 1 of 4 (left end)"
     assert (d["block_d_t"]["x_m"], d["block_d_t"]["y_m"]) == pytest.approx((0.0725, 0.16))
     j = d["joint_d_coh"]
-    assert j["where"] == "bed joint between courses 1 and 2, under unit 2 of 4 of course 2"
+    assert j["where"] == ("bed joint between course 1 (bottom), unit 2 of 3 and course 2, unit "
+                          "2 of 4")
+    assert (j["course"], j["position_in_course"]) == (2, 2)
     assert j["beta"] == 0.25 and j["value"] == pytest.approx(1.0 - 0.25 * (1.0 - 0.99944))
     assert j["y_m"] == pytest.approx(0.11)
     assert d["block_d_cpp"]["where"] is None

@@ -24,7 +24,9 @@ from typer.testing import CliRunner
 
 from masonry_nscd.case import load_case
 from masonry_nscd.cli import app
+from masonry_nscd.io.recorder import read_resume_point, truncate_csv
 from masonry_nscd.io.results_h5 import ResultsFile, read_results
+from masonry_nscd.io.runfolder import CHECKPOINT as CHECKPOINT_NAME
 from masonry_nscd.nscd.checkpoint import (
     CheckpointError,
     integrator_state,
@@ -33,7 +35,6 @@ from masonry_nscd.nscd.checkpoint import (
     save_checkpoint,
 )
 from masonry_nscd.nscd.integrator import Integrator
-from masonry_nscd.resume import CHECKPOINT_NAME, read_resume_point, truncate_csv
 from masonry_nscd.run import CSV_COLUMNS, RunFailure, RunInputError, run_case
 
 SMOKE = "cases/smoke.yaml"
@@ -278,9 +279,9 @@ def test_overwrite_drops_the_previous_checkpoint(tmp_path, monkeypatch):
 
 
 def _stepped_integrator(steps: int, sets=()):
-    from masonry_nscd.scenes.wall import build_wall
+    from masonry_nscd.scenes import build_scene
 
-    integ = build_wall(load_case(SMOKE, list(sets))).integrator
+    integ = build_scene(load_case(SMOKE, list(sets))).integrator()
     for _ in range(steps):
         integ.step()
     return integ

@@ -18,7 +18,7 @@ import pytest
 
 from masonry_nscd.case import load_case
 from masonry_nscd.nscd.integrator import Integrator
-from masonry_nscd.scenes.wall import build_wall
+from masonry_nscd.scenes import build_scene
 
 
 @pytest.fixture(scope="module")
@@ -28,9 +28,10 @@ def loaded_wall():
     case = load_case("cases/wall_0.5MPa_elastic.yaml",
                      ["solver.tolerance=1e-10", "loading.horizontal.start_s=0.2",
                       "loading.horizontal.rate_m_s=0.01", "solver.time_step_s=2e-3"])
-    scene = build_wall(case)
-    integ = scene.integrator
-    while integ.u[scene.top_dof_x] < 0.2e-3:
+    scene = build_scene(case)
+    integ = scene.integrator()
+    ux = scene.driven_dofs(integ.sys.body_dof0)[0]
+    while integ.u[ux] < 0.2e-3:
         assert integ.step().converged
     return integ
 

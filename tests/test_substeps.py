@@ -10,7 +10,7 @@ import numpy as np
 
 from masonry_nscd.case import load_case
 from masonry_nscd.run import run_case
-from masonry_nscd.scenes.wall import build_wall
+from masonry_nscd.scenes import build_scene
 
 SMOKE = "cases/smoke.yaml"
 
@@ -21,9 +21,9 @@ def test_a_subdivided_step_is_two_steps_of_half_the_size():
     failed attempt leaves nothing behind). A subdivision starts Newton without its predictor
     (the last solutions belong to another time), so ``b`` forgets them at the same points."""
     unconverging = ["solver.max_iterations=1", "solver.check_every=1"]
-    a = build_wall(load_case(SMOKE, [*unconverging, "solver.max_step_halvings=1"])).integrator
-    b = build_wall(load_case(SMOKE, [*unconverging, "solver.max_step_halvings=0",
-                                     "solver.time_step_s=1e-3"])).integrator
+    a = build_scene(load_case(SMOKE, [*unconverging, "solver.max_step_halvings=1"])).integrator()
+    b = build_scene(load_case(SMOKE, [*unconverging, "solver.max_step_halvings=0",
+                                     "solver.time_step_s=1e-3"])).integrator()
     for _ in range(3):
         rep = a.step()
         b.newton.forget_solutions()
@@ -83,7 +83,7 @@ def test_a_step_that_diverges_is_halved_and_named_if_it_still_diverges(monkeypat
         return orig(self)
 
     monkeypatch.setattr(integ_mod.Integrator, "_step", step)
-    a = build_wall(load_case(SMOKE, ["solver.max_step_halvings=2"])).integrator
+    a = build_scene(load_case(SMOKE, ["solver.max_step_halvings=2"])).integrator()
     reps = [a.step() for _ in range(6)]
     assert [r.substeps for r in reps] == [1, 1, 1, 1, 2, 1]
     assert all(r.converged for r in reps) and a.step_index == 6
@@ -91,7 +91,7 @@ def test_a_step_that_diverges_is_halved_and_named_if_it_still_diverges(monkeypat
 
     monkeypatch.setattr(integ_mod.Integrator, "_step",
                         lambda self: step(self, diverge_below=0.0))
-    b = build_wall(load_case(SMOKE, ["solver.max_step_halvings=2"])).integrator
+    b = build_scene(load_case(SMOKE, ["solver.max_step_halvings=2"])).integrator()
     for _ in range(4):
         b.step()
     sizes.clear()

@@ -11,18 +11,18 @@
 import numpy as np
 import pytest
 
-from masonry_nscd.contact import joint_law as jl
+from masonry_nscd.contact.laws import fczm as jl
 from masonry_nscd.materials.blocks import Endo3dBlocks
 from masonry_nscd.materials.endo3d import endo3d_params
 from masonry_nscd.model import MAT_ENDO3D, Block
-from masonry_nscd.nscd.newton import evaluate_joints, joint_tangent
+from masonry_nscd.nscd.newton import evaluate_joints
 
 E, NU = 11.1e9, 0.2
 
 
 def _block_and_material():
-    blk = Block(origin=(0, 0, 0), size=(0.3, 0.1, 0.15), divisions=(2, 2, 1), E=E, nu=NU,
-                density=2000.0, material=MAT_ENDO3D)
+    blk = Block.box((0, 0, 0), (0.3, 0.1, 0.15), (2, 2, 1), E=E, nu=NU, density=2000.0,
+                    material=MAT_ENDO3D)
     prm = endo3d_params(E=E, nu=NU, R_t=1.0e6, eps_pic_t=1.0e6 / E, G_ft=60.0, R_c=9.46e6,
                         eps_pic_c=0.13e-1, delta=0.4, beta=0.2, eps_kdc=0.18e-1, DCPK=1.0,
                         REF=0.3e6, GFR=4.5)
@@ -105,7 +105,7 @@ def test_joint_tangent_is_the_derivative_of_the_implicit_law(u_now, softens):
     assert np.linalg.norm(K - fd) <= 1e-3 * np.linalg.norm(fd), (K, fd, beta)
     if softens:  # the frozen-integrity tangent would be far off
         Kf = np.zeros((3, 3))
-        joint_tangent(u[0], T, uc_old[0], beta, jl.ST_OPEN if u[0, 0] > 0 else jl.ST_STICK,
+        jl.tangent(u[0], T, uc_old[0], beta, jl.ST_OPEN if u[0, 0] > 0 else jl.ST_STICK,
                       params[0], Kf)
         assert np.linalg.norm(Kf - fd) > 0.2 * np.linalg.norm(fd)
 

@@ -12,23 +12,24 @@ from typer.testing import CliRunner
 from masonry_nscd.case import load_case
 from masonry_nscd.cli import app
 from masonry_nscd.run import CSV_COLUMNS
-from masonry_nscd.scenes.wall import GROUP_NAMES, unit_boxes
+from masonry_nscd.scenes.layout import unit_boxes
+from masonry_nscd.scenes.wall import GROUPS
 
 
 def test_running_bond_of_the_reference_wall():
     wall = load_case("cases/wall_0.5MPa.yaml").wall
     boxes = unit_boxes(wall)
-    per_course = [sum(1 for k, *_ in boxes if k == c) for c in range(11)]
+    per_course = [sum(1 for b in boxes if b.course == c) for c in range(11)]
     assert per_course == [6, 7] * 5 + [6]
     for c in range(11):
-        row = sorted((x0, length) for k, x0, _, length in boxes if k == c)
+        row = sorted((b.x0, b.length) for b in boxes if b.course == c)
         # every course spans 1.85 m with 10 mm head joints between units
         assert row[-1][0] + row[-1][1] == pytest.approx(1.85, abs=1e-12)
         for (x0, l0), (x1, _) in itertools.pairwise(row):
             assert x1 - (x0 + l0) == pytest.approx(0.010, abs=1e-12)
         if c % 2:
             assert row[0][1] == row[-1][1] == pytest.approx(0.145)
-    tops = {k: y0 for k, _, y0, _ in boxes}
+    tops = {b.course: b.y0 for b in boxes}
     assert tops[10] + 0.1 == pytest.approx(1.20, abs=1e-12)  # 11 x 100 + 10 x 10 mm
 
 
@@ -37,15 +38,19 @@ def test_contact_points_of_the_reference_wall():
 
     case = load_case("cases/wall_0.5MPa_elastic.yaml")
     scene = build_wall(case)
-    count = {n: int((scene.group == i).sum()) for i, n in enumerate(GROUP_NAMES)}
+    group = np.array([p.group for p in scene.points])
+    count = {n: int((group == i).sum()) for i, n in enumerate(GROUPS) if (group == i).any()}
     # 2 x 2 element faces x 2 x 2 Gauss points = 8 points per bed face of a unit and per head
     # face. Bed joints: points on the bottom face of every unit above course 0 (5 courses of 7
     # units, 5 of 6); head joints: 5 per full course (6 courses), 6 per bonded one (5 courses).
     assert count == {"bed": 8 * (5 * 7 + 5 * 6), "head": 8 * (6 * 5 + 5 * 6),
                      "glue_bottom": 48, "glue_top": 48}
-    gaps = {p.gap for p in scene.integrator.points}
-    assert gaps == {0.0, 0.010}
-    assert np.sum(scene.integrator.sys.area[scene.group == 2]) == pytest.approx(1.8 * 0.15)
+    # gaps measured on the geometry: the joint thickness, and none at the glue
+    gaps = np.array([p.gap for p in scene.points])
+    assert np.allclose(gaps[group < 2], 0.010, atol=1e-12)
+    assert np.allclose(gaps[group >= 2], 0.0, atol=1e-12)
+    area = np.array([p.area for p in scene.points])
+    assert np.sum(area[group == 2]) == pytest.approx(1.8 * 0.15)
 
 
 @pytest.fixture(scope="module")
@@ -87,8 +92,7 @@ def test_smoke_run_equilibrium(smoke_run):
     assert np.allclose(c["fy_kN"][settled], -sigma_force_kN, rtol=1e-2)
     # the bottom carries the load plus the weight of the wall
     units = unit_boxes(case.wall)
-    weight_kN = sum(length * case.wall.unit_height_m * case.wall.thickness_m
-                    for _, _, _, length in units) * 2000 * 9.81 / 1e3
+    weight_kN = sum(b.length * b.height * case.wall.thickness_m for b in units) * 2000 * 9.81 / 1e3
     assert np.allclose(c["fy_bottom_kN"][settled], sigma_force_kN + weight_kN, rtol=1e-2)
     # once loaded horizontally, the top force balances the bottom reaction
     last = c["fx_kN"][-1]
@@ -174,21 +178,21 @@ def test_top_rotation_free_lets_the_beam_turn_and_softens_the_wall(tmp_path):
     horizontal force at the same imposed displacement is lower, and the beam has turned (its
     in-plane rotation dof is no longer imposed)."""
     from masonry_nscd.run import run_case
-    from masonry_nscd.scenes.wall import build_wall
+    from masonry_nscd.scenes import build_scene
 
     forces, turns = {}, {}
     for mode in ("fixed", "free"):
         case = load_case("cases/smoke.yaml", [f"supports.top_rotation={mode}",
                                               "loading.horizontal.target_m=0.2e-3"])
-        scene = build_wall(case)
-        integ = scene.integrator
-        top = integ.bodies[scene.top_beam]
+        scene = build_scene(case)
+        integ = scene.integrator()
+        top = integ.bodies[scene.driven]
         assert (5 in top.imposed_velocity) == (mode == "fixed")
         res = run_case(case, tmp_path / mode, echo=lambda m: None)
         forces[mode] = res.fx_kN
         with h5py.File(tmp_path / mode / "results.h5") as f:
             last = max(f["steps"])
             u = np.asarray(f["steps"][last]["u"])
-        turns[mode] = abs(u[integ.sys.body_dof0[scene.top_beam] + 5])
+        turns[mode] = abs(u[integ.sys.body_dof0[scene.driven] + 5])
     assert turns["fixed"] == 0.0 and turns["free"] > 0.0
     assert forces["free"] < 0.95 * forces["fixed"]

@@ -3,14 +3,14 @@
 The point is driven by its total relative displacement (the loading device is rigid, so the
 compliance ``A`` of the local problem is zero) and solved with the same local solver and the
 same integrity update as the NSCD step: the integrity is consistent with the cohesive
-displacement at the end of the step (``joint_law.local_solve_implicit``), so the traction
+displacement at the end of the step (``contact.laws.solve``), so the traction
 follows the envelope whatever the step size.
 
 Paths (``to`` is the final value, m):
 
 * ``opening``: ``u_n`` from 0 to ``to``, no slip;
 * ``sliding``: ``u_t`` from 0 to ``to`` with the normal traction held at ``normal_stress`` (Pa,
-  negative in compression). In compression the normal response is the spring alone, so holding
+  negative in compression; the FCZM law). In compression the normal response is the spring alone, so holding
   ``T_n`` means imposing ``u_n = T_n c_n``; in tension ``u_n`` is chosen per step so that the
   open joint carries ``T_n`` with the integrity of the start of the step;
 * ``mixed``: ``u_n = u_t`` from 0 to ``to`` each (45 degrees).
@@ -24,7 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from masonry_nscd.contact import joint_law as jl
+from masonry_nscd.contact import laws
+from masonry_nscd.contact.laws import fczm
 
 PATHS = ("opening", "sliding", "mixed")
 
@@ -37,7 +38,7 @@ class JointCurve:
     u_t: np.ndarray  # m, total tangential relative displacement
     T_n: np.ndarray  # Pa, normal traction (tension positive)
     T_t: np.ndarray  # Pa, tangential traction
-    d_coh: np.ndarray  # total cohesive damage 1 - beta b
+    d_coh: np.ndarray  # total cohesive damage 1 - beta (1 - d_coh,0)
     status: np.ndarray  # ST_* code of the local solver
 
     def work(self) -> float:
@@ -64,7 +65,7 @@ def drive_joint_point(
     P: np.ndarray, path: str, to: float, steps: int = 2000, normal_stress: float = 0.0,
     unload_to: float | None = None,
 ) -> JointCurve:
-    """Drive one point of unit area with parameters ``P`` (see ``joint_law.joint_params``).
+    """Drive one point of unit area with the law of parameter row ``P`` (``contact.laws``).
 
     ``unload_to``: after reaching ``to``, go back linearly to this value in as many steps
     (used for unload/reload checks); the curve then has ``2 steps + 1`` entries.
@@ -85,7 +86,7 @@ def drive_joint_point(
     uc = np.zeros(3)
     uc_old = np.zeros(3)
     beta = 1.0
-    b = P[jl.P_B]
+    b = 1.0 - laws.initial_damage(P)
     for i in range(n):
         if path == "opening":
             ut[:] = (s[i], 0.0, 0.0)
@@ -95,7 +96,7 @@ def drive_joint_point(
             ut[0] = _normal_for_stress(normal_stress, beta, P)
             ut[1] = s[i]
             ut[2] = 0.0
-        st, beta = jl.local_solve_implicit(ut, A, uc_old, beta, P, jl.KIND_JOINT, T, uc)
+        st, beta = laws.solve(ut, A, uc_old, beta, P, laws.KIND_JOINT, T, uc)
         uc_old[:] = uc
         out["u_n"][i] = ut[0]
         out["u_t"][i] = ut[1]
@@ -107,15 +108,15 @@ def drive_joint_point(
 
 
 def _normal_for_stress(sigma: float, beta: float, P: np.ndarray) -> float:
-    """Total normal displacement that carries the normal traction ``sigma`` (Pa)."""
+    """Total normal displacement that carries the normal traction ``sigma`` (Pa) (FCZM)."""
     if sigma <= 0.0:
-        return sigma * P[jl.P_CN_C]
-    kn = beta * P[jl.P_B] * P[jl.P_KI]
+        return sigma * P[fczm.P_CN_C]
+    kn = beta * P[fczm.P_B] * P[fczm.P_KI]
     if kn <= 0.0:
         raise ValueError(
             f"the joint cannot carry a normal tension of {sigma} Pa: it has no cohesion left"
         )
-    return sigma / kn + sigma * P[jl.P_CN_T]
+    return sigma / kn + sigma * P[fczm.P_CN_T]
 
 
 def drive_joint_history(P: np.ndarray, u_path: np.ndarray) -> JointCurve:
@@ -129,16 +130,17 @@ def drive_joint_history(P: np.ndarray, u_path: np.ndarray) -> JointCurve:
     uc = np.zeros(3)
     uc_old = np.zeros(3)
     beta = 1.0
+    b = 1.0 - laws.initial_damage(P)
     n = len(u_path)
     out = {k: np.zeros(n) for k in ("u_n", "u_t", "T_n", "T_t", "d_coh")}
     status = np.zeros(n, dtype=np.int64)
     Ts = np.zeros((n, 3))
     for i in range(n):
         ut = np.ascontiguousarray(u_path[i], dtype=float)
-        status[i], beta = jl.local_solve_implicit(ut, A, uc_old, beta, P, jl.KIND_JOINT, T, uc)
+        status[i], beta = laws.solve(ut, A, uc_old, beta, P, laws.KIND_JOINT, T, uc)
         uc_old[:] = uc
         Ts[i] = T
         out["u_n"][i], out["u_t"][i] = ut[0], ut[1]
         out["T_n"][i], out["T_t"][i] = T[0], T[1]
-        out["d_coh"][i] = 1.0 - beta * P[jl.P_B]
+        out["d_coh"][i] = 1.0 - beta * b
     return JointCurve(status=status, **out)

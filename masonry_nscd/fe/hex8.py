@@ -155,25 +155,6 @@ def assemble_block(X: np.ndarray, conn: np.ndarray, C: np.ndarray, rho: float):
 
 
 @njit(cache=True)
-def assemble_block_scaled(X: np.ndarray, conn: np.ndarray, C: np.ndarray, scale: np.ndarray):
-    """Dense stiffness (3n, 3n) of one block with element e's stiffness scaled by scale[e]."""
-    n = X.shape[0]
-    K = np.zeros((3 * n, 3 * n))
-    xe = np.empty((8, 3))
-    for e in range(conn.shape[0]):
-        for i in range(8):
-            xe[i] = X[conn[e, i]]
-        Ke = element_stiffness(xe, C)
-        for i in range(8):
-            for di in range(3):
-                I = 3 * conn[e, i] + di
-                for j in range(8):
-                    for dj in range(3):
-                        K[I, 3 * conn[e, j] + dj] += scale[e] * Ke[3 * i + di, 3 * j + dj]
-    return K
-
-
-@njit(cache=True)
 def gauss_strains(X: np.ndarray, conn: np.ndarray, u: np.ndarray, eps: np.ndarray) -> None:
     """Strains (nel * 8, 6) at the Gauss points from nodal displacements u (3n,)."""
     ue = np.empty(24)

@@ -53,9 +53,7 @@ Guarantees (tested in tests/test_io.py)
 from __future__ import annotations
 
 import contextlib
-import os
 import shutil
-import tempfile
 import time as _time
 from collections.abc import Mapping
 from pathlib import Path
@@ -66,14 +64,12 @@ import h5py
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-PathLike = str | os.PathLike[str]
+from masonry_nscd.io.atomic import PathLike, atomic_write, fsync_file
 
 FORMAT = "masonry_nscd.results"
 FORMAT_VERSION = 1
 LIBVER = "latest"
 _CURVE_CHUNK = 1024
-_UMASK = os.umask(0)
-os.umask(_UMASK)
 
 
 class StepRecord(NamedTuple):
@@ -122,14 +118,6 @@ def _checked_attrs(attrs: Mapping[str, Any] | None) -> dict[str, Any]:
     return out
 
 
-def _fsync(path: PathLike) -> None:
-    fd = os.open(path, os.O_RDWR)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
 def _create_dataset(group: h5py.Group, name: str, arr: NDArray, compression: str | None) -> None:
     if compression is not None and arr.ndim >= 1 and arr.size > 0:
         group.create_dataset(name, data=arr, compression=compression, shuffle=True)
@@ -163,13 +151,7 @@ class ResultsFile:
         self._closed = False
         self._steps: set[int] = set()
 
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(
-            prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent
-        )
-        os.close(fd)
-        try:
-            os.chmod(tmp, 0o666 & ~_UMASK)
+        def create(tmp: str) -> None:
             with h5py.File(tmp, "w", libver=LIBVER) as f:
                 f.attrs["format"] = FORMAT
                 f.attrs["format_version"] = FORMAT_VERSION
@@ -183,12 +165,8 @@ class ResultsFile:
                     _create_dataset(g, k, v, compression)
                 f.create_group("steps")
                 f.create_group("curve")
-            _fsync(tmp)
-            os.replace(tmp, self.path)
-        except BaseException:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
-            raise
+
+        atomic_write(self.path, create)
 
     @classmethod
     def reopen(
@@ -225,9 +203,7 @@ class ResultsFile:
                 len(ds) > curve_length for ds in f["curve"].values()
             )
         if drop or trim:
-            fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-            os.close(fd)
-            try:
+            def cut(tmp: str) -> None:
                 shutil.copyfile(target, tmp)
                 with h5py.File(tmp, "r+", libver=LIBVER, locking=False) as f:
                     for name in drop:
@@ -236,12 +212,8 @@ class ResultsFile:
                         for ds in f["curve"].values():
                             if len(ds) > curve_length:
                                 ds.resize((curve_length,))
-                _fsync(tmp)
-                os.replace(tmp, target)
-            except BaseException:
-                with contextlib.suppress(OSError):
-                    os.unlink(tmp)
-                raise
+
+            atomic_write(target, cut)
         self = cls.__new__(cls)
         self.path = target
         self.compression = compression
@@ -302,7 +274,7 @@ class ResultsFile:
                 with contextlib.suppress(Exception):
                     del steps[name]
                 raise
-        _fsync(self.path)
+        fsync_file(self.path)
         self._steps.add(step)
 
     def write_curve(self, columns: Mapping[str, ArrayLike]) -> None:
@@ -335,7 +307,7 @@ class ResultsFile:
                 else:
                     ds.resize((len(v),))
                     ds[...] = v
-        _fsync(self.path)
+        fsync_file(self.path)
 
 
 # -- reading -------------------------------------------------------------------------------

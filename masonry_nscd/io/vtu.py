@@ -31,13 +31,9 @@ Guarantees
 ----------
 - Every array is checked before anything touches the disk: shapes, numeric dtype, and no NaN
   or infinity (``ValueError`` naming the field, e.g. ``point_data['displacement']``).
-- Every file is written atomically: to a temporary file ``.<name>.<random>.tmp`` in the same
-  folder, flushed to disk (fsync), then renamed over the target with ``os.replace``. A failing
-  or interrupted write leaves the previous version of the target untouched; on an exception
-  the temporary file is removed. Only a process killed during the write (SIGKILL, power loss)
-  can leave a stray ``.*.tmp`` file, never a truncated ``.vtu``/``.pvd``.
-- The parent folder is created if missing; files get the usual permissions (0666 minus the
-  umask read when this module is imported).
+- Every file is written atomically (:mod:`masonry_nscd.io.atomic`): a failing or
+  interrupted write leaves the previous version of the target untouched, never a truncated
+  ``.vtu``/``.pvd``. The parent folder is created if missing.
 
 Limitations: meshio builds the whole XML in memory (a few times the size of the arrays), and
 meshio cannot read back a file with zero points or cells (VTK/ParaView can; such files are
@@ -46,50 +42,18 @@ written uncompressed because meshio's compressed header is wrong for empty array
 
 from __future__ import annotations
 
-import contextlib
 import os
-import tempfile
 import xml.etree.ElementTree as ET
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import meshio
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-PathLike = str | os.PathLike[str]
-
-# Read once: os.umask can only be read by setting it, which is not thread-safe.
-_UMASK = os.umask(0)
-os.umask(_UMASK)
+from masonry_nscd.io.atomic import PathLike, atomic_write
 
 _NUMERIC_KINDS = "biuf"
-
-
-def atomic_write(path: PathLike, write: Callable[[str], None]) -> None:
-    """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it onto ``path``.
-
-    The temporary file is fsynced before ``os.replace`` so that the target is always either
-    the previous complete file or the new complete one. On any exception (including
-    KeyboardInterrupt) the temporary file is removed and the exception re-raised.
-    """
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    os.close(fd)
-    try:
-        os.chmod(tmp, 0o666 & ~_UMASK)
-        write(tmp)
-        fd = os.open(tmp, os.O_RDWR)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
 
 
 def checked_array(name: str, a: ArrayLike) -> NDArray:

@@ -14,8 +14,8 @@ needs the correction
     c(u_n+1) = h theta [ F_int(u_n+1) - F_int(u_n) - K0 (u_n+1 - u_n) ]          (N s)
 
 which is zero for linear elastic blocks, and the Newton matrix the tangent stiffness
-(``tangent_stiffness``: consistent, by differences of the kernel) or a secant one
-(``secant_scale``). Blocks that are linear elastic never call ENDO3D.
+(``tangent_stiffness``: consistent, by differences of the kernel). Blocks that are linear
+elastic never call ENDO3D.
 
 **Viscous regularisation** (optional, relaxation time ``tau`` in s, 0 = none): the stress of a
 Gauss point relaxes towards the ENDO3D stress (Duvaut-Lions),
@@ -167,21 +167,6 @@ class Endo3dBlocks:
             np.add.at(K, (loc[:, :, None], loc[:, None, :]), Ke[e0:e0 + ne])
             out.append(K)
             e0 += ne
-        return out
-
-    def secant_scale(self, trial: bool = False) -> list[np.ndarray]:
-        """Per element of each block, the scale of C0 in the secant iteration matrix.
-
-        ``(1 - d_c)(1 - max(d_cpp, d_t))`` averaged over the element's Gauss points, from the
-        committed states (or the last trial ones), floored at 1e-3 so that the matrix stays
-        positive definite.
-        """
-        out = []
-        states = self.trial if trial else self.state
-        for k, b in enumerate(self.blocks):
-            d_c, d_cpp, d_t, _ = endo3d.endo3d_outputs(states[k])
-            g = (1.0 - d_c) * (1.0 - np.maximum(d_cpp, d_t))
-            out.append(np.maximum(g.reshape(len(b.conn), 8).mean(axis=1), 1e-3))
         return out
 
     def element_fields(self) -> dict[str, np.ndarray]:

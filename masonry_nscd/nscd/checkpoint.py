@@ -14,32 +14,29 @@ What a checkpoint holds (SI units, as in the integrator):
   strains are where the viscous regularisation relaxes from).
 
 Not saved: what the solver keeps between steps to go faster. The sparse LU of the Newton
-matrix, its iteration matrix of the ENDO3D blocks (secant or tangent) and the last trial states
+matrix, its iteration matrix of the ENDO3D blocks (their tangent) and the last trial states
 are rebuilt by a freshly built integrator on its first step. That changes only the iteration
 path: a resumed run reaches the same states as an uninterrupted one within the solver
 tolerance.
 
-The file is a NumPy ``.npz`` (no pickled objects), written to a temporary file beside its
-target, fsynced, then renamed onto it (``os.replace``): a checkpoint on disk is always either
-the previous complete one or the new complete one. The caller may add its own arrays (prefixed
+The file is a NumPy ``.npz`` (no pickled objects), written atomically
+(:mod:`masonry_nscd.io.atomic`): a checkpoint on disk is always either the previous complete one
+or the new complete one. The caller may add its own arrays (prefixed
 ``run_`` by :func:`save_checkpoint` to keep them apart).
 """
 
 from __future__ import annotations
 
-import contextlib
 import os
-import tempfile
 import zipfile
 from collections.abc import Mapping
-from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from masonry_nscd.io.atomic import atomic_write
+
 FORMAT = "masonry_nscd.checkpoint"
-_UMASK = os.umask(0)  # read once, at import (reading it means setting it)
-os.umask(_UMASK)
 FORMAT_VERSION = 1
 _JOINT_FIELDS = ("u", "U", "uc", "beta", "T", "status")
 _EXTRA = "run_"
@@ -129,19 +126,11 @@ def save_checkpoint(path: str | os.PathLike[str], integ,
             raise TypeError(f"checkpoint extra {k!r}: numeric or str array expected, got "
                             f"dtype {a.dtype}")
         arrays[_EXTRA + k] = a
-    target = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    try:
-        os.chmod(tmp, 0o666 & ~_UMASK)  # the usual permissions, not mkstemp's 0600
-        with os.fdopen(fd, "wb") as f:
+    def write(tmp: str) -> None:
+        with open(tmp, "wb") as f:  # a file object: np.savez would add .npz to a name
             np.savez(f, **arrays)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
+
+    atomic_write(path, write)
 
 
 def load_checkpoint(path: str | os.PathLike[str]) -> tuple[dict[str, NDArray],

@@ -12,11 +12,12 @@
 
 ENDO3D blocks enter the Newton residual through their internal forces, and its matrix through
 their consistent tangent stiffness, refreshed at the current iterate whenever the iterations
-slow down (``material_matrix = "tangent"``, the default), or through a secant stiffness
-(``"secant"``, C0 scaled per element by the damages). Measured on the 0.5 MPa ENDO3D wall over
-the first 560 steps: 0.13 s per step with the tangent against 0.26 s with the secant, and through
-the cracking of the heel (from U_x = 1.7 mm) the secant stalled at 50 iterations where the
-tangent converges.
+slow down (docs/choices.md: a secant stiffness, C0 scaled per element by the damages, took
+twice as long per step on the 0.5 MPa ENDO3D wall and stalled once the heel cracked).
+
+A rigid body whose reference point is not its centre of mass has a full mass matrix: where one
+of its dofs is imposed, the change of the imposed velocity over the step acts on its free dofs
+through the coupling of the mass matrix, ``dv_f = -M_ff^-1 M_fi dv_i`` (``_coupled``).
 
 A step that did not reach the tolerance, or whose ENDO3D return mapping failed at some Gauss
 point (``StepReport.material_failures``), is made again from its start as two steps of h/2
@@ -36,8 +37,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from masonry_nscd.contact import joint_law as jl
-from masonry_nscd.model import ContactPoint, Loads, RigidBody
+from masonry_nscd.contact import laws
+from masonry_nscd.loading import Loads
+from masonry_nscd.model import DOF_IMPOSED, ContactPoint, RigidBody
 from masonry_nscd.nscd import kernels
 from masonry_nscd.nscd.system import build_system
 
@@ -78,7 +80,7 @@ class JointState:
     uc: np.ndarray  # (npt, 3) m, cohesive part of u
     beta: np.ndarray  # (npt,) integrity
     T: np.ndarray  # (npt, 3) Pa, traction (tension positive)
-    status: np.ndarray  # (npt,) joint_law.ST_*
+    status: np.ndarray  # (npt,) contact.laws.ST_*
 
 
 class Integrator:
@@ -99,7 +101,6 @@ class Integrator:
         beta0: float | np.ndarray = 1.0,
         method: str = "nlgs",
         endo3d_params: np.ndarray | None = None,
-        material_matrix: str = "tangent",
         endo3d_tau: float = 0.0,
         max_halvings: int = 0,
     ):
@@ -110,7 +111,7 @@ class Integrator:
         self._half_args = {"theta": theta, "tolerance": tolerance,
                            "max_iterations": max_iterations, "check_every": check_every,
                            "method": method, "endo3d_params": endo3d_params,
-                           "material_matrix": material_matrix, "endo3d_tau": endo3d_tau,
+                           "endo3d_tau": endo3d_tau,
                            "max_halvings": max_halvings - 1}
         self._half: Integrator | None = None
         self.bodies = bodies
@@ -123,10 +124,18 @@ class Integrator:
         self.check_every = check_every
         s = self.sys
         self.imposed = []  # (global dof, history)
+        self._coupled = []  # (free dofs, imposed dofs, -M_ff^-1 M_fi) of rigid bodies
         for i, b in enumerate(bodies):
             if isinstance(b, RigidBody):
                 for d, hist in b.imposed_velocity.items():
                     self.imposed.append((int(s.body_dof0[i] + d), hist))
+                M = b.mass_matrix()
+                imp = b.dof_mode == DOF_IMPOSED
+                if imp.any() and (~imp).any() and np.any(M[np.ix_(~imp, imp)]):
+                    d0 = int(s.body_dof0[i])
+                    C = -np.linalg.solve(M[np.ix_(~imp, ~imp)], M[np.ix_(~imp, imp)])
+                    self._coupled.append((d0 + np.flatnonzero(~imp), d0 + np.flatnonzero(imp),
+                                          C))
         n, npt = s.ndof, s.npt
         self.t = 0.0
         self.step_index = 0
@@ -150,11 +159,6 @@ class Integrator:
             if endo3d_params is not None else None
         if self.material is not None and not self.material:
             self.material = None
-        self._secant = None
-        if material_matrix not in ("tangent", "secant"):
-            raise ValueError(f"material_matrix must be 'tangent' or 'secant', got "
-                             f"{material_matrix!r}")
-        self.material_matrix = material_matrix
         self.tangent_updates = 0
         if self.material is not None and method != "newton":
             raise ValueError("ENDO3D blocks need the Newton solver (method 'newton'): the "
@@ -162,9 +166,9 @@ class Integrator:
         if method == "newton":
             from masonry_nscd.nscd.newton import NewtonSolver
 
-            joints = s.kind == jl.KIND_JOINT
+            joints = s.kind == laws.KIND_JOINT
             used = self.params[np.unique(s.law[joints])] if joints.any() else self.params[:0]
-            if np.any(used[:, [jl.P_CN_C, jl.P_CT]] <= 0.0):
+            if not all(laws.newton_ready(P) for P in used):
                 raise ValueError("the Newton solver needs joints with a spring in series "
                                  "(dry Signorini-Coulomb contacts: use method 'nlgs')")
             self.newton = NewtonSolver(s, s.minv_off, s.mhat, tolerance,
@@ -179,30 +183,6 @@ class Integrator:
         if self.material is not None:
             self.material.internal_forces(self.u, self.fint, trial=False)
         return self.fint
-
-    def _update_secant(self, trial: bool = False) -> None:
-        """Secant iteration matrix of the ENDO3D blocks, rebuilt when their damage has moved.
-
-        The Newton matrix then holds ``M + (theta h)^2 K_sec`` for those blocks, with
-        ``K_sec`` the stiffness of C0 scaled per element by ``(1 - d_c)(1 - max(d_cpp, d_t))``
-        (committed states): K0 alone converges slowly once the stone has lost most of its
-        stiffness before its peak (d_cpp ~ 0.7 under 0.5 MPa). Rebuilt when a scale moved by
-        more than 0.02 since the last build (from the trial states when the Newton iterations
-        of a step slow down); the residual is exact whatever the matrix.
-        """
-        from masonry_nscd.fe import hex8
-
-        scales = self.material.secant_scale(trial)
-        if self._secant is not None and all(
-                np.abs(a - b).max() <= 0.02 for a, b in zip(scales, self._secant)):
-            return
-        self._secant = scales
-        stiffnesses = []
-        for k, i in enumerate(self.material.index):
-            blk = self.bodies[i]
-            C = hex8.elastic_matrix(blk.E, blk.nu)
-            stiffnesses.append(hex8.assemble_block_scaled(blk.X, blk.conn, C, scales[k]))
-        self._set_material_matrix(stiffnesses)
 
     def _update_tangent(self) -> None:
         """Consistent tangent iteration matrix of the ENDO3D blocks at the current iterate.
@@ -229,10 +209,7 @@ class Integrator:
 
     def _on_slow(self) -> None:
         if self.material is not None:
-            if self.material_matrix == "tangent":
-                self._update_tangent()
-            else:
-                self._update_secant(trial=True)
+            self._update_tangent()
 
     def _material_correction(self, fint_n: np.ndarray):
         """``c(v) = h theta [F_int(u) - F_int(u_n) - K0 (u - u_n)]`` for the ENDO3D blocks."""
@@ -311,6 +288,8 @@ class Integrator:
                               self._F0, F1, h, theta, v_free)
         for d, hist in self.imposed:
             v_free[d] = hist(t1)
+        for free, imposed, C in self._coupled:
+            v_free[free] += C @ (v_free[imposed] - self.v[imposed])
         U_free = np.empty((s.npt, 3))
         kernels.local_velocities(s.side_dofs, s.side_coef, v_free, U_free)
         j = self.joints
@@ -318,12 +297,10 @@ class Integrator:
             corr = None
             if self.material is not None:
                 corr = self._material_correction(fint.copy())
-                if self.material_matrix == "secant":
-                    self._update_secant()
             v1, T, uc, beta, status, sweeps, residual = self.newton.solve(
                 v_free, j.u, j.U, self.params, j.uc, j.beta, j.T, self._dv, correction=corr)
             self._dv = v1 - v_free
-            amb = int(np.sum(status == jl.ST_AMBIGUOUS))
+            amb = int(np.sum(status == laws.ST_AMBIGUOUS))
         if self.newton is None or (residual > self.tolerance and self.material is None
                                    and not self.max_halvings):
             # Gauss-Seidel sweeps: the solver of the case, or the end of a step that Newton

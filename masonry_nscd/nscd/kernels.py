@@ -14,7 +14,7 @@ displacement of point ``a`` at the end of the step is
     u_a = u~_a - A_a T_a,   u~_a = u_a,n + h (1 - theta) U_a,n + h theta U_a^others,
     A_a = theta h^2 S_a W_aa                                        (m/Pa)
 
-which is the local problem solved by ``joint_law.local_solve_implicit``.
+which is the local problem solved by the law of the point (``contact.laws.solve``).
 
 Convergence of the sweeps: every ``check_every`` sweeps, the relative change of the contact
 forces over the last sweep, ``sqrt(sum |S dT|^2) / sqrt(sum |S T|^2)``, against the tolerance.
@@ -27,7 +27,7 @@ import math
 import numpy as np
 from numba import njit
 
-from masonry_nscd.contact import joint_law as jl
+from masonry_nscd.contact import laws
 
 
 @njit(cache=True)
@@ -171,10 +171,8 @@ def nlgs(
                 for j in range(3):
                     A[i, j] = g * W[a, i, j]
                 ucold[i] = uc_old[a, i]
-            st, bnew = jl.local_solve_implicit(
-                ut, A, ucold, beta_old[a], params[law[a]], kind[a], Tn, ucn
-            )
-            if st == jl.ST_AMBIGUOUS:
+            st, bnew = laws.solve(ut, A, ucold, beta_old[a], params[law[a]], kind[a], Tn, ucn)
+            if st == laws.ST_AMBIGUOUS:
                 n_amb += 1
             d0 = Tn[0] - T[a, 0]
             d1 = Tn[1] - T[a, 1]

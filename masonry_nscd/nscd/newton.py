@@ -7,7 +7,7 @@ The step of ``kernels.py`` is, with body velocities ``v`` at the end of the step
 
 where a joint point's impulse follows from its law, ``r_a = -h S_a T_a(u_a)``, with the relative
 displacement ``u_a = u_a,n + h (1 - theta) U_a,n + h theta H_a^T v`` and ``T_a(u)`` the joint law
-driven by its total relative displacement (the ``A = 0`` form of ``joint_law.local_solve_implicit``,
+driven by its total relative displacement (the ``A = 0`` form of the law's ``solve``,
 integrity consistent with the end of the step). These are exactly the equations that the
 Gauss-Seidel sweeps solve in their dual form (impulses as unknowns); only the way to the
 solution differs. Glue impulses stay unknowns (Lagrange multipliers), so the glue is exact.
@@ -43,13 +43,9 @@ Measured on the reference wall with elastic blocks (100 steps from U_x = 0.3 mm,
 plain chord steps 9.2 iterations and 0.35 factorisations per step, 26.8 ms; accelerated, 7.0
 and 0.17, 18.4 ms. Near the peak (from U_x = 2.5 mm) 63.5 against 49.7 ms per step.
 
-The law needs a spring in series (finite ``T(u)``); for dry Signorini-Coulomb contacts use the
-Gauss-Seidel solver.
-
-Tangent per status (A = 0, spring compliances ``c``, cohesive stiffness ``kappa``):
-open ``K = diag(kappa / (1 + c kappa))``; stick ``K = diag(1 / c)``; slide
-``K_nn = 1 / c_n``, ``K_tt = (kappa_t I + mu_eff N (I - e e^T) / |q|) / (1 + c_t kappa_t)``,
-``K_tn = -mu_eff e / (c_n (1 + c_t kappa_t))`` with ``q = u_t - (1 + c_t kappa_t) u_c,t,old``.
+The law needs a spring in series (finite ``T(u)``, the law's ``newton_ready``); for dry
+Signorini-Coulomb contacts use the Gauss-Seidel solver. The tangent per status is the law's
+(``contact.laws.tangent``; for the FCZM, ``contact.laws.fczm.tangent``).
 """
 
 from __future__ import annotations
@@ -62,53 +58,13 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numba import njit
 
-from masonry_nscd.contact import joint_law as jl
-
-
-@njit(cache=True)
-def joint_tangent(u, T, uc_old, beta, status, P, K):
-    """Tangent ``K = dT/du`` (3x3, Pa/m) of the law at the solution (u, T) for its status."""
-    b = P[jl.P_B]
-    kn = beta * b * P[jl.P_KI]
-    kt = beta * b * P[jl.P_KII]
-    cnt = P[jl.P_CN_T]
-    cnc = P[jl.P_CN_C]
-    ct = P[jl.P_CT]
-    for i in range(3):
-        for j in range(3):
-            K[i, j] = 0.0
-    if status == jl.ST_OPEN:
-        K[0, 0] = kn / (1.0 + cnt * kn)
-        K[1, 1] = kt / (1.0 + ct * kt)
-        K[2, 2] = K[1, 1]
-        return
-    K[0, 0] = 1.0 / cnc
-    if status == jl.ST_SLIDE:
-        mu_eff = P[jl.P_MU] * (1.0 - beta * b) ** P[jl.P_P]
-        N = -T[0]
-        f = 1.0 + ct * kt
-        q1 = u[1] - f * uc_old[1]
-        q2 = u[2] - f * uc_old[2]
-        qn = math.sqrt(q1 * q1 + q2 * q2)
-        if qn > 0.0:
-            e1 = q1 / qn
-            e2 = q2 / qn
-            g = mu_eff * N / qn
-            K[1, 1] = (kt + g * (1.0 - e1 * e1)) / f
-            K[2, 2] = (kt + g * (1.0 - e2 * e2)) / f
-            K[1, 2] = -g * e1 * e2 / f
-            K[2, 1] = K[1, 2]
-            K[1, 0] = -mu_eff * e1 / (cnc * f)
-            K[2, 0] = -mu_eff * e2 / (cnc * f)
-            return
-    K[1, 1] = 1.0 / ct
-    K[2, 2] = 1.0 / ct
+from masonry_nscd.contact import laws
 
 
 @njit(cache=True)
 def joint_tangent_fd(u, T, uc_old, beta_old, P, K):
     """Consistent tangent ``K = dT/du`` (3x3, Pa/m) of the law with the integrity implicit in
-    the step (``joint_law.local_solve_implicit``), by forward differences.
+    the step (the law's ``solve``), by forward differences.
 
     Used where the integrity drops within the step: ``T(u) = T(u; beta(u))`` with
     ``beta = beta_env(u_c(u, beta))``. Steps ``delta = 1e-7 max(|u|, 1e-9 m)``; the regula
@@ -123,7 +79,7 @@ def joint_tangent_fd(u, T, uc_old, beta_old, P, K):
         for i in range(3):
             up[i] = u[i]
         up[j] += delta
-        jl.local_solve_implicit(up, A, uc_old, beta_old, P, jl.KIND_JOINT, tp, cp)
+        laws.solve(up, A, uc_old, beta_old, P, laws.KIND_JOINT, tp, cp)
         for i in range(3):
             K[i, j] = (tp[i] - T[i]) / delta
 
@@ -134,7 +90,7 @@ def evaluate_joints(u_pred, Hv, h, theta, kind, law, params, uc_old, beta_old,
     """Law and tangent at every joint point for ``u = u_pred + h theta H^T v`` (Hv = H^T v).
 
     The tangent is consistent: with the integrity frozen where it does not drop within the
-    step (``joint_tangent``), by differences of the implicit law where it does
+    step (the law's ``tangent``), by differences of the implicit law where it does
     (``joint_tangent_fd``).
     """
     npt = u_pred.shape[0]
@@ -145,20 +101,19 @@ def evaluate_joints(u_pred, Hv, h, theta, kind, law, params, uc_old, beta_old,
     co = np.empty(3)
     Ka = np.empty((3, 3))
     for a in range(npt):
-        if kind[a] != jl.KIND_JOINT:
+        if kind[a] != laws.KIND_JOINT:
             continue
         for i in range(3):
             u[i] = u_pred[a, i] + h * theta * Hv[a, i]
             co[i] = uc_old[a, i]
-        st, bn = jl.local_solve_implicit(u, A, co, beta_old[a], params[law[a]], jl.KIND_JOINT,
-                                         t, c)
+        st, bn = laws.solve(u, A, co, beta_old[a], params[law[a]], laws.KIND_JOINT, t, c)
         if bn < beta_old[a]:
             # the integrity drops within the step: the frozen-integrity tangent would miss the
             # softening (wrong by 100 % and in sign on opening joints), forward differences
             # of the law give the consistent one
             joint_tangent_fd(u, t, co, beta_old[a], params[law[a]], Ka)
         else:
-            joint_tangent(u, t, co, bn, st, params[law[a]], Ka)
+            laws.tangent(u, t, co, bn, st, params[law[a]], Ka)
         for i in range(3):
             T[a, i] = t[i]
             uc[a, i] = c[i]
@@ -183,7 +138,7 @@ def residual(body_dof0, mhat_off, mhat, v, v_free, side_dofs, side_coef, kind, a
                 s += mhat[mo + i * n + j] * (v[d0 + j] - v_free[d0 + j])
             R[d0 + i] = s
     for a in range(side_dofs.shape[0]):
-        if kind[a] == jl.KIND_JOINT:
+        if kind[a] == laws.KIND_JOINT:
             f = -h * area[a]
             r0 = f * T[a, 0]
             r1 = f * T[a, 1]
@@ -254,7 +209,7 @@ def jacobian_coo(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_c
                 for c in range(3):
                     coef[m, c] = side_coef[a, s, j, c]
                 m += 1
-        if kind[a] == jl.KIND_JOINT:
+        if kind[a] == laws.KIND_JOINT:
             w = h * h * theta * area[a]
             for i in range(m):
                 # row_i = coef_i . K
@@ -380,7 +335,7 @@ class NewtonSolver:
         self.free = np.flatnonzero(free)
         self.free_index = np.full(sys.ndof, -1, dtype=np.int64)
         self.free_index[self.free] = np.arange(len(self.free))
-        self.glue = np.flatnonzero(sys.kind == jl.KIND_GLUED)
+        self.glue = np.flatnonzero(sys.kind == laws.KIND_GLUED)
         self.glue_of = np.full(sys.npt, -1, dtype=np.int64)
         self.glue_of[self.glue] = np.arange(len(self.glue))
         # Glue compliance (1/kg): 1e-9 of the point's own Delassus diagonal. It makes the Newton
@@ -393,7 +348,7 @@ class NewtonSolver:
         self._K_factorised = None
         # fixed pattern and order of the Newton matrix, found at the first factorisation
         self._pattern: _Pattern | None = None
-        # the body blocks of the Newton matrix; a secant iteration matrix may replace the
+        # the body blocks of the Newton matrix; the ENDO3D blocks' tangent may replace the
         # elastic one (``set_iteration_mhat``), the residual keeps the elastic decomposition
         self.mhat_jac = mhat
         # called before refactorising when the iterations slow down or a direction fails (a
@@ -542,7 +497,7 @@ class NewtonSolver:
             out_T = T.copy()
             out_uc = np.zeros((npt, 3))
             out_beta = beta_old.copy()
-            out_status = np.full(npt, jl.ST_GLUED, dtype=np.int64)
+            out_status = np.full(npt, laws.ST_GLUED, dtype=np.int64)
             K = np.zeros((npt, 3, 3))
             kernels.local_velocities(s.side_dofs, s.side_coef, v, Hv)
             evaluate_joints(u_pred, Hv, h, th, s.kind, s.law, params, uc_old, beta_old, out_T,

@@ -5,7 +5,8 @@ For each body the iteration matrix of the theta-method is
     M_hat = M + (theta h)^2 K          (kg; K the elastic tangent of a block, 0 for rigid bodies)
 
 and its inverse is stored densely per body (blocks have a few tens of dofs). Imposed dofs of a
-rigid body get zero rows and columns in ``M_hat^-1``: impulses do not change their velocity.
+rigid body get zero rows and columns in ``M_hat^-1`` (the inverse of its free block):
+impulses do not change their velocity.
 
 For each contact point ``a`` and each of its two sides (body B) the kernels use
 
@@ -73,11 +74,14 @@ def body_matrices(body, h: float, theta: float, with_mhat: bool = False):
         out = K, m, np.linalg.inv(Mhat)
     else:
         assert isinstance(body, RigidBody)
-        m = np.concatenate([np.full(3, body.mass), body.inertia])
+        Mhat = body.mass_matrix()
+        m = np.diag(Mhat).copy()
         free = body.dof_mode != DOF_IMPOSED
         minv = np.zeros((6, 6))
-        minv[free, free] = 1.0 / m[free]
-        Mhat = np.diag(m)
+        if np.count_nonzero(Mhat - np.diag(m)):  # reference point off the centre of mass
+            minv[np.ix_(free, free)] = np.linalg.inv(Mhat[np.ix_(free, free)])
+        else:
+            minv[free, free] = 1.0 / m[free]
         out = None, m, minv
     return (*out, Mhat) if with_mhat else out
 

@@ -1,0 +1,15 @@
+"""Scene builders: a case section turned into a block assembly ready to step.
+
+``build_scene(case)`` picks the builder of the case (today the wall of ``case.wall``); each
+builder returns a :class:`~masonry_nscd.scenes.scene.Scene`. A new geometry is a new builder
+module here and its section in ``case.py``.
+"""
+
+from __future__ import annotations
+
+
+def build_scene(case):
+    """The scene of a validated case."""
+    from masonry_nscd.scenes.wall import build_wall
+
+    return build_wall(case)

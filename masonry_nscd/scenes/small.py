@@ -1,38 +1,59 @@
 """Small verification scenes: a block between plates, a block on a support, a column.
 
 Each builder returns an ``Integrator`` ready to step and a dict of the indices the checks need.
-Coordinates: x horizontal (along the wall), y vertical (up), z out of plane; SI units.
+Coordinates: x horizontal (along the wall), y vertical (up), z out of plane; SI units. The
+joints are found by contact detection (:mod:`masonry_nscd.model.detection`), as in a wall.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from masonry_nscd.contact import joint_law as jl
-from masonry_nscd.contact.points import dof_offsets, face_contacts
-from masonry_nscd.loading import Ramp
-from masonry_nscd.model import Block, Loads, RigidBody, at_rest
+from masonry_nscd.contact.laws import KIND_GLUED, KIND_JOINT, fczm
+from masonry_nscd.fe import hex8
+from masonry_nscd.loading import Loads, Ramp, at_rest
+from masonry_nscd.model import Block, RigidBody, dof_offsets
+from masonry_nscd.model.detection import contact_points
+from masonry_nscd.model.faces import boundary_quads, quad_frame
 from masonry_nscd.nscd.integrator import Integrator
 
 X, Y, Z = 0, 1, 2
 
 
-def face_pattern(block: Block, dof0: int, ndof: int, axis: int, upper: bool, comp: int,
-                 total: float) -> np.ndarray:
-    """Nodal forces (N) of a uniform traction on one face of a block, ``total`` N along comp.
+def _plate(center, size, **kw) -> RigidBody:
+    """A rigid plate (a support: the blocks carry the points) of box geometry ``size`` (m)."""
+    c, size = np.asarray(center, float), np.asarray(size, float)
+    X_, conn = hex8.box_mesh(c - 0.5 * size, size, (1, 1, 1))
+    return RigidBody(center=c, X=X_, conn=conn, support=True, **kw)
 
-    Consistent for bilinear quads: each quad gives a quarter of its share to its four nodes.
+
+def _fixed_plate(center, size) -> RigidBody:
+    c, size = np.asarray(center, float), np.asarray(size, float)
+    X_, conn = hex8.box_mesh(c - 0.5 * size, size, (1, 1, 1))
+    return RigidBody.fixed(center=c, X=X_, conn=conn)
+
+
+def face_pattern(block: Block, dof0: int, ndof: int, normal, comp: int,
+                 total: float) -> np.ndarray:
+    """Nodal forces (N) of a uniform traction on the faces of a block of outward ``normal``,
+    ``total`` N along ``comp``.
+
+    Consistent for parallelogram quads: each quad gives a quarter of its share to its four nodes.
     """
+    quads = boundary_quads(block.conn)
+    n, _ = quad_frame(block.X[quads])
+    quads = quads[n @ np.asarray(normal, float) > 1.0 - 1e-9]
+    P = block.X[quads]
+    areas = 0.5 * np.linalg.norm(np.cross(P[:, 2] - P[:, 0], P[:, 3] - P[:, 1]), axis=-1)
     F = np.zeros(ndof)
-    area = 0.0
-    quads = list(block.face_quads(axis, upper))
-    for nodes, _, _, lo, hi in quads:
-        area += np.prod(hi - lo)
-    for nodes, _, _, lo, hi in quads:
-        share = total * np.prod(hi - lo) / area
-        for n in nodes:
-            F[dof0 + 3 * n + comp] += 0.25 * share
+    for nodes, a in zip(quads, areas):
+        for node in nodes:
+            F[dof0 + 3 * node + comp] += 0.25 * total * a / areas.sum()
     return F
+
+
+def _all_joints(kind=KIND_JOINT):
+    return lambda joint, antagonist: (0, kind, 0)
 
 
 def block_between_plates(size=(0.2, 0.1, 0.15), divisions=(2, 2, 1), E=11.1e9, nu=0.2,
@@ -44,23 +65,21 @@ def block_between_plates(size=(0.2, 0.1, 0.15), divisions=(2, 2, 1), E=11.1e9, n
     only: a plate much lighter than ``(theta h)^2 K`` of the block makes the Delassus blocks of
     its points nearly rank one, and the sweeps slow down accordingly.
     """
-    block = Block(origin=(0, 0, 0), size=size, divisions=divisions, E=E, nu=nu, density=2000.0)
-    bottom = RigidBody.fixed(center=(size[0] / 2, -0.05, size[2] / 2), label="bottom plate")
-    top = RigidBody(center=(size[0] / 2, size[1] + 0.05, size[2] / 2), mass=plate_mass,
-                    inertia=np.ones(3),
-                    imposed_velocity={d: at_rest for d in (0, 2, 3, 4, 5)}, label="top plate")
+    block = Block.box((0, 0, 0), size, divisions, E=E, nu=nu, density=2000.0)
+    plate = (size[0], 0.1, size[2])
+    bottom = _fixed_plate((size[0] / 2, -0.05, size[2] / 2), plate)
+    top = _plate((size[0] / 2, size[1] + 0.05, size[2] / 2), plate, mass=plate_mass,
+                 inertia=np.ones(3), imposed_velocity={d: at_rest for d in (0, 2, 3, 4, 5)},
+                 name="top plate")
     bodies = [block, bottom, top]
     dof0 = dof_offsets(bodies)
-    P = jl.joint_params(law="coulomb", mu=0.0)
-    kw = {"gap": 0.0, "tangent": (1, 0, 0), "kind": jl.KIND_JOINT, "law": 0, "group": 0}
-    pts = face_contacts(bodies, dof0, 0, block, Y, False, [(1, None)], **kw)
-    pts += face_contacts(bodies, dof0, 0, block, Y, True, [(2, None)], **kw)
+    pts = contact_points(bodies, _all_joints(), max_gap=0.0)
     loads = Loads()
     F = np.zeros(dof0[-1])
     F[dof0[2] + Y] = -force
     loads.add(F, Ramp(1.0, 0.0, ramp))
-    integ = Integrator(bodies, pts, P, loads, h=h, theta=1.0, tolerance=tolerance,
-                       max_iterations=20000, check_every=1)
+    integ = Integrator(bodies, pts, fczm.joint_params(law="coulomb", mu=0.0), loads, h=h,
+                       theta=1.0, tolerance=tolerance, max_iterations=20000, check_every=1)
     return integ, {"top_dof": int(dof0[2] + Y), "stiffness": E * size[0] * size[2] / size[1]}
 
 
@@ -75,31 +94,27 @@ def block_on_support(*, law: str = "coulomb", mu: float = 0.6, normal_force: flo
     acceleration, ramped from ``shear_start`` over ``shear_ramp``), or, for a rigid block
     (``shear_velocity``, m/s), an imposed horizontal velocity with the rotations blocked.
     """
-    joint_kw = dict(joint_kw or {})
-    P = jl.joint_params(law=law, mu=mu, **joint_kw)
-    support = RigidBody.fixed(center=(size[0] / 2, -0.05, size[2] / 2), label="support")
+    P = fczm.joint_params(law=law, mu=mu, **dict(joint_kw or {}))
+    support = _fixed_plate((size[0] / 2, -0.05, size[2] / 2), (size[0], 0.1, size[2]))
     if rigid:
         imposed = {d: at_rest for d in (2, 3, 4, 5)}
         if shear_velocity is not None:
             imposed[0] = Ramp(shear_velocity, shear_start, shear_ramp)
-        body = RigidBody.box((0, 0, 0), size, 2000.0, imposed_velocity=imposed, label="block")
-        geom = Block(origin=(0, 0, 0), size=size, divisions=divisions, E=1.0, nu=0.0,
-                     density=2000.0)
+        body = RigidBody.box((0, 0, 0), size, 2000.0, divisions, imposed_velocity=imposed,
+                             name="block")
     else:
-        body = geom = Block(origin=(0, 0, 0), size=size, divisions=divisions, E=11.1e9, nu=0.2,
-                            density=2000.0)
+        body = Block.box((0, 0, 0), size, divisions, E=11.1e9, nu=0.2, density=2000.0)
     bodies = [body, support]
     dof0 = dof_offsets(bodies)
     n = int(dof0[-1])
-    pts = face_contacts(bodies, dof0, 0, geom, Y, False, [(1, None)], gap=0.0,
-                        tangent=(1, 0, 0), kind=jl.KIND_JOINT, law=0, group=0)
+    pts = contact_points(bodies, _all_joints(), max_gap=0.0)
     loads = Loads()
     if rigid:
         Fn = np.zeros(n)
         Fn[Y] = -normal_force
         mass = body.mass
     else:
-        Fn = face_pattern(body, 0, n, Y, True, Y, -normal_force)
+        Fn = face_pattern(body, 0, n, (0, 1, 0), Y, -normal_force)
         mass = body.density * float(np.prod(size))
     loads.add(Fn, Ramp(1.0, 0.0, 0.05))
     if shear_force:
@@ -118,20 +133,19 @@ def block_on_support(*, law: str = "coulomb", mu: float = 0.6, normal_force: flo
 
 def column(n_blocks: int = 3, size=(0.3, 0.1, 0.15), divisions=(2, 2, 1), joint=0.01,
            gravity=9.81, h=2e-3, tolerance=1e-8, joint_kw=None):
-    """A column of blocks under gravity; joints with the joint law, the lowest glued to a support.
-    """
-    P = jl.joint_params(**dict(joint_kw or {}))
-    blocks = [Block(origin=(0, i * (size[1] + joint), 0), size=size, divisions=divisions,
-                    E=11.1e9, nu=0.2, density=2000.0, label=f"block {i}")
-              for i in range(n_blocks)]
-    support = RigidBody.fixed(center=(size[0] / 2, -0.05, size[2] / 2), label="support")
+    """A column of blocks under gravity; joints with the joint law (group 0), the lowest block
+    glued to a support (group 1)."""
+    P = fczm.joint_params(**dict(joint_kw or {}))
+    blocks = [Block.box((0, i * (size[1] + joint), 0), size, divisions, E=11.1e9, nu=0.2,
+                        density=2000.0, name=f"block {i}") for i in range(n_blocks)]
+    support = _fixed_plate((size[0] / 2, -0.05, size[2] / 2), (size[0], 0.1, size[2]))
     bodies = [*blocks, support]
     dof0 = dof_offsets(bodies)
-    pts = face_contacts(bodies, dof0, 0, blocks[0], Y, False, [(n_blocks, None)], gap=0.0,
-                        tangent=(1, 0, 0), kind=jl.KIND_GLUED, law=0, group=1)
-    for i in range(1, n_blocks):
-        pts += face_contacts(bodies, dof0, i, blocks[i], Y, False, [(i - 1, blocks[i - 1])],
-                             gap=joint, tangent=(1, 0, 0), kind=jl.KIND_JOINT, law=0, group=0)
+
+    def classify(jt, antagonist):
+        return (1, KIND_GLUED, 0) if antagonist.body == n_blocks else (0, KIND_JOINT, 0)
+
+    pts = contact_points(bodies, classify, max_gap=joint)
     loads = Loads()
     G = np.zeros(dof0[-1])
     weight = 0.0

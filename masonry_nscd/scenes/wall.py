@@ -1,173 +1,174 @@
-"""The running-bond wall between two rigid steel beams (model.md section 1).
+"""The wall on its test rig: a builder of the block assembly (model.md section 1).
 
-Courses are numbered from the bottom, 0-based here: course 0 (the study's first course) and
-every other one are full courses of ``units_per_course`` whole units; courses 1, 3, ... start
-and end with a half unit (running bond). Coordinates: x along the wall from its left end, y up
-from the top of the lower beam, z through the thickness.
+Coordinates: x along the wall from its left end, y up from the bottom of its first course, z
+through the thickness. The units come from the course layout (:mod:`masonry_nscd.scenes.layout`:
+running, stack or pattern bond, openings, lintels), each a block meshed with
+``elements_per_unit`` hexahedra (a lintel with as many per metre as a whole unit), or a rigid
+body with that mesh as its geometry.
 
-Contacts (all permanent):
+The rig: two rigid steel beams 0.2 m tall, as long as the wall. The lower one is fixed. The
+upper one has the mass ``supports.top_beam_mass_kg`` (centre 0.1 m above the wall), an in-plane
+rotational inertia of a 0.2 m tall beam as long as the wall; its x velocity follows the ramp
+of the horizontal stage at its reference point, ``supports.load_height_m`` above the wall
+(``U_x`` is that point's displacement), its z and out-of-plane rotations are held, its in-plane
+rotation is held or free (``supports.top_rotation``), and in y it carries the vertical stress
+times the wall's plan area (``load``), is held (``fixed``), or carries it and is then held from
+the start of the horizontal stage (``load_then_fixed``). Gravity acts on the units only.
 
-* bed joint: the bottom face of every unit of course k >= 1 (candidate) against the units of
-  course k - 1 below (antagonist), normal +y, initial gap = joint thickness;
-* head joint: the left face of unit i + 1 (candidate) against unit i, normal +x;
-* glue: the bottom face of course 0 on the lower beam (fixed), the top face of the last course
-  on the upper beam; bilateral, no gap.
-
-The upper beam: x driven (velocity ramp to the loading rate), y loaded by the vertical
-stress times the wall's plan area (or held, ``supports.top_vertical: fixed``), z and rotations
-blocked (the in-plane one free with ``supports.top_rotation: free``). The lower beam is fixed. Gravity acts on the units (lumped masses), not on the beams.
+Joints are found by contact detection (:mod:`masonry_nscd.model.detection`) with the joint
+thickness as the largest gap, and named: ``bed`` (horizontal) and ``head`` (vertical) joints
+between units; ``glue_bottom`` and ``glue_top`` between the wall and the beams (bilateral
+glue, the study's epoxy). With ``supports.clamped_courses`` = k the k outer courses at each end
+are part of their beam, and the wall meets the beams through mortar joints of the joint law,
+``bed_bottom`` and ``bed_top``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
 
 import numpy as np
 
-from masonry_nscd.contact import joint_law as jl
-from masonry_nscd.contact.points import dof_offsets, face_contacts
-from masonry_nscd.loading import Ramp
-from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, Loads, RigidBody, at_rest
-from masonry_nscd.nscd.integrator import Integrator
+from masonry_nscd.contact import laws
+from masonry_nscd.fe import hex8
+from masonry_nscd.loading import Loads, Ramp, at_rest
+from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody
+from masonry_nscd.model.detection import find_joints, joint_points
+from masonry_nscd.scenes.layout import course_levels, unit_boxes, wall_size
+from masonry_nscd.scenes.scene import Hold, Scene, SolverSettings, Stage
 
 X, Y, Z = 0, 1, 2
-GROUP_BED, GROUP_HEAD, GROUP_GLUE_BOTTOM, GROUP_GLUE_TOP = 0, 1, 2, 3
-GROUP_NAMES = ("bed", "head", "glue_bottom", "glue_top")
+ROT_Z = 5
+#: Joint groups of a wall, in the order of their ids.
+GROUPS = ("bed", "head", "glue_bottom", "glue_top", "bed_bottom", "bed_top")
+BEAM_HEIGHT_M = 0.2
 
 
-@dataclass
-class WallScene:
-    """The wall ready to step, and what the recorders need to read it."""
-
-    integrator: Integrator
-    units: list[Block]  # geometry of every unit (also for rigid units)
-    course_of_unit: np.ndarray
-    top_beam: int  # body index
-    top_dof_x: int
-    top_dof_y: int
-    group: np.ndarray  # (npt,) GROUP_*
-    material: str  # block material actually used
+def unit_name(course: int, first: int, last: int, position: int, count: int) -> str:
+    """``course 1 (bottom), unit 6 of 6 (right end)`` (course and position 1-based)."""
+    name = f"course {course}" + (" (bottom)" if course == first else
+                                 " (top)" if course == last else "")
+    end = " (left end)" if count > 1 and position == 1 else \
+        " (right end)" if count > 1 and position == count else ""
+    return f"{name}, unit {position} of {count}{end}"
 
 
-def unit_boxes(wall) -> list[tuple[int, float, float, float]]:
-    """(course, x0, y0, length) of every unit, bottom course first, left to right (m)."""
-    L, hgt, j = wall.unit_length_m, wall.unit_height_m, wall.joint_thickness_m
-    out = []
-    for k in range(wall.courses):
-        y0 = k * (hgt + j)
-        if wall.bond == "running" and k % 2 == 1:
-            lengths = [wall.half_unit_length_m] + [L] * (wall.units_per_course - 1) + \
-                      [wall.half_unit_length_m]
+def build_wall(case) -> Scene:
+    """The scene of a wall case: units, beams, joints, loads, stages (module docstring)."""
+    w, blk, sup, sol, ld = case.wall, case.blocks, case.supports, case.solver, case.loading
+    length, height = wall_size(w)
+    t, j = w.thickness_m, w.joint_thickness_m
+    levels = course_levels(w)
+    k = sup.clamped_courses
+    first, last = k, w.courses - 1 - k  # the courses between the beams
+    boxes = [b for b in unit_boxes(w) if first <= b.course <= last]
+    count = {c: sum(1 for b in boxes if b.course == c) for c in range(first, last + 1)}
+    nx, ny, nz = w.elements_per_unit
+    bodies: list = []
+    info = []
+    for b in boxes:
+        div = (nx, ny, nz)
+        name = unit_name(b.course + 1, first + 1, last + 1, b.index + 1, count[b.course])
+        place = {"name": name, "course": b.course + 1, "position_in_course": b.index + 1,
+                 "units_in_course": count[b.course]}
+        material = MAT_ENDO3D if blk.material == "endo3d" else MAT_ELASTIC
+        if b.kind == "lintel":
+            div = (max(nx, math.ceil(nx * b.length / w.unit_length_m - 1e-9)),
+                   max(ny, math.ceil(ny * b.height / w.unit_height_m - 1e-9)), nz)
+            name = place["name"] = f"lintel over opening {b.opening + 1}"
+            material = MAT_ELASTIC
+        origin, size = (b.x0, b.y0, 0.0), (b.length, b.height, t)
+        if blk.material == "rigid":
+            bodies.append(RigidBody.box(origin, size, blk.density_kg_m3, div, name=name))
         else:
-            lengths = [L] * wall.units_per_course
-        x = 0.0
-        for length in lengths:
-            out.append((k, x, y0, length))
-            x += length + j
-    return out
+            bodies.append(Block.box(origin, size, div, E=blk.E_Pa, nu=blk.nu,
+                                    density=blk.density_kg_m3, material=material, name=name))
+        info.append(place)
+    n_units = len(bodies)
 
-
-def joint_params_from_case(case) -> np.ndarray:
-    """The joint-law parameter vector of a case's ``joint`` section."""
-    jt = case.joint
-    return jl.joint_params(
-        K_I_spring=jt.K_I_spring_Pa_m, K_II_spring=jt.K_II_spring_Pa_m, d_spring=jt.d_spring,
-        sigma_I_e=jt.sigma_I_e_Pa, K_I_coh=jt.K_I_coh_Pa_m, G_fI=jt.G_fI_J_m2,
-        sigma_II_e=jt.sigma_II_e_Pa, K_II_coh=jt.K_II_coh_Pa_m, G_fII=jt.G_fII_J_m2,
-        d_coh_initial=jt.d_coh_initial, mu=jt.mu, p=jt.p, eta=jt.eta,
-        compression_spring=jt.compression_spring, law=jt.law,
-    )
-
-
-def build_wall(case) -> WallScene:
-    """Build bodies, contact points, loads and the integrator of a wall case."""
-    w, blk, sol = case.wall, case.blocks, case.solver
-    material = blk.material
-    units = [
-        Block(origin=(x0, y0, 0.0), size=(length, w.unit_height_m, w.thickness_m),
-              divisions=tuple(w.elements_per_unit), E=blk.E_Pa, nu=blk.nu,
-              density=blk.density_kg_m3, label=f"course {k} x {x0:.3f}",
-              material=MAT_ENDO3D if material == "endo3d" else MAT_ELASTIC)
-        for k, x0, y0, length in unit_boxes(w)
-    ]
-    course = np.array([k for k, *_ in unit_boxes(w)])
-    if material == "rigid":
-        bodies: list = [RigidBody.box(u.origin, u.size, blk.density_kg_m3, label=u.label)
-                        for u in units]
-    else:
-        bodies = list(units)
-    nu_ = len(units)
-    width, height, t = w.wall_length_m, w.wall_height_m, w.thickness_m
-    lower = RigidBody.fixed(center=(width / 2, -0.1, t / 2), label="lower beam")
-    hz = case.loading.horizontal
+    # --- the rig ------------------------------------------------------------------------------
+    y_low = levels[first - 1][1] if first else 0.0  # top of the lower beam
+    y_up = levels[last + 1][0] if last + 1 < w.courses else height  # bottom of the upper one
+    Xl, cl = hex8.box_mesh(np.array([0.0, -BEAM_HEIGHT_M, 0.0]),
+                           np.array([length, y_low + BEAM_HEIGHT_M, t]), (1, 1, 1))
+    lower = RigidBody.fixed(center=(length / 2, -BEAM_HEIGHT_M / 2, t / 2), name="lower beam",
+                            X=Xl, conn=cl)
+    hz = ld.horizontal
     imposed = {X: Ramp(hz.rate_m_s, hz.start_s, hz.ramp_s), Z: at_rest, 3: at_rest, 4: at_rest,
-               5: at_rest}
-    if case.supports.top_vertical == "fixed":
+               ROT_Z: at_rest}
+    if sup.top_vertical == "fixed":
         imposed[Y] = at_rest
-    m_beam = case.supports.top_beam_mass_kg
+    if sup.top_rotation == "free":
+        del imposed[ROT_Z]
+    m_beam = sup.top_beam_mass_kg
     # in-plane rotational inertia of a beam as long as the wall and 0.2 m tall (kg m^2); the
     # other two rotations are held
-    inertia = np.array([1.0, 1.0, m_beam * (width ** 2 + 0.2 ** 2) / 12.0])
-    if case.supports.top_rotation == "free":
-        del imposed[5]
-    upper = RigidBody(center=(width / 2, height + 0.1, t / 2), mass=m_beam,
-                      inertia=inertia, imposed_velocity=imposed, label="upper beam")
+    inertia = np.array([1.0, 1.0, m_beam * (length ** 2 + BEAM_HEIGHT_M ** 2) / 12.0])
+    Xu, cu = hex8.box_mesh(np.array([0.0, y_up, 0.0]),
+                           np.array([length, height + BEAM_HEIGHT_M - y_up, t]), (1, 1, 1))
+    upper = RigidBody(center=(length / 2, height + BEAM_HEIGHT_M / 2, t / 2), mass=m_beam,
+                      inertia=inertia, imposed_velocity=imposed, name="upper beam", X=Xu,
+                      conn=cu, reference=(length / 2, height + sup.load_height_m, t / 2),
+                      support=True)
     bodies += [lower, upper]
-    i_low, i_up = nu_, nu_ + 1
-    dof0 = dof_offsets(bodies)
-    ng = w.contact_points_per_face
-    j = w.joint_thickness_m
-    pts = []
-    by_course = [[i for i in range(nu_) if course[i] == k] for k in range(w.courses)]
-    for k, members in enumerate(by_course):
-        for n, i in enumerate(members):
-            if k == 0:
-                pts += face_contacts(bodies, dof0, i, units[i], Y, False, [(i_low, None)],
-                                     gap=0.0, tangent=(1, 0, 0), kind=jl.KIND_GLUED, law=0,
-                                     group=GROUP_GLUE_BOTTOM, n_gauss=ng)
-            else:
-                below = [(b, units[b]) for b in by_course[k - 1]]
-                pts += face_contacts(bodies, dof0, i, units[i], Y, False, below, gap=j,
-                                     tangent=(1, 0, 0), kind=jl.KIND_JOINT, law=0,
-                                     group=GROUP_BED, n_gauss=ng)
-            if n > 0:
-                left = members[n - 1]
-                pts += face_contacts(bodies, dof0, i, units[i], X, False,
-                                     [(left, units[left])], gap=j, tangent=(0, 1, 0),
-                                     kind=jl.KIND_JOINT, law=0, group=GROUP_HEAD, n_gauss=ng)
-            if k == w.courses - 1:
-                pts += face_contacts(bodies, dof0, i, units[i], Y, True, [(i_up, None)],
-                                     gap=0.0, tangent=(1, 0, 0), kind=jl.KIND_GLUED, law=0,
-                                     group=GROUP_GLUE_TOP, n_gauss=ng)
-    P = joint_params_from_case(case)
-    loads = Loads()
+    i_low, i_up = n_units, n_units + 1
+
+    # --- joints -------------------------------------------------------------------------------
+    glued = k == 0
+    beam_group = {i_low: "glue_bottom" if glued else "bed_bottom",
+                  i_up: "glue_top" if glued else "bed_top"}
+
+    def classify(joint, antagonist):
+        pair = (joint.candidate.body, antagonist.body)
+        beam = next((b for b in pair if b in beam_group), None)
+        if beam is not None:
+            name = beam_group[beam]
+        else:
+            name = "bed" if abs(joint.normal[Y]) > 0.5 else "head"
+        kind = laws.KIND_GLUED if name.startswith("glue") else laws.KIND_JOINT
+        return GROUPS.index(name), kind, 0
+
+    detection = find_joints(bodies, max_gap=j)
+    points = joint_points(bodies, detection.joints, classify, n_gauss=w.contact_points_per_face)
+
+    # --- loads, stages, stop rule -------------------------------------------------------------
+    dof0 = np.concatenate([[0], np.cumsum([b.ndof for b in bodies])])
     ndof = int(dof0[-1])
+    loads = Loads()
     G = np.zeros(ndof)
-    for i, b in enumerate(bodies[:nu_]):
+    for i, b in enumerate(bodies[:n_units]):
         if isinstance(b, RigidBody):
-            G[dof0[i] + Y] = -b.mass
+            G[dof0[i]:dof0[i + 1]] = b.weight_load((0.0, -1.0, 0.0))
         else:
             G[dof0[i] + Y:dof0[i + 1]:3] = -b.lumped_mass()[Y::3]
-    g = case.loading.gravity
+    g = ld.gravity
     loads.add(G, Ramp(g.value_m_s2, g.start_s, g.ramp_s))
-    if case.supports.top_vertical == "load":
-        vs = case.loading.vertical_stress
+    holds = []
+    if sup.top_vertical in ("load", "load_then_fixed"):
+        vs = ld.vertical_stress
         Fv = np.zeros(ndof)
-        Fv[dof0[i_up] + Y] = -vs.value_Pa * width * t
+        Fv[dof0[i_up] + Y] = -vs.value_Pa * length * t
         loads.add(Fv, Ramp(1.0, vs.start_s, vs.ramp_s))
+    if sup.top_vertical == "load_then_fixed":
+        holds.append(Hold(i_up, Y, hz.start_s))
     endo = None
-    if material == "endo3d":
+    if blk.material == "endo3d":
         from masonry_nscd.materials.point_driver import params_from_case
 
         endo = params_from_case(case)
-    integ = Integrator(bodies, pts, P, loads, h=sol.time_step_s, theta=sol.theta,
-                       tolerance=sol.tolerance, max_iterations=sol.max_iterations,
-                       check_every=sol.check_every, method=sol.method, endo3d_params=endo,
-                       endo3d_tau=case.blocks.endo3d.relaxation_time_s,
-                       max_halvings=sol.max_step_halvings)
-    return WallScene(
-        integrator=integ, units=units, course_of_unit=course, top_beam=i_up,
-        top_dof_x=int(dof0[i_up] + X), top_dof_y=int(dof0[i_up] + Y),
-        group=np.array([p.group for p in pts], dtype=np.int64),
-        material=material,
+    solver = SolverSettings(
+        h=sol.time_step_s, theta=sol.theta, tolerance=sol.tolerance,
+        max_iterations=sol.max_iterations, check_every=sol.check_every, method=sol.method,
+        max_halvings=sol.max_step_halvings, endo3d_params=endo,
+        endo3d_tau=blk.endo3d.relaxation_time_s)
+    return Scene(
+        name=case.name, builder="wall", bodies=bodies, points=points, groups=GROUPS,
+        params=laws.params_from_case(case.joint)[None, :], loads=loads, solver=solver,
+        structure=list(range(n_units)), body_info=info, driven=i_up,
+        reactions={"top": i_up, "bottom": i_low},
+        stages=[Stage("gravity", 0.0), Stage("vertical", ld.vertical_stress.start_s),
+                Stage("horizontal", hz.start_s)],
+        push_stage="horizontal", target_m=hz.target_m, expected_end_s=ld.end_time_s,
+        time_limit_s=ld.end_time_s + 0.5 * hz.ramp_s, holds=holds,
+        meta={"joint_thickness_m": j, "wall_length_m": length, "wall_height_m": height},
     )

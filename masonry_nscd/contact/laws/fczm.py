@@ -38,7 +38,6 @@ so that ``u_c = u~ - (A + C_s) T`` with the spring compliance ``C_s = diag(c_n, 
   stiffness (``mu_eff |G_nt| < lambda_min(G_tt + kappa_t)``, ``G = D^-1``), and linear for
   ``mu_eff = 0``.
 
-Glued points (blocks glued to the steel beams) are bilateral: ``u_{n+1} = 0``, ``T = A^-1 u~``.
 Dry Signorini-Coulomb is this same law with ``b = 0`` (no cohesion, ``mu_eff = mu``) and no spring.
 
 The compressive normal spring is ``(1 - d_spring) K_I^spring`` (the study's equation 2, switch
@@ -51,6 +50,22 @@ import math
 
 import numpy as np
 from numba import njit
+
+from masonry_nscd.contact.laws.common import (  # noqa: F401 (re-exported for the law's users)
+    KIND_GLUED,
+    KIND_JOINT,
+    N_COLUMNS,
+    P_LAW,
+    ST_AMBIGUOUS,
+    ST_GLUED,
+    ST_OPEN,
+    ST_SLIDE,
+    ST_STICK,
+    solve3,
+)
+
+NAMES = ("fczm", "coulomb")  # the case's joint.law values this module serves
+CODE = 0  # its code in column P_LAW
 
 # --- layout of the parameter vector of one joint law (float64) ----------------------------
 P_CN_T = 0  # normal spring compliance in tension, m/Pa
@@ -66,18 +81,6 @@ P_D2 = 9  # delta_2 = sigma_II^e / K_II^coh, m
 P_GI = 10  # G_fI, J/m^2
 P_GII = 11  # G_fII, J/m^2
 P_ETA = 12  # residual integrity at full failure
-N_PARAMS = 13
-
-# --- kinds of contact point ------------------------------------------------------------------
-KIND_JOINT = 0  # the joint law (FCZM + spring, or dry Signorini-Coulomb)
-KIND_GLUED = 1  # bilateral glue: relative displacement held at zero
-
-# --- status codes ------------------------------------------------------------------------------
-ST_OPEN = 0
-ST_STICK = 1
-ST_SLIDE = 2
-ST_GLUED = 3
-ST_AMBIGUOUS = 4  # no status satisfied every condition (reported, should not persist)
 
 
 def joint_params(
@@ -103,7 +106,8 @@ def joint_params(
     ``law='coulomb'`` gives dry Signorini-Coulomb: no cohesion (b = 0), no spring (zero
     compliance), friction coefficient ``mu``.
     """
-    P = np.zeros(N_PARAMS)
+    P = np.zeros(N_COLUMNS)
+    P[P_LAW] = CODE
     P[P_MU] = mu
     P[P_P] = p
     P[P_ETA] = eta
@@ -176,39 +180,6 @@ def envelope_integrity(ucn: float, uct1: float, uct2: float, beta_old: float, P:
         return 0.0
     env = sigma_e / (b * k * nu) * math.exp(phi * (delta_e - nu))
     return min(beta_old, env)
-
-
-@njit(cache=True)
-def _solve3(M: np.ndarray, r: np.ndarray, x: np.ndarray) -> bool:
-    """Solve the 3x3 system ``M x = r`` by Gaussian elimination with partial pivoting."""
-    a = M.copy()
-    y = r.copy()
-    for col in range(3):
-        piv = col
-        for i in range(col + 1, 3):
-            if abs(a[i, col]) > abs(a[piv, col]):
-                piv = i
-        if a[piv, col] == 0.0:
-            return False
-        if piv != col:
-            for j in range(3):
-                t = a[col, j]
-                a[col, j] = a[piv, j]
-                a[piv, j] = t
-            t = y[col]
-            y[col] = y[piv]
-            y[piv] = t
-        for i in range(col + 1, 3):
-            f = a[i, col] / a[col, col]
-            for j in range(col, 3):
-                a[i, j] -= f * a[col, j]
-            y[i] -= f * y[col]
-    for i in range(2, -1, -1):
-        s = y[i]
-        for j in range(i + 1, 3):
-            s -= a[i, j] * x[j]
-        x[i] = s / a[i, i]
-    return True
 
 
 @njit(cache=True)
@@ -526,27 +497,17 @@ def local_solve(
     uc_old: np.ndarray,
     beta: float,
     P: np.ndarray,
-    kind: int,
     T: np.ndarray,
     uc: np.ndarray,
 ) -> int:
     """Solve the local problem of one contact point for one step (frozen integrity).
 
     Inputs: predictor ``ut`` (m), compliance ``A`` (m/Pa), cohesive displacement at the start of
-    the step ``uc_old`` (m), integrity ``beta``, parameters ``P``, the point's ``kind``.
+    the step ``uc_old`` (m), integrity ``beta``, parameters ``P``.
     Outputs written in place: traction ``T`` (Pa, tension positive) and cohesive displacement
     ``uc`` (m) at the end of the step. Returns the status code (ST_*).
     """
     D = np.empty((3, 3))
-    if kind == KIND_GLUED:
-        ok = _solve3(A, ut, T)
-        uc[0] = 0.0
-        uc[1] = 0.0
-        uc[2] = 0.0
-        if not ok:
-            T[:] = 0.0
-        return ST_GLUED
-
     b = P[P_B]
     kn = beta * b * P[P_KI]
     kt = beta * b * P[P_KII]
@@ -565,7 +526,7 @@ def local_solve(
         M[i, 1] = (1.0 if i == 1 else 0.0) + D[i, 1] * kt
         M[i, 2] = (1.0 if i == 2 else 0.0) + D[i, 2] * kt
     x = np.empty(3)
-    if _solve3(M, ut, x) and x[0] > 0.0:
+    if solve3(M, ut, x) and x[0] > 0.0:
         uc[0] = x[0]
         uc[1] = x[1]
         uc[2] = x[2]
@@ -581,7 +542,7 @@ def local_solve(
     rhs[0] = ut[0]
     rhs[1] = ut[1] - uc_old[1]
     rhs[2] = ut[2] - uc_old[2]
-    if _solve3(D, rhs, T):
+    if solve3(D, rhs, T):
         if T[0] <= 0.0:
             r1 = T[1] - kt * uc_old[1]
             r2 = T[2] - kt * uc_old[2]
@@ -601,7 +562,7 @@ def local_solve(
     # may miss). Take the stick solution with the friction projected radially onto the
     # Coulomb disk (or, under tension, the open solution); the Gauss-Seidel sweeps go on
     # from there, and the caller counts these points.
-    if _solve3(D, rhs, T) and T[0] < 0.0:
+    if solve3(D, rhs, T) and T[0] < 0.0:
         r1 = T[1] - kt * uc_old[1]
         r2 = T[2] - kt * uc_old[2]
         rn = _norm2(r1, r2)
@@ -623,21 +584,12 @@ def local_solve(
 
 
 @njit(cache=True)
-def spring_displacement(T: np.ndarray, P: np.ndarray, us: np.ndarray) -> None:
-    """Spring part ``u_s = C_s T`` of the relative displacement (m)."""
-    us[0] = T[0] * (P[P_CN_T] if T[0] >= 0.0 else P[P_CN_C])
-    us[1] = T[1] * P[P_CT]
-    us[2] = T[2] * P[P_CT]
-
-
-@njit(cache=True)
-def local_solve_implicit(
+def solve(
     ut: np.ndarray,
     A: np.ndarray,
     uc_old: np.ndarray,
     beta_old: float,
     P: np.ndarray,
-    kind: int,
     T: np.ndarray,
     uc: np.ndarray,
 ):
@@ -656,15 +608,15 @@ def local_solve_implicit(
 
     Returns ``(status, beta)``; ``T`` and ``uc`` hold the solution for that ``beta``.
     """
-    st = local_solve(ut, A, uc_old, beta_old, P, kind, T, uc)
-    if kind == KIND_GLUED or P[P_B] <= 0.0:
+    st = local_solve(ut, A, uc_old, beta_old, P, T, uc)
+    if P[P_B] <= 0.0:
         return st, beta_old
     g_hi = envelope_integrity(uc[0], uc[1], uc[2], beta_old, P) - beta_old
     if g_hi >= 0.0:
         return st, beta_old
     hi = beta_old
     lo = 0.0
-    st = local_solve(ut, A, uc_old, 0.0, P, kind, T, uc)
+    st = local_solve(ut, A, uc_old, 0.0, P, T, uc)
     g_lo = envelope_integrity(uc[0], uc[1], uc[2], beta_old, P)
     if g_lo <= 0.0:
         return st, 0.0
@@ -677,7 +629,7 @@ def local_solve_implicit(
         else:
             # the secant crawls (g nearly flat on one side, a cliff at the root): bisect
             beta = 0.5 * (lo + hi)
-        st = local_solve(ut, A, uc_old, beta, P, kind, T, uc)
+        st = local_solve(ut, A, uc_old, beta, P, T, uc)
         g = envelope_integrity(uc[0], uc[1], uc[2], beta_old, P) - beta
         if abs(g) <= 1e-14 or hi - lo <= 1e-14:
             break
@@ -700,3 +652,73 @@ def local_solve_implicit(
                 run = 1
             side = 1
     return st, beta
+
+
+@njit(cache=True)
+def tangent(u, T, uc_old, beta, status, P, K):
+    """Tangent ``K = dT/du`` (3x3, Pa/m) of the law at the solution (u, T) for its status,
+    with the integrity frozen (``A = 0``: the point driven by its total relative displacement).
+
+    Per status, with the spring compliances ``c`` and the cohesive stiffness ``kappa``: open
+    ``K = diag(kappa / (1 + c kappa))``; stick ``K = diag(1 / c)``; slide ``K_nn = 1 / c_n``,
+    ``K_tt = (kappa_t I + mu_eff N (I - e e^T) / |q|) / (1 + c_t kappa_t)``,
+    ``K_tn = -mu_eff e / (c_n (1 + c_t kappa_t))`` with ``q = u_t - (1 + c_t kappa_t) u_c,t,old``.
+    """
+    b = P[P_B]
+    kn = beta * b * P[P_KI]
+    kt = beta * b * P[P_KII]
+    cnt = P[P_CN_T]
+    cnc = P[P_CN_C]
+    ct = P[P_CT]
+    for i in range(3):
+        for j in range(3):
+            K[i, j] = 0.0
+    if status == ST_OPEN:
+        K[0, 0] = kn / (1.0 + cnt * kn)
+        K[1, 1] = kt / (1.0 + ct * kt)
+        K[2, 2] = K[1, 1]
+        return
+    K[0, 0] = 1.0 / cnc
+    if status == ST_SLIDE:
+        mu_eff = P[P_MU] * (1.0 - beta * b) ** P[P_P]
+        N = -T[0]
+        f = 1.0 + ct * kt
+        q1 = u[1] - f * uc_old[1]
+        q2 = u[2] - f * uc_old[2]
+        qn = math.sqrt(q1 * q1 + q2 * q2)
+        if qn > 0.0:
+            e1 = q1 / qn
+            e2 = q2 / qn
+            g = mu_eff * N / qn
+            K[1, 1] = (kt + g * (1.0 - e1 * e1)) / f
+            K[2, 2] = (kt + g * (1.0 - e2 * e2)) / f
+            K[1, 2] = -g * e1 * e2 / f
+            K[2, 1] = K[1, 2]
+            K[1, 0] = -mu_eff * e1 / (cnc * f)
+            K[2, 0] = -mu_eff * e2 / (cnc * f)
+            return
+    K[1, 1] = 1.0 / ct
+    K[2, 2] = 1.0 / ct
+
+
+# --- the law interface (contact.laws) ------------------------------------------------------
+def params_from_case(joint) -> np.ndarray:
+    """The parameter row of a case's ``joint`` section (``case.Joint``)."""
+    return joint_params(
+        K_I_spring=joint.K_I_spring_Pa_m, K_II_spring=joint.K_II_spring_Pa_m,
+        d_spring=joint.d_spring, sigma_I_e=joint.sigma_I_e_Pa, K_I_coh=joint.K_I_coh_Pa_m,
+        G_fI=joint.G_fI_J_m2, sigma_II_e=joint.sigma_II_e_Pa, K_II_coh=joint.K_II_coh_Pa_m,
+        G_fII=joint.G_fII_J_m2, d_coh_initial=joint.d_coh_initial, mu=joint.mu, p=joint.p,
+        eta=joint.eta, compression_spring=joint.compression_spring, law=joint.law,
+    )
+
+
+def initial_damage(P: np.ndarray) -> float:
+    """The cohesive damage of the joint as built, ``d_coh,0 = 1 - b`` (so that the damage of a
+    point is ``1 - beta (1 - d_coh,0)``)."""
+    return 1.0 - float(P[P_B])
+
+
+def newton_ready(P: np.ndarray) -> bool:
+    """Whether the Newton solver can take the law: a spring in series (finite ``T(u)``)."""
+    return bool(P[P_CN_C] > 0.0 and P[P_CT] > 0.0)

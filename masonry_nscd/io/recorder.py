@@ -1,0 +1,293 @@
+r"""The recorder: everything a run writes into its folder, behind one interface.
+
+* ``case.yaml`` and ``scene.json`` at the start (:mod:`masonry_nscd.io.runfolder`);
+* ``force_displacement.csv``: a row per step (:meth:`Recorder.add_row`), written to the file
+  (and fsynced) at output steps, whole rows only: after a failed write the file is cut back;
+* at output steps (:meth:`Recorder.write_output`): the VTU files of the blocks and of the joint
+  points and the PVD collection, the HDF5 step and curve, then ``checkpoint.npz``: the
+  integrator's state plus what the run needs to continue its outputs (the step, whether the run
+  is finished, the PVD entries, the count of unconverged steps, the worst residual, the case).
+
+Every file but the CSV is written atomically (:mod:`masonry_nscd.io.atomic`); an OSError
+becomes a :class:`~masonry_nscd.errors.RunOutputError` naming the file, and a NaN or infinity
+in what is to be written a :class:`~masonry_nscd.errors.RunFailure` naming the field: no output
+file ever holds one.
+
+Resuming (``masonry run --resume OUTDIR``): :func:`read_resume_point` reads the checkpoint;
+:meth:`Recorder.resume` puts the folder back to it before the run steps on: the CSV cut back to
+the rows of steps ``1..step`` (rewritten atomically) and read back as the curve so far,
+``results.h5`` reopened without the output steps written after the checkpoint, ``wall.pvd``
+rewritten from the checkpoint's entries and the VTU files of later steps deleted. Whatever was
+written between the checkpoint and the interruption is discarded, and written again.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import json
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from masonry_nscd.errors import RunFailure, RunInputError, RunOutputError
+from masonry_nscd.io import runfolder as rf
+from masonry_nscd.io.atomic import atomic_write, writing
+from masonry_nscd.nscd import checkpoint
+from masonry_nscd.nscd.checkpoint import CheckpointError, load_checkpoint
+
+_INT_COLUMNS = ("step", "iterations", "converged", "failed_gauss_points", "substeps")
+
+
+@dataclass
+class ResumePoint:
+    """What a run folder's checkpoint says (SI units)."""
+
+    step: int  # steps done at the checkpoint
+    finished: bool  # the run reached its end at that step
+    state: dict[str, np.ndarray]  # the integrator's state (nscd.checkpoint)
+    pvd: list[tuple[float, str, int]]  # (time s, file, part) entries of wall.pvd
+    unconverged: int  # steps not converged so far
+    worst_residual: float  # worst solver residual so far (dimensionless)
+    case_yaml: str  # the case as run
+
+
+def read_resume_point(outdir: str | os.PathLike[str]) -> ResumePoint | None:
+    """The checkpoint of run folder ``outdir``, or None when it has none.
+
+    Raises :class:`~masonry_nscd.nscd.checkpoint.CheckpointError` when the file is not a
+    readable checkpoint of a run.
+    """
+    path = Path(outdir) / rf.CHECKPOINT
+    try:
+        state, extra = load_checkpoint(path)
+    except FileNotFoundError:
+        return None
+    need = ("step", "finished", "pvd_time", "pvd_file", "pvd_part", "unconverged",
+            "worst_residual", "case_yaml")
+    missing = [k for k in need if k not in extra]
+    if missing:
+        raise CheckpointError(f"{path}: not a run checkpoint (lacks {', '.join(missing)})")
+    pvd = [(float(t), str(f), int(p)) for t, f, p in
+           zip(extra["pvd_time"], extra["pvd_file"], extra["pvd_part"])]
+    return ResumePoint(
+        step=int(extra["step"]), finished=bool(extra["finished"]), state=state, pvd=pvd,
+        unconverged=int(extra["unconverged"]), worst_residual=float(extra["worst_residual"]),
+        case_yaml=str(extra["case_yaml"]))
+
+
+def truncate_csv(path: str | os.PathLike[str], step: int, columns: list[str]) -> dict[str, list]:
+    """Cut the force-displacement CSV back to steps ``1..step``; return those rows as columns.
+
+    The file is rewritten atomically (the original bytes of the rows kept). Raises
+    :class:`CheckpointError` when the header is not ``columns`` or a row of ``1..step`` is
+    missing or malformed.
+    """
+    path = Path(path)
+    try:
+        with open(path, newline="") as f:
+            lines = f.read().splitlines(keepends=True)
+    except FileNotFoundError as exc:
+        raise CheckpointError(f"{path} is missing: the run cannot be resumed") from exc
+    if not lines or next(csv.reader([lines[0]])) != columns:
+        raise CheckpointError(f"{path}: not the CSV of this program (header differs)")
+    kept = [lines[0]]
+    curve: dict[str, list] = {c: [] for c in columns}
+    for n, line in enumerate(lines[1:step + 1], start=1):
+        row = next(csv.reader([line]), [])
+        try:
+            if len(row) != len(columns) or int(row[0]) != n or not line.endswith("\n"):
+                raise ValueError
+            values = [int(v) if c in _INT_COLUMNS else float(v) for c, v in zip(columns, row)]
+        except ValueError:
+            raise CheckpointError(f"{path}: row of step {n} missing or malformed, the "
+                                  f"checkpoint is at step {step}") from None
+        kept.append(line)
+        for c, v in zip(columns, values):
+            curve[c].append(v)
+    if len(kept) != step + 1:
+        raise CheckpointError(f"{path} ends at step {len(kept) - 1}, the checkpoint is at "
+                              f"step {step}")
+    if len(lines) != len(kept):
+        atomic_write(path, lambda p: Path(p).write_text("".join(kept), newline=""))
+    return curve
+
+
+def prune_vtu(vtu_dir: str | os.PathLike[str], step: int) -> int:
+    """Delete the VTU files of output steps after ``step``; return how many were deleted."""
+    removed = 0
+    folder = Path(vtu_dir)
+    if not folder.is_dir():
+        return 0
+    for p in folder.iterdir():
+        m = rf.VTU_FILE.match(p.name)
+        if m and int(m.group(2)) > step:
+            p.unlink()
+            removed += 1
+    return removed
+
+
+@dataclass
+class StepOutput:
+    """What an output step writes: the VTU fields and the HDF5 fields (SI units)."""
+
+    block_points: dict[str, np.ndarray]  # per output node
+    block_cells: dict[str, np.ndarray]  # per element
+    joint_points: dict[str, np.ndarray]  # per contact point
+    h5: dict[str, np.ndarray]  # the step's group of results.h5
+
+
+class Recorder:
+    """Writes a run folder (module docstring). Build it with :meth:`start` or :meth:`resume`."""
+
+    def __init__(self, outdir: Path, case_yaml: str, *, vtu: bool, hdf5: bool,
+                 nodes: np.ndarray, hexes: np.ndarray, points: np.ndarray):
+        self.outdir = Path(outdir)
+        self.case_yaml = case_yaml
+        self.vtu, self.hdf5 = vtu, hdf5
+        self.nodes, self.hexes, self.points = nodes, hexes, points
+        self.csv_path = self.outdir / rf.CSV
+        self.h5_path = self.outdir / rf.RESULTS
+        self.pvd_path = self.outdir / rf.PVD
+        self.ckpt_path = self.outdir / rf.CHECKPOINT
+        self.h5 = None
+        self.pvd: list[tuple[float, str, int]] = []
+        self.curve: dict[str, list] = {c: [] for c in rf.CSV_COLUMNS}
+        self._pending = io.StringIO()  # CSV rows not yet in the file
+        self._writer = csv.writer(self._pending)
+        self._csv = None
+
+    # --- opening ----------------------------------------------------------------------------
+    @classmethod
+    def start(cls, outdir: Path, case_yaml: str, scene_info: dict[str, Any],
+              mesh: dict[str, np.ndarray], *, vtu: bool, hdf5: bool) -> Recorder:
+        """A new run in ``outdir`` (already prepared, :func:`runfolder.prepare_outdir`):
+        ``case.yaml``, ``scene.json``, ``results.h5`` with ``mesh`` (``nodes_m``, ``hexes``,
+        ``contact_points_m``...), the CSV header."""
+        self = cls(outdir, case_yaml, vtu=vtu, hdf5=hdf5, nodes=mesh["nodes_m"],
+                   hexes=mesh["hexes"], points=mesh["contact_points_m"])
+        with writing(self.ckpt_path):
+            self.ckpt_path.unlink(missing_ok=True)  # an older run's checkpoint, never to resume
+        for name, text in ((rf.CASE, case_yaml),
+                           (rf.SCENE, json.dumps(scene_info, indent=1, allow_nan=False) + "\n")):
+            with writing(self.outdir / name):
+                atomic_write(self.outdir / name, lambda p, t=text: Path(p).write_text(t))
+        if hdf5:
+            from masonry_nscd.io.results_h5 import ResultsFile
+
+            with writing(self.h5_path):
+                self.h5 = ResultsFile(self.h5_path, case_yaml, mesh)
+        self._open_csv(append=False)
+        self._writer.writerow(rf.CSV_COLUMNS)
+        return self
+
+    @classmethod
+    def resume(cls, outdir: Path, point: ResumePoint, mesh: dict[str, np.ndarray], *,
+               vtu: bool, hdf5: bool) -> Recorder:
+        """Continue the run of ``outdir`` from its checkpoint ``point`` (module docstring);
+        RunInputError when the outputs do not fit it, RunOutputError when they cannot be
+        read or written."""
+        self = cls(outdir, point.case_yaml, vtu=vtu, hdf5=hdf5, nodes=mesh["nodes_m"],
+                   hexes=mesh["hexes"], points=mesh["contact_points_m"])
+        try:
+            self.curve = truncate_csv(self.csv_path, point.step, rf.CSV_COLUMNS)
+            if hdf5:
+                from masonry_nscd.io.results_h5 import ResultsFile
+
+                self.h5 = ResultsFile.reopen(self.h5_path, last_step=point.step,
+                                             curve_length=point.step)
+        except (CheckpointError, ValueError) as exc:
+            raise RunInputError(f"cannot resume the outputs in {outdir}: {exc}") from exc
+        except OSError as exc:  # unreadable, flagged as open for write, or disk full
+            raise RunOutputError(f"cannot resume the outputs in {outdir}: {exc}") from exc
+        self.pvd = list(point.pvd)
+        if vtu:
+            from masonry_nscd.io.vtu import write_pvd
+
+            with writing(self.pvd_path):
+                write_pvd(self.pvd_path, self.pvd)
+                prune_vtu(self.outdir / rf.VTU_DIR, point.step)
+        self._open_csv(append=True)
+        return self
+
+    def _open_csv(self, append: bool) -> None:
+        with writing(self.csv_path):  # unbuffered: whole rows only, see flush_rows
+            self._csv = open(self.csv_path, "ab" if append else "wb", buffering=0)  # noqa: SIM115
+
+    # --- writing ----------------------------------------------------------------------------
+    def add_row(self, row: list) -> None:
+        """One step's row (the columns of ``runfolder.CSV_COLUMNS``); every value finite, or
+        RunFailure naming the columns (the row is not written)."""
+        bad = [c for c, v in zip(rf.CSV_COLUMNS, row) if not math.isfinite(v)]
+        if bad:
+            raise RunFailure(f"{', '.join(bad)} not finite (the step is not written)")
+        self._writer.writerow([f"{v:.9g}" if isinstance(v, float) else v for v in row])
+        for c, v in zip(rf.CSV_COLUMNS, row):
+            self.curve[c].append(v)
+
+    def flush_rows(self) -> None:
+        """Append the pending CSV rows to the file and fsync it; after a failed write the file
+        is cut back to where it was, so that it only ever holds whole rows."""
+        data = memoryview(self._pending.getvalue().encode())
+        end = self._csv.seek(0, os.SEEK_END)
+        try:
+            with writing(self.csv_path):
+                while data:
+                    data = data[self._csv.write(data):]
+                os.fsync(self._csv.fileno())
+        except RunOutputError:
+            with contextlib.suppress(OSError):
+                os.ftruncate(self._csv.fileno(), end)
+            raise
+        self._pending.seek(0)
+        self._pending.truncate()
+
+    def write_output(self, step: int, time: float, out: StepOutput, integ, *, done: bool,
+                     unconverged: int, worst_residual: float) -> None:
+        """An output step: the CSV rows so far, VTU + PVD, HDF5 step and curve, checkpoint.
+        A NaN or infinity in a field raises ValueError naming it (nothing of it written)."""
+        from masonry_nscd.io.vtu import write_blocks_vtu, write_points_vtu, write_pvd
+
+        self.flush_rows()
+        if self.vtu:
+            files = (rf.vtu_file("blocks", step), rf.vtu_file("joints", step))
+            with writing(self.outdir / files[0]):
+                write_blocks_vtu(self.outdir / files[0], self.nodes, self.hexes,
+                                 point_data=out.block_points, cell_data=out.block_cells)
+            with writing(self.outdir / files[1]):
+                write_points_vtu(self.outdir / files[1], self.points,
+                                 point_data=out.joint_points)
+            self.pvd += [(time, files[0], 0), (time, files[1], 1)]
+            with writing(self.pvd_path):
+                write_pvd(self.pvd_path, self.pvd)
+        if self.h5 is not None:
+            with writing(self.h5_path):
+                self.h5.write_step(step, time, out.h5)
+                self.h5.write_curve({c: np.asarray(v, dtype=float)
+                                     for c, v in self.curve.items()})
+        with writing(self.ckpt_path):
+            checkpoint.save_checkpoint(self.ckpt_path, integ, {
+                "step": np.int64(step), "finished": np.int64(done),
+                "pvd_time": np.array([p[0] for p in self.pvd], dtype=float),
+                "pvd_file": np.array([p[1] for p in self.pvd], dtype=str),
+                "pvd_part": np.array([p[2] for p in self.pvd], dtype=np.int64),
+                "unconverged": np.int64(unconverged),
+                "worst_residual": np.float64(worst_residual),
+                "case_yaml": np.array(self.case_yaml),
+            })
+
+    def close(self) -> None:
+        """Write the pending rows (complete steps after the last output step) and close."""
+        with contextlib.suppress(RunOutputError, OSError):
+            if self._csv is not None:
+                self.flush_rows()
+        with contextlib.suppress(OSError):
+            if self._csv is not None:
+                self._csv.close()
+        if self.h5 is not None:
+            self.h5.close()

@@ -1,0 +1,209 @@
+r"""Contact detection: the joints of a block assembly, found from the geometry of its bodies.
+
+Two planar patches (:mod:`masonry_nscd.model.faces`) of two bodies form a **joint** when
+
+* they are parallel and face each other: outward normals opposite within ``angle_tol`` (rad);
+* the gap between them, measured along the normal, is within ``[-gap_tol, max_gap + gap_tol]``
+  (m): ``max_gap`` is the joint thickness (the mortar and the unit-mortar interface are one
+  contact interface with an initial gap equal to it);
+* they overlap: at least one contact point of the candidate face projects, across the gap,
+  inside the antagonist face.
+
+Candidate and antagonist. The contact points sit on the candidate face. A support (a body
+marked ``support``: the steel beams, the ground) is never the candidate of a joint with a body
+that is not one. Otherwise the candidate is the body on the upper side of the joint: its
+outward normal points down (``n_y < 0``), or, for a vertical joint, left (``n_x < 0``), or, for a
+joint in the x-y plane, back (``n_z < 0``); the first component of the normal larger than
+``1e-6`` decides. On a wall, the unit above a bed joint and the unit right of a head joint.
+
+Contact points sit at the ``n_gauss x n_gauss`` Gauss points of each candidate face quad, with
+the tributary area of their Gauss weight. Each projects along the normal onto the antagonist
+face; the first antagonist (in body order) whose face contains the projection takes the point,
+and a point that faces none (an open end) is dropped. The point's gap is the distance to the
+antagonist's plane along the normal, and its frame (n, t, s) has ``n`` from the antagonist to
+the candidate (:func:`~masonry_nscd.model.points.joint_frame`).
+
+Broad phase: the bounding boxes of the patches, enlarged by ``max_gap + gap_tol``, are hashed
+into a grid of cells the size of the median patch; only patches that share a cell are compared,
+so the cost grows with the number of patches, not with its square.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from masonry_nscd.model.bodies import RigidBody
+from masonry_nscd.model.faces import Patch, gauss_points, locate, planar_patches
+from masonry_nscd.model.points import (
+    ContactPoint,
+    deformable_side,
+    dof_offsets,
+    joint_frame,
+    rigid_side,
+)
+
+
+@dataclass
+class Joint:
+    """Two facing patches: points on ``candidate``'s patch, projected on ``antagonist``'s."""
+
+    candidate: Patch
+    antagonists: list[Patch]  # in body order
+    normal: np.ndarray  # (3,) from the antagonists to the candidate (minus its outward normal)
+
+
+@dataclass
+class Detection:
+    """The patches of every body and the joints between them."""
+
+    patches: list[Patch]
+    joints: list[Joint]
+
+
+def candidate_pairs(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Pairs ``(i, j)``, i < j, of boxes ``[lo, hi]`` (n, 3) that overlap (uniform-grid hash)."""
+    n = len(lo)
+    if n < 2:
+        return np.zeros((0, 2), dtype=np.int64)
+    ext = (hi - lo).max(axis=1)
+    cell = float(np.median(ext)) or float(ext.max()) or 1.0
+    origin = lo.min(axis=0)
+    c0 = np.floor((lo - origin) / cell).astype(np.int64)
+    c1 = np.floor((hi - origin) / cell).astype(np.int64)
+    span = c1 - c0 + 1
+    shape = c1.max(axis=0) + 1
+    count = span.prod(axis=1)
+    owner = np.repeat(np.arange(n), count)
+    # the k-th cell of box i: offsets (a, b, c) within its span, x fastest
+    k = np.arange(len(owner)) - np.repeat(np.cumsum(count) - count, count)
+    sx, sy = span[owner, 0], span[owner, 1]
+    cx = c0[owner, 0] + k % sx
+    cy = c0[owner, 1] + (k // sx) % sy
+    cz = c0[owner, 2] + k // (sx * sy)
+    key = (cz * shape[1] + cy) * shape[0] + cx
+    order = np.lexsort((owner, key))
+    key, owner = key[order], owner[order]
+    start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    size = np.diff(np.r_[start, len(key)])
+    group_start = np.repeat(start, size)
+    pos = np.arange(len(key)) - group_start
+    later = np.repeat(size, size) - pos - 1  # entries after this one in its cell
+    first = np.repeat(np.arange(len(key)), later)
+    offs = np.arange(len(first)) - np.repeat(np.cumsum(later) - later, later) + 1
+    i, j = owner[first], owner[first + offs]
+    pairs = np.unique(np.stack([np.minimum(i, j), np.maximum(i, j)], axis=1), axis=0)
+    pairs = pairs[pairs[:, 0] != pairs[:, 1]]
+    ok = np.all((lo[pairs[:, 0]] <= hi[pairs[:, 1]]) & (lo[pairs[:, 1]] <= hi[pairs[:, 0]]),
+                axis=1)
+    return pairs[ok]
+
+
+def _is_candidate(a: Patch, b: Patch, bodies) -> bool:
+    """Whether patch ``a`` (not ``b``) carries the points of their joint (module docstring)."""
+    sa, sb = _support(bodies[a.body]), _support(bodies[b.body])
+    if sa != sb:
+        return sb
+    for axis in (1, 0, 2):
+        if abs(a.normal[axis]) > 1e-6:
+            return a.normal[axis] < 0.0
+    return a.body < b.body
+
+
+def _support(body) -> bool:
+    return isinstance(body, RigidBody) and body.support
+
+
+def find_joints(bodies: Sequence, *, max_gap: float, gap_tol: float = 1e-6,
+                angle_tol: float = 1e-3) -> Detection:
+    """The facing patches of ``bodies`` (module docstring), one :class:`Joint` per candidate
+    patch, in body order then patch order."""
+    patches = [p for i, b in enumerate(bodies) for p in planar_patches(i, b.X, b.conn)]
+    if not patches:
+        return Detection([], [])
+    pad = max_gap + gap_tol
+    lo = np.array([p.lo for p in patches]) - pad
+    hi = np.array([p.hi for p in patches]) + pad
+    cos_tol = np.cos(angle_tol)
+    facing: dict[int, list[int]] = {}
+    for i, j in candidate_pairs(lo, hi):
+        a, b = patches[i], patches[j]
+        if a.body == b.body or not a.normal @ b.normal <= -cos_tol:
+            continue
+        if not _is_candidate(a, b, bodies):
+            i, j, a, b = j, i, b, a
+        # the antagonist's corners measured from the candidate's plane, along its normal
+        gaps = (bodies[b.body].X[b.quads].reshape(-1, 3) @ a.normal) - a.offset
+        if gaps.min() >= -gap_tol and gaps.max() <= max_gap + gap_tol:
+            facing.setdefault(int(i), []).append(int(j))
+    joints = []
+    for i in sorted(facing):
+        ants = sorted(facing[i], key=lambda j: (patches[j].body, j))
+        joints.append(Joint(patches[i], [patches[j] for j in ants], -patches[i].normal))
+    return Detection(patches, joints)
+
+
+def joint_points(bodies: Sequence, joints: Sequence[Joint],
+                 classify: Callable[[Joint, Patch], tuple[int, int, int] | None], *,
+                 n_gauss: int = 2, dof0: np.ndarray | None = None) -> list[ContactPoint]:
+    """The contact points of ``joints`` (module docstring).
+
+    ``classify(joint, antagonist_patch)`` gives the ``(group, kind, law)`` of the points that
+    the antagonist takes, or None to make none there.
+    """
+    dof0 = dof_offsets(bodies) if dof0 is None else dof0
+    out: list[ContactPoint] = []
+    for jt in joints:
+        cand = jt.candidate
+        cb = bodies[cand.body]
+        frame = joint_frame(jt.normal)
+        n_out = cand.normal  # outward normal of the candidate face
+        xs, areas, ref = gauss_points(cb.X[cand.quads], n_gauss)  # (nq, k, 3), (nq, k)
+        taken = np.zeros(xs.shape[:2], dtype=bool)
+        for ant in jt.antagonists:
+            tag = classify(jt, ant)
+            ab = bodies[ant.body]
+            # distance from each point to the antagonist's plane, along the candidate's normal
+            gap = (ant.offset - xs @ ant.normal) / (n_out @ ant.normal)
+            xa = xs + gap[..., None] * n_out
+            P = ab.X[ant.quads]
+            xi, eta, inside = locate(P, xa.reshape(-1, 3))
+            inside &= ~taken.reshape(-1)[:, None]
+            hit = inside.any(axis=1)
+            taken |= hit.reshape(taken.shape)
+            if tag is None:
+                continue
+            group, kind, law = tag
+            for flat in np.flatnonzero(hit):
+                q, k = divmod(int(flat), xs.shape[1])
+                m = int(np.argmax(inside[flat]))
+                x = xs[q, k]
+                cand_side = _side(cb, int(dof0[cand.body]), cand.quads[q], x, frame, 1.0,
+                                  ref[k])
+                ant_side = _side(ab, int(dof0[ant.body]), ant.quads[m], xa[q, k], frame, -1.0,
+                                 (xi[flat, m], eta[flat, m]))
+                out.append(ContactPoint(
+                    x=x, frame=frame, area=float(areas[q, k]), gap=float(gap[q, k]), kind=kind,
+                    law=law, group=group, bodies=(cand.body, ant.body),
+                    sides=[cand_side, ant_side]))
+    return out
+
+
+def _side(body, dof0: int, quad: np.ndarray, x: np.ndarray, frame: np.ndarray, sign: float,
+          ref) -> tuple[np.ndarray, np.ndarray]:
+    """Velocity map of point ``x`` of ``body``, at reference coordinates ``ref`` of its face
+    ``quad``."""
+    if isinstance(body, RigidBody):
+        return rigid_side(dof0, body, x, frame, sign)
+    return deformable_side(dof0, quad, float(ref[0]), float(ref[1]), frame, sign)
+
+
+def contact_points(bodies: Sequence, classify: Callable[[Joint, Patch], tuple[int, int, int] | None],
+                   *, max_gap: float, n_gauss: int = 2, gap_tol: float = 1e-6,
+                   angle_tol: float = 1e-3) -> list[ContactPoint]:
+    """The contact points of every joint of ``bodies``: :func:`find_joints`, then
+    :func:`joint_points` with ``classify``."""
+    found = find_joints(bodies, max_gap=max_gap, gap_tol=gap_tol, angle_tol=angle_tol)
+    return joint_points(bodies, found.joints, classify, n_gauss=n_gauss)

@@ -1,0 +1,86 @@
+"""Contact points: where a joint is sampled, and how the bodies' velocities reach it.
+
+A contact point sits on the candidate face of a joint. It carries a tributary area (m^2), a frame
+(n, t, s) with ``n`` from the antagonist to the candidate (so that ``u_n > 0`` opens the joint)
+and ``s = n x t``, the initial gap (m), the kind and law row of the joint and its group, and per
+side the map from the body's dof velocities to the point's local relative velocity: bilinear
+shape functions of the face quad on a block, lever arms on a rigid body.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from masonry_nscd.model.bodies import RigidBody
+
+
+@dataclass
+class ContactPoint:
+    """One contact point between a candidate side (body 0) and an antagonist side (body 1).
+
+    ``frame`` rows are (n, t, s), ``n`` pointing from the antagonist to the candidate, so that
+    ``u_n > 0`` opens the joint. ``sides`` holds, per side, the global dofs and the matrix that
+    maps their velocities to the point's local relative velocity (sign included).
+    """
+
+    x: np.ndarray  # m, position on the candidate face
+    frame: np.ndarray  # (3, 3)
+    area: float  # m^2, tributary area
+    gap: float  # m, initial gap
+    kind: int  # contact.laws.KIND_*
+    law: int  # row of the parameter table
+    group: int  # joint group id (the scene names them)
+    bodies: tuple[int, int]  # body indices
+    sides: list  # [(dofs (k,), coef (k, 3)), ...] velocity map per side
+
+
+def frame_from(normal, tangent) -> np.ndarray:
+    """Orthonormal frame rows (n, t, s) with s = n x t; ``tangent`` is projected on the plane."""
+    n = np.asarray(normal, dtype=float)
+    n = n / np.linalg.norm(n)
+    t = np.asarray(tangent, dtype=float)
+    t = t - np.dot(t, n) * n
+    t = t / np.linalg.norm(t)
+    return np.array([n, t, np.cross(n, t)])
+
+
+def joint_frame(normal) -> np.ndarray:
+    """The frame of a joint of normal ``normal``: ``t`` along x, or along y when the normal is
+    closer to x than 45 degrees (bed joints: t = x; head joints: t = y)."""
+    n = np.asarray(normal, dtype=float)
+    axis = (0.0, 1.0, 0.0) if abs(n[0]) > np.sqrt(0.5) * np.linalg.norm(n) else (1.0, 0.0, 0.0)
+    return frame_from(n, axis)
+
+
+def dof_offsets(bodies) -> np.ndarray:
+    """First global dof of each body (and the total), in the numbering of
+    ``nscd.system.build_system``."""
+    return np.concatenate([[0], np.cumsum([b.ndof for b in bodies])]).astype(np.int64)
+
+
+def deformable_side(dof0: int, nodes, xi: float, eta: float, frame, sign: float):
+    """Velocity map of a point at (xi, eta) of a bilinear face quad of a block.
+
+    ``v(x) = sum_i N_i(xi, eta) v_i`` with the quad's bilinear shape functions (nodes in the
+    quad's order); the local relative velocity picks ``sign * frame @ v(x)``.
+    """
+    Nq = 0.25 * np.array([(1 - xi) * (1 - eta), (1 + xi) * (1 - eta),
+                          (1 + xi) * (1 + eta), (1 - xi) * (1 + eta)])
+    dofs = (dof0 + 3 * np.asarray(nodes, dtype=np.int64)[:, None] + np.arange(3)).ravel()
+    coef = sign * (Nq[:, None, None] * np.asarray(frame).T[None, :, :]).reshape(12, 3)
+    return dofs, coef
+
+
+def rigid_side(dof0: int, body: RigidBody, x: np.ndarray, frame, sign: float):
+    """Velocity map of a material point x of a rigid body: ``v = v_0 + omega x (x - x_ref)``."""
+    r = np.asarray(x) - body.reference
+    dofs = dof0 + np.arange(6, dtype=np.int64)
+    coef = np.empty((6, 3))
+    for d in range(3):
+        coef[d] = sign * frame[:, d]
+        e = np.zeros(3)
+        e[d] = 1.0
+        coef[3 + d] = sign * frame @ np.cross(e, r)
+    return dofs, coef

@@ -1,0 +1,144 @@
+r"""Fields of one step, from the integrator's state: what the recorders write (SI units).
+
+The output mesh is the structure of the scene (its units, not the supports): every body's
+hexahedra, nodes numbered body after body, ``block_of_element`` the position of the element's
+body in ``scene.structure``. Per step:
+
+* nodal displacements (m): the dofs of a block; ``q_0 + theta x (x - x_ref)`` on a rigid body
+  (small rotations about its reference point);
+* per element: the mean stress over the 8 Gauss points (Pa, Voigt ``[xx, yy, zz, yz, xz, xy]``):
+  ``C0 eps`` for linear elastic blocks, the apparent (damaged) stress for ENDO3D blocks, zero on
+  rigid bodies; its von Mises equivalent ``sqrt(3 J2)``; the ENDO3D damages ``d_c``, ``d_cpp``,
+  the largest ``d_t`` and crack opening (m), zero elsewhere;
+* per contact point: the joint damage ``d_coh = 1 - beta (1 - d_0)`` with ``d_0`` the damage of
+  the point's law as built (:func:`masonry_nscd.contact.laws.initial_damage`), the opening and
+  slip (m), the normal and shear tractions (Pa), the status code and the group id.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from masonry_nscd.contact import laws
+from masonry_nscd.fe import hex8
+from masonry_nscd.model import Block, RigidBody
+
+
+@dataclass
+class OutputMesh:
+    """The hexahedra of the scene's structure (reference coordinates, m)."""
+
+    bodies: list[int]  # scene body index of each structure body
+    nodes: np.ndarray  # (nn, 3)
+    hexes: np.ndarray  # (ne, 8)
+    block_of_element: np.ndarray  # (ne,) position in ``bodies``
+    node_offsets: np.ndarray  # (nb + 1,)
+    element_offsets: np.ndarray  # (nb + 1,)
+
+    @classmethod
+    def of(cls, scene) -> OutputMesh:
+        geoms = [scene.bodies[i] for i in scene.structure]
+        n_off = np.cumsum([0] + [len(g.X) for g in geoms])
+        e_off = np.cumsum([0] + [len(g.conn) for g in geoms])
+        nodes = np.concatenate([g.X for g in geoms]) if geoms else np.zeros((0, 3))
+        hexes = np.concatenate([g.conn + n_off[k] for k, g in enumerate(geoms)]) if geoms \
+            else np.zeros((0, 8), dtype=np.int64)
+        owner = np.repeat(np.arange(len(geoms)), np.diff(e_off))
+        return cls(list(scene.structure), nodes, hexes, owner, n_off, e_off)
+
+
+def point_initial_damage(params: np.ndarray, kind: np.ndarray, law: np.ndarray) -> np.ndarray:
+    """Damage of each contact point's law as built (0 for glued points)."""
+    d0 = np.array([laws.initial_damage(P) for P in params])
+    return np.where(kind == laws.KIND_JOINT, d0[law], 0.0)
+
+
+def von_mises(sig: np.ndarray) -> np.ndarray:
+    """Von Mises stress (Pa) of Voigt stresses (n, 6)."""
+    sxx, syy, szz, syz, sxz, sxy = sig.T
+    return np.sqrt(0.5 * ((sxx - syy) ** 2 + (syy - szz) ** 2 + (szz - sxx) ** 2)
+                   + 3.0 * (syz ** 2 + sxz ** 2 + sxy ** 2))
+
+
+class StepFields:
+    """Reads the fields of the current state of an integrator of a scene (module docstring)."""
+
+    def __init__(self, scene, mesh: OutputMesh, integ):
+        self.mesh = mesh
+        self.integ = integ
+        s = integ.sys
+        self.joint = s.kind == laws.KIND_JOINT
+        self.d0 = point_initial_damage(integ.params, s.kind, s.law)
+        self.group = np.array([p.group for p in integ.points], dtype=np.int64)
+        mat = integ.material
+        # output elements of the ENDO3D blocks, in the order of ``mat.index``
+        pos = {b: k for k, b in enumerate(mesh.bodies)}
+        self._endo = np.concatenate(
+            [np.arange(mesh.element_offsets[pos[i]], mesh.element_offsets[pos[i] + 1])
+             for i in mat.index]) if mat is not None else np.zeros(0, dtype=np.int64)
+
+    def joint_damage(self) -> np.ndarray:
+        """``d_coh = 1 - beta (1 - d_0)`` per contact point."""
+        return 1.0 - self.integ.joints.beta * (1.0 - self.d0)
+
+    def block_damage(self) -> dict[str, np.ndarray]:
+        """Per element: ENDO3D ``d_c``, ``d_cpp``, ``d_t``, ``crack_opening_m`` (zero elsewhere)."""
+        nel = len(self.mesh.hexes)
+        out = {k: np.zeros(nel) for k in ("d_c", "d_cpp", "d_t", "crack_opening_m")}
+        mat = self.integ.material
+        if mat is not None:
+            f = mat.element_fields()
+            for k, arr in out.items():
+                arr[self._endo] = f[k]
+        return out
+
+    def element_stress(self) -> np.ndarray:
+        """Mean stress of each element (ne, 6), Pa (module docstring)."""
+        integ, mesh = self.integ, self.mesh
+        out = np.zeros((len(mesh.hexes), 6))
+        mat = integ.material
+        if mat is not None:
+            out[self._endo] = mat.element_fields()["stress_Pa"]
+        endo = set(mat.index) if mat is not None else set()
+        for k, i in enumerate(mesh.bodies):
+            body = integ.bodies[i]
+            if not isinstance(body, Block) or i in endo:
+                continue
+            eps = np.empty((8 * len(body.conn), 6))
+            hex8.gauss_strains(body.X, body.conn,
+                               np.ascontiguousarray(integ.u[integ.body_dofs(i)]), eps)
+            C0 = hex8.elastic_matrix(body.E, body.nu)
+            out[mesh.element_offsets[k]:mesh.element_offsets[k + 1]] = \
+                (eps @ C0.T).reshape(-1, 8, 6).mean(axis=1)
+        return out
+
+    def nodal_displacement(self) -> np.ndarray:
+        """Displacement of every output node (nn, 3), m."""
+        integ, mesh = self.integ, self.mesh
+        d = np.zeros_like(mesh.nodes)
+        for k, i in enumerate(mesh.bodies):
+            body = integ.bodies[i]
+            rows = slice(mesh.node_offsets[k], mesh.node_offsets[k + 1])
+            q = integ.u[integ.body_dofs(i)]
+            d[rows] = body.displacement_of(q, body.X) if isinstance(body, RigidBody) \
+                else q.reshape(-1, 3)
+        return d
+
+    def joint_fields(self) -> dict[str, np.ndarray]:
+        """Per contact point: damage, opening and slip (m), tractions (Pa), status, group."""
+        j = self.integ.joints
+        return {"d_coh": self.joint_damage(), "opening_m": j.u[:, 0],
+                "slip_m": np.hypot(j.u[:, 1], j.u[:, 2]), "T_n_Pa": j.T[:, 0],
+                "T_t_Pa": np.hypot(j.T[:, 1], j.T[:, 2]), "status": j.status.astype(float),
+                "group": self.group.astype(float)}
+
+    def largest(self, damage: dict[str, np.ndarray]) -> tuple[float, float, float]:
+        """The curve's damage columns: largest joint ``d_coh`` (joint points only), largest
+        ``max(d_c, d_t)`` and largest ``d_cpp`` of the elements."""
+        dj = float(self.joint_damage()[self.joint].max()) if self.joint.any() else 0.0
+        if not len(self.mesh.hexes):
+            return dj, 0.0, 0.0
+        return (dj, float(np.maximum(damage["d_c"], damage["d_t"]).max()),
+                float(damage["d_cpp"].max()))

@@ -1,0 +1,175 @@
+r"""The scene: a block assembly with its loads, supports and stages, ready to step.
+
+A builder (:mod:`masonry_nscd.scenes.wall`, the small scenes) declares everything the run loop,
+the recorders, the summary and the plots need, so that none of them knows what was built:
+
+* the bodies and the contact points, each point in a named joint group (``bed``, ``head``,
+  ``glue_bottom``...);
+* the structure: the bodies drawn and reported (the units), each with a name and the builder's
+  place keys (``course``, ``position_in_course``, ...);
+* the driven body, whose reference point's displacement is the curve's ``U_x``, ``U_y``, and the
+  two bodies whose forces on the structure are reported as ``F_x``, ``F_y`` (``top``) and
+  ``F_x,bottom``, ``F_y,bottom`` (``bottom``);
+* the load stages (name, start time) and the stage whose force-displacement curve the summary
+  reads; dofs held from a time on (``Hold``: the top beam held in y once the vertical load is
+  on); the stop rule: the driven displacement reaching ``target_m``, or ``time_limit_s``;
+* the solver settings.
+
+A held dof changes the system (its velocity becomes imposed), so :meth:`Scene.integrator` builds
+the integrator of the stage a step starts in; the run loop moves the state into a new one when a
+hold begins (:meth:`Scene.holds_change`). :meth:`Scene.info` is what the run folder keeps of the
+scene (``scene.json``) for the summary and the plots.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from masonry_nscd.contact.laws import KIND_JOINT
+from masonry_nscd.loading import Loads, at_rest
+from masonry_nscd.model import ContactPoint, RigidBody
+
+DOF_NAMES = ("x", "y", "z", "rot_x", "rot_y", "rot_z")
+SCENE_FORMAT = "masonry_nscd.scene"
+
+
+@dataclass(frozen=True)
+class Stage:
+    """A load stage: its name and start time (s)."""
+
+    name: str
+    start_s: float
+
+
+@dataclass(frozen=True)
+class Hold:
+    """A dof of a rigid body held still (imposed zero velocity) for every step that ends after
+    ``from_s`` (s)."""
+
+    body: int
+    dof: int
+    from_s: float
+
+
+@dataclass(frozen=True)
+class SolverSettings:
+    """How the steps are solved (``nscd.integrator.Integrator``'s arguments)."""
+
+    h: float  # s
+    theta: float = 1.0
+    tolerance: float = 1e-6
+    max_iterations: int = 20000
+    check_every: int = 5
+    method: str = "newton"
+    max_halvings: int = 0
+    endo3d_params: np.ndarray | None = None
+    endo3d_tau: float = 0.0  # s
+
+
+@dataclass
+class Scene:
+    """A block assembly ready to step, and what the recorders and the post read of it."""
+
+    name: str
+    bodies: list
+    points: list[ContactPoint]
+    groups: tuple[str, ...]  # joint group id -> name
+    params: np.ndarray  # joint-law parameter table, one row per law
+    loads: Loads
+    solver: SolverSettings
+    structure: list[int]  # bodies drawn and reported, in output order
+    body_info: list[dict[str, Any]]  # per structure body: "name" and the builder's place keys
+    driven: int  # body whose reference point moves by (U_x, U_y)
+    reactions: dict[str, int]  # "top", "bottom" -> body whose force on the others is reported
+    stages: list[Stage]
+    push_stage: str  # the stage whose F_x - U_x curve is summarised
+    target_m: float  # the run stops when U_x reaches it (m)
+    expected_end_s: float  # when the target should be reached (s; progress and step count)
+    time_limit_s: float  # the run stops at this time in any case (s)
+    holds: list[Hold] = field(default_factory=list)
+    builder: str = ""
+    meta: dict[str, Any] = field(default_factory=dict)  # builder's values for the summary
+
+    # --- what changes with time -----------------------------------------------------------
+    def stage_at(self, t: float) -> str:
+        """Name of the load stage at time ``t`` (s): the last one started at or before it."""
+        name = self.stages[0].name
+        for st in self.stages:
+            if t >= st.start_s:
+                name = st.name
+        return name
+
+    def holds_at(self, t: float) -> tuple[Hold, ...]:
+        """The holds active in a step that starts at ``t`` (s) (it ends after ``from_s``)."""
+        h = self.solver.h
+        return tuple(hd for hd in self.holds if t + h > hd.from_s + 1e-12 * h)
+
+    def holds_change(self, t_before: float, t_after: float) -> bool:
+        """Whether the step starting at ``t_after`` has other holds than the one at
+        ``t_before``."""
+        return self.holds_at(t_before) != self.holds_at(t_after)
+
+    def integrator(self, t: float = 0.0):
+        """A new integrator of the scene for a step starting at ``t`` (s), with the holds active
+        then (its state is the initial one: restore a state into it to continue a run)."""
+        from masonry_nscd.nscd.integrator import Integrator
+
+        bodies = list(self.bodies)
+        for hd in self.holds_at(t):
+            b = bodies[hd.body]
+            bodies[hd.body] = dataclasses.replace(
+                b, imposed_velocity={**b.imposed_velocity, hd.dof: at_rest},
+                dof_mode=b.dof_mode.copy())
+        s = self.solver
+        return Integrator(bodies, self.points, self.params, self.loads, h=s.h, theta=s.theta,
+                          tolerance=s.tolerance, max_iterations=s.max_iterations,
+                          check_every=s.check_every, method=s.method,
+                          endo3d_params=s.endo3d_params, endo3d_tau=s.endo3d_tau,
+                          max_halvings=s.max_halvings)
+
+    # --- read-outs ------------------------------------------------------------------------
+    def driven_dofs(self, body_dof0: np.ndarray) -> tuple[int, int]:
+        """Global dofs of U_x and U_y (the driven body's reference point)."""
+        d0 = int(body_dof0[self.driven])
+        return d0, d0 + 1
+
+    def reaction_weights(self, side_body: np.ndarray) -> dict[str, np.ndarray]:
+        """Per reaction, the weight (+1, -1, 0) of each point's force on its candidate body in
+        the force of that body on the others: +1 where it is the antagonist, -1 where it is
+        the candidate."""
+        return {k: (side_body[:, 1] == b).astype(float) - (side_body[:, 0] == b)
+                for k, b in self.reactions.items()}
+
+    @property
+    def joint_groups(self) -> tuple[str, ...]:
+        """The groups whose points follow a joint law (not the glue)."""
+        used = {p.group for p in self.points if p.kind == KIND_JOINT}
+        return tuple(g for i, g in enumerate(self.groups) if i in used)
+
+    def info(self) -> dict[str, Any]:
+        """What the run folder keeps of the scene (``scene.json``; SI units)."""
+        def name(i: int) -> str:
+            b = self.bodies[i]
+            return b.name or f"body {i}"
+
+        return {
+            "format": SCENE_FORMAT, "version": 1, "name": self.name, "builder": self.builder,
+            "groups": list(self.groups), "joint_groups": list(self.joint_groups),
+            "stages": [{"name": s.name, "start_s": s.start_s} for s in self.stages],
+            "push_stage": self.push_stage, "target_m": self.target_m,
+            "expected_end_s": self.expected_end_s, "time_limit_s": self.time_limit_s,
+            "driven": {"body": name(self.driven),
+                       "reference_m": [float(v) for v in self.bodies[self.driven].reference]},
+            "reactions": {k: name(b) for k, b in self.reactions.items()},
+            "holds": [{"body": name(hd.body), "dof": DOF_NAMES[hd.dof], "from_s": hd.from_s}
+                      for hd in self.holds],
+            "bodies": [name(i) for i in range(len(self.bodies))],
+            "structure": [{"body": i, "kind": "rigid" if isinstance(self.bodies[i], RigidBody)
+                           else "block", **info}
+                          for i, info in zip(self.structure, self.body_info)],
+            **self.meta,
+        }
