@@ -46,7 +46,8 @@ import math
 import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Annotated, Any, ClassVar, Literal, get_args, get_origin
+from types import UnionType
+from typing import Annotated, Any, ClassVar, Literal, Union, get_args, get_origin
 
 import yaml
 from pydantic import (
@@ -1272,8 +1273,34 @@ def case_from_dict(data: Any) -> Case:
         ) from None
 
 
+_PART = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)(?:\[(\d+)\])?$")
+
+
+def _list_item(annotation: Any) -> Any | None:
+    """The item type of a list field (``list[T]``, ``list[T] | None``), or None."""
+    annotation, _ = _split_annotated(annotation)
+    options = get_args(annotation) if get_origin(annotation) in (Union, UnionType) \
+        else (annotation,)
+    for option in options:
+        option, _ = _split_annotated(option)
+        if get_origin(option) is list:
+            return get_args(option)[0]
+    return None
+
+
+def _as_model(annotation: Any) -> Any:
+    """A section type, or the section among the options of a union (``list[float] | Course``)."""
+    annotation, _ = _split_annotated(annotation)
+    if get_origin(annotation) in (Union, UnionType):
+        models = [a for a in get_args(annotation) if _is_model(_split_annotated(a)[0])]
+        if models:
+            return _split_annotated(models[0])[0]
+    return annotation
+
+
 def _apply_override(data: dict, override: str) -> None:
-    """Apply one ``dotted.path=value`` override to raw case data (in place)."""
+    """Apply one ``dotted.path=value`` override to raw case data (in place); a part may index a
+    list (``wall.openings[0].x_m``)."""
     if not isinstance(override, str) or "=" not in override:
         raise CaseError(
             f"--set {override}: an override must be PATH=VALUE, e.g. joint.mu=0.5 or "
@@ -1283,39 +1310,63 @@ def _apply_override(data: dict, override: str) -> None:
     parts = [p.strip() for p in path_text.strip().split(".")]
     if not path_text.strip() or any(not p for p in parts):
         raise CaseError(f"--set {override}: the path before '=' is empty or has an empty part")
+    steps: list[tuple[str, int | None]] = []
     annotation: Any = Case
     for i, part in enumerate(parts):
-        annotation, _ = _split_annotated(annotation)
+        annotation = _as_model(annotation)
         here = ".".join(parts[:i]) or "the top level"
         if not _is_model(annotation):
             raise CaseError(
                 f"--set {override}: {'.'.join(parts[:i])} is a value, not a section; it has "
                 f"no key '{part}'"
             )
+        m = _PART.match(part)
+        key, index = (m.group(1), m.group(2)) if m else (part, None)
         fields = annotation.model_fields
-        if part not in fields:
+        if key not in fields:
             raise CaseError(
                 f"--set {override}: unknown path {'.'.join(parts[: i + 1])}"
-                f"{_suggest(part, list(fields))}; the keys allowed in {here} are: "
+                f"{_suggest(key, list(fields))}; the keys allowed in {here} are: "
                 + ", ".join(fields)
             )
-        annotation = fields[part].annotation
+        annotation = fields[key].annotation
+        if index is not None:
+            item = _list_item(annotation)
+            if item is None:
+                raise CaseError(f"--set {override}: {'.'.join(parts[:i] + [key])} is not a "
+                                "list: it takes no [index]")
+            annotation = item
+        steps.append((key, None if index is None else int(index)))
     if annotation is str:
         value: Any = value_text  # text fields take the text as given
     else:
         value = read_yaml(value_text, f"--set {override}")
-    target = data
-    for i, part in enumerate(parts[:-1]):
-        child = target.get(part)
-        if child is None:
-            child = target[part] = {}
+    target: Any = data
+    for i, (key, index) in enumerate(steps):
+        last = i == len(steps) - 1
+        where = ".".join(parts[: i + 1])
+        if index is None:
+            if last:
+                target[key] = value
+                return
+            child = target.get(key)
+            if child is None:
+                child = target[key] = {}
+        else:
+            items = target.get(key)
+            if not isinstance(items, list) or not index < len(items):
+                count = len(items) if isinstance(items, list) else 0
+                raise CaseError(f"--set {override}: {'.'.join(parts[:i] + [key])} has {count} "
+                                f"item{'s' if count != 1 else ''} in the case file: no [{index}]")
+            if last:
+                items[index] = value
+                return
+            child = items[index]
         if not isinstance(child, dict):
             raise CaseError(
-                f"--set {override}: {'.'.join(parts[: i + 1])} in the case file is "
-                f"{_show(child)}, not a mapping"
+                f"--set {override}: {where} in the case file is {_show(child)}, not a mapping"
             )
         target = child
-    target[parts[-1]] = value
 
 
 def load_case(path: str | Path, overrides: Sequence[str] = ()) -> Case:
@@ -1400,6 +1451,9 @@ def _format_scalar(value: Any) -> str:
         return _format_float(value)
     if isinstance(value, (tuple, list)):
         return "[" + ", ".join(_format_scalar(v) for v in value) + "]"
+    if isinstance(value, BaseModel):  # in a list (openings, pattern courses): a flow mapping
+        return "{" + ", ".join(f"{k}: {_format_scalar(getattr(value, k))}"
+                               for k in type(value).model_fields) + "}"
     text = yaml.dump(
         value, Dumper=_CaseDumper, width=float("inf"), allow_unicode=True, explicit_end=False
     )

@@ -119,7 +119,8 @@ def _support(body) -> bool:
 def find_joints(bodies: Sequence, *, max_gap: float, gap_tol: float = 1e-6,
                 angle_tol: float = 1e-3) -> Detection:
     """The facing patches of ``bodies`` (module docstring), one :class:`Joint` per candidate
-    patch, in body order then patch order."""
+    patch, in body order, then from the bottom up (by the outward normal's ``n_y``, ``n_x``,
+    ``n_z``: a unit's bed joint, then its head joints, then the glue on its top)."""
     patches = [p for i, b in enumerate(bodies) for p in planar_patches(i, b.X, b.conn)]
     if not patches:
         return Detection([], [])
@@ -139,7 +140,8 @@ def find_joints(bodies: Sequence, *, max_gap: float, gap_tol: float = 1e-6,
         if gaps.min() >= -gap_tol and gaps.max() <= max_gap + gap_tol:
             facing.setdefault(int(i), []).append(int(j))
     joints = []
-    for i in sorted(facing):
+    # a body's joints from the bottom up: by the candidate face's outward normal (n_y, n_x, n_z)
+    for i in sorted(facing, key=lambda i: (patches[i].body, *patches[i].normal[[1, 0, 2]], i)):
         ants = sorted(facing[i], key=lambda j: (patches[j].body, j))
         joints.append(Joint(patches[i], [patches[j] for j in ants], -patches[i].normal))
     return Detection(patches, joints)

@@ -67,7 +67,7 @@ def newton_ready(P: np.ndarray) -> bool:
     return law_module(P).newton_ready(P)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def solve(ut, A, uc_old, beta_old, P, kind, T, uc):
     """The local problem of one contact point (module docstring): glue, or the law of ``P``.
     Returns ``(status, beta)``."""
@@ -80,7 +80,7 @@ def solve(ut, A, uc_old, beta_old, P, kind, T, uc):
     return ST_AMBIGUOUS, beta_old
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def tangent(u, T, uc_old, beta, status, P, K):
     """``K = dT/du`` (3x3, Pa/m) of the law of ``P`` at a solution, integrity frozen."""
     code = int(P[P_LAW])
