@@ -885,7 +885,7 @@ class Case(_Section):
             problems.append(("supports.clamped_courses", (
                 f"got {clamped}; with {self.wall.courses} courses no course would be left "
                 f"between the beams: at most {(self.wall.courses - 1) // 2}")))
-        if clamped:
+        elif clamped:
             from masonry_nscd.scenes.layout import course_levels
 
             levels = course_levels(self.wall)

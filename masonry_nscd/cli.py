@@ -65,7 +65,6 @@ def validate(
     """Check a case file: exit 0 with a one-line summary, or exit 2 listing every problem."""
     case = _load_case_or_exit(case_file, overrides)
     from masonry_nscd.case import case_to_yaml
-
     from masonry_nscd.scenes.layout import unit_boxes
 
     w, loading = case.wall, case.loading

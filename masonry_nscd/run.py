@@ -113,6 +113,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     from masonry_nscd.post.fields import OutputMesh, StepFields, von_mises
     from masonry_nscd.report import report_run
     from masonry_nscd.scenes import build_scene
+    from masonry_nscd.scenes.scene import DOF_NAMES
 
     outdir = Path(outdir)
     case_yaml = case_to_yaml(case)
@@ -182,10 +183,8 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
                 restore_integrator(new, integrator_state(integ))
                 integ = new
                 fields = StepFields(scene, mesh, integ)
-                log(f"from t = {integ.t:.6g} s: "
-                    + ", ".join(f"{scene.bodies[hd.body].name} held in "
-                                f"{'xyz'[hd.dof] if hd.dof < 3 else 'rotation'}"
-                                for hd in holds))
+                log(f"from t = {integ.t:.6g} s: " + ", ".join(
+                    f"{scene.bodies[hd.body].name} held in {DOF_NAMES[hd.dof]}" for hd in holds))
             t1 = integ.t + h
             try:
                 rep = integ.step()

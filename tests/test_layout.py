@@ -37,8 +37,8 @@ def test_the_brick_pattern_alternates_its_two_courses():
 
 
 def test_a_pattern_course_may_have_its_own_height():
-    case = load_case(BRICK, ["wall.courses=3", "wall.pattern=[[0.21, 0.21], "
-                             "{units: [0.1, 0.1, 0.21], height_m: 0.2}]"])
+    case = load_case(BRICK, ["wall.courses=3", ("wall.pattern=[[0.21, 0.21], "
+                             "{units: [0.1, 0.1, 0.21], height_m: 0.2}]")])
     levels = course_levels(case.wall)
     assert np.allclose(levels, [(0.0, 0.052), (0.062, 0.262), (0.272, 0.324)], atol=1e-12)
     rows = _rows(unit_boxes(case.wall))
@@ -82,19 +82,19 @@ BAD_LAYOUTS = {
                                      ["wall.pattern", "bond 'running'"]),
     "bond pattern without pattern": ("cases/smoke.yaml", ["wall.bond=pattern"],
                                      ["wall.pattern", "missing"]),
-    "an opening outside the wall": (WINDOW, ["wall.openings=[{x_m: 1.5, y_m: 0.32, width_m: 0.5, "
-                                             "height_m: 0.44}]"],
+    "an opening outside the wall": (WINDOW, [("wall.openings=[{x_m: 1.5, y_m: 0.32, width_m: 0.5, "
+                                             "height_m: 0.44}]")],
                                     ["wall.openings[0]", "not inside the wall", "1.85"]),
-    "overlapping openings": (WINDOW, ["wall.openings=[{x_m: 0.31, y_m: 0.32, width_m: 0.61, "
+    "overlapping openings": (WINDOW, [("wall.openings=[{x_m: 0.31, y_m: 0.32, width_m: 0.61, "
                                       "height_m: 0.22}, {x_m: 0.62, y_m: 0.21, width_m: 0.61, "
-                                      "height_m: 0.22}]"],
+                                      "height_m: 0.22}]")],
                              ["wall.openings[1]", "overlaps openings[0]"]),
-    "a unit cut shorter than a joint": (WINDOW, ["wall.openings=[{x_m: 0.625, y_m: 0.32, "
-                                                 "width_m: 0.6, height_m: 0.44}]"],
+    "a unit cut shorter than a joint": (WINDOW, [("wall.openings=[{x_m: 0.625, y_m: 0.32, "
+                                                 "width_m: 0.6, height_m: 0.44}]")],
                                         ["wall.openings[0]", "unit 3 of course 5", "0.005 m",
                                          "shorter than the joint"]),
-    "an edge through a course": (WINDOW, ["wall.openings=[{x_m: 0.62, y_m: 0.35, width_m: 0.61, "
-                                          "height_m: 0.41}]"],
+    "an edge through a course": (WINDOW, [("wall.openings=[{x_m: 0.62, y_m: 0.35, width_m: 0.61, "
+                                          "height_m: 0.41}]")],
                                  ["wall.openings[0].y_m", "cuts course 4", "bed joints"]),
     "a lintel that is not whole courses": (WINDOW, ["wall.openings[0].lintel.height_m=0.15"],
                                            ["wall.openings[0].lintel.height_m", "0.1, 0.21"]),
@@ -113,5 +113,6 @@ def test_a_bad_layout_exits_2_naming_the_field(name):
     text = str(info.value)
     for w in words:
         assert w in text, (name, text)
-    res = CliRunner().invoke(app, ["validate", path, *sum((["--set", s] for s in sets), [])])
+    args = [a for s in sets for a in ("--set", s)]
+    res = CliRunner().invoke(app, ["validate", path, *args])
     assert res.exit_code == 2 and words[0] in res.output and "Traceback" not in res.output

@@ -10,9 +10,9 @@ Paths (``to`` is the final value, m):
 
 * ``opening``: ``u_n`` from 0 to ``to``, no slip;
 * ``sliding``: ``u_t`` from 0 to ``to`` with the normal traction held at ``normal_stress`` (Pa,
-  negative in compression; the FCZM law). In compression the normal response is the spring alone, so holding
-  ``T_n`` means imposing ``u_n = T_n c_n``; in tension ``u_n`` is chosen per step so that the
-  open joint carries ``T_n`` with the integrity of the start of the step;
+  negative in compression): ``u_n`` per step from the law's ``normal_displacement`` (for the
+  FCZM, in compression the normal response is the spring alone, ``u_n = T_n c_n``; in tension
+  the open joint carries ``T_n`` with the integrity of the start of the step);
 * ``mixed``: ``u_n = u_t`` from 0 to ``to`` each (45 degrees).
 """
 
@@ -25,7 +25,6 @@ from pathlib import Path
 import numpy as np
 
 from masonry_nscd.contact import laws
-from masonry_nscd.contact.laws import fczm
 
 PATHS = ("opening", "sliding", "mixed")
 
@@ -93,7 +92,7 @@ def drive_joint_point(
         elif path == "mixed":
             ut[:] = (s[i], s[i], 0.0)
         else:
-            ut[0] = _normal_for_stress(normal_stress, beta, P)
+            ut[0] = laws.normal_displacement(normal_stress, beta, P)
             ut[1] = s[i]
             ut[2] = 0.0
         st, beta = laws.solve(ut, A, uc_old, beta, P, laws.KIND_JOINT, T, uc)
@@ -105,18 +104,6 @@ def drive_joint_point(
         out["d_coh"][i] = 1.0 - beta * b
         status[i] = st
     return JointCurve(status=status, **out)
-
-
-def _normal_for_stress(sigma: float, beta: float, P: np.ndarray) -> float:
-    """Total normal displacement that carries the normal traction ``sigma`` (Pa) (FCZM)."""
-    if sigma <= 0.0:
-        return sigma * P[fczm.P_CN_C]
-    kn = beta * P[fczm.P_B] * P[fczm.P_KI]
-    if kn <= 0.0:
-        raise ValueError(
-            f"the joint cannot carry a normal tension of {sigma} Pa: it has no cohesion left"
-        )
-    return sigma / kn + sigma * P[fczm.P_CN_T]
 
 
 def drive_joint_history(P: np.ndarray, u_path: np.ndarray) -> JointCurve:

@@ -11,7 +11,9 @@ A law module provides, besides its own documentation and checks:
 * ``tangent(u, T, uc_old, beta, status, P, K)`` (numba): ``K = dT/du`` (Pa/m) at a solution,
   integrity frozen, for the Newton matrix;
 * ``initial_damage(P)``: the damage of the joint as built (outputs: ``1 - beta (1 - d_0)``);
-* ``newton_ready(P)``: whether the Newton solver can take it.
+* ``newton_ready(P)``: whether the Newton solver can take it;
+* ``normal_displacement(sigma, beta, P)``: the normal displacement that carries a normal
+  traction (``masonry point joint --path sliding``).
 
 Adding a law: its module here, its section in ``case.Joint``, and a line in ``_MODULES`` and in
 the two dispatch functions below. The Newton and Gauss-Seidel kernels call only ``solve`` and
@@ -39,7 +41,7 @@ from masonry_nscd.contact.laws.common import (
 
 __all__ = ["KIND_GLUED", "KIND_JOINT", "LAWS", "N_COLUMNS", "P_LAW", "ST_AMBIGUOUS", "ST_GLUED",
            "ST_OPEN", "ST_SLIDE", "ST_STICK", "initial_damage", "law_module", "newton_ready",
-           "params_from_case", "solve", "tangent"]
+           "normal_displacement", "params_from_case", "solve", "tangent"]
 
 _MODULES = (fczm,)
 #: joint.law value -> law module
@@ -65,6 +67,12 @@ def initial_damage(P: np.ndarray) -> float:
 def newton_ready(P: np.ndarray) -> bool:
     """Whether the Newton solver can take the law of row ``P``."""
     return law_module(P).newton_ready(P)
+
+
+def normal_displacement(sigma: float, beta: float, P: np.ndarray) -> float:
+    """Normal displacement (m) carrying the normal traction ``sigma`` (Pa) at integrity
+    ``beta``, for the law of row ``P``."""
+    return law_module(P).normal_displacement(sigma, beta, P)
 
 
 @njit(cache=True, inline="always")

@@ -719,6 +719,20 @@ def initial_damage(P: np.ndarray) -> float:
     return 1.0 - float(P[P_B])
 
 
+def normal_displacement(sigma: float, beta: float, P: np.ndarray) -> float:
+    """Total normal displacement (m) that carries the normal traction ``sigma`` (Pa) with the
+    integrity ``beta``: the spring alone in compression, the open joint in series with the
+    spring in tension (ValueError when no cohesion is left to carry it)."""
+    if sigma <= 0.0:
+        return sigma * P[P_CN_C]
+    kn = beta * P[P_B] * P[P_KI]
+    if kn <= 0.0:
+        raise ValueError(
+            f"the joint cannot carry a normal tension of {sigma} Pa: it has no cohesion left"
+        )
+    return sigma / kn + sigma * P[P_CN_T]
+
+
 def newton_ready(P: np.ndarray) -> bool:
     """Whether the Newton solver can take the law: a spring in series (finite ``T(u)``)."""
     return bool(P[P_CN_C] > 0.0 and P[P_CT] > 0.0)

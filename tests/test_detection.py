@@ -1,0 +1,168 @@
+"""Contact detection (model/detection.py) on shapes other than axis-aligned boxes, its broad
+phase against brute force, and what each contact point must satisfy on the study's walls."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from masonry_nscd.case import load_case
+from masonry_nscd.contact.laws import KIND_JOINT
+from masonry_nscd.fe.hex8 import box_mesh
+from masonry_nscd.model import Block, RigidBody
+from masonry_nscd.model.detection import candidate_pairs, contact_points, find_joints
+from masonry_nscd.model.faces import locate
+from masonry_nscd.scenes import build_scene
+
+JOINT = lambda joint, antagonist: (0, KIND_JOINT, 0)
+
+
+def _rotation(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _block(X, conn, name=""):
+    return Block(X=X, conn=conn, E=1e10, nu=0.2, density=2000.0, name=name)
+
+
+@pytest.mark.parametrize("angle", [0.0, 0.3, 1.1])
+def test_a_rotated_stack_has_one_bed_joint_at_the_joint_thickness(angle):
+    """Two 0.3 x 0.1 x 0.15 m units 10 mm apart, turned about z: one joint, its 2 x 2 x 4
+    points on the upper unit, the normal and the gap turned with them, the area the face's."""
+    R = _rotation(angle)
+    bodies = []
+    for y0 in (0.0, 0.11):
+        X, conn = box_mesh(np.array([0.0, y0, 0.0]), np.array([0.3, 0.1, 0.15]), (2, 1, 1))
+        bodies.append(_block(X @ R.T, conn))
+    pts = contact_points(bodies, JOINT, max_gap=0.01)
+    assert len(pts) == 2 * 4
+    normal = R @ np.array([0.0, 1.0, 0.0])
+    n_up = 1 if normal[1] > 0 or (abs(normal[1]) < 1e-6 and normal[0] > 0) else 0
+    for p in pts:
+        assert p.bodies == (n_up, 1 - n_up)
+        assert np.allclose(p.frame[0], normal if n_up == 1 else -normal, atol=1e-12)
+        assert p.gap == pytest.approx(0.01, abs=1e-12)
+    assert sum(p.area for p in pts) == pytest.approx(0.3 * 0.15, rel=1e-12)
+
+
+def test_voussoirs_meet_on_their_inclined_joint():
+    """Two wedge-shaped voussoirs (hexahedra that are not boxes) of an arch, their joint a
+    radial plane: detected, points on the joint's plane, the normal along the arch."""
+    R0, R1, t = 1.0, 1.2, 0.2
+    def voussoir(a0, a1, gap_angle=0.0):
+        a0 += gap_angle
+        corners = []
+        for z in (0.0, t):
+            for r, a in ((R0, a0), (R0, a1), (R1, a1), (R1, a0)):
+                corners.append((r * np.cos(a), r * np.sin(a), z))
+        # hex8 order: bottom face (z = 0) counter-clockwise seen from +z, then the top face
+        X = np.array(corners)
+        return _block(X, np.array([[0, 1, 2, 3, 4, 5, 6, 7]]))
+    a = voussoir(np.pi / 2, np.pi / 3)  # counter-clockwise in a descending angle: flip order
+    a.X = a.X[[1, 0, 3, 2, 5, 4, 7, 6]]
+    b = voussoir(np.pi / 3, np.pi / 6)
+    b.X = b.X[[1, 0, 3, 2, 5, 4, 7, 6]]
+    pts = contact_points([a, b], JOINT, max_gap=0.0)
+    assert len(pts) == 4
+    radial = np.array([np.cos(np.pi / 3), np.sin(np.pi / 3), 0.0])
+    normal = np.cross(radial, (0.0, 0.0, 1.0))
+    for p in pts:
+        assert abs(p.x @ normal) < 1e-12  # on the joint's plane
+        assert abs(abs(p.frame[0] @ normal) - 1.0) < 1e-12
+    assert sum(p.area for p in pts) == pytest.approx((R1 - R0) * t, rel=1e-12)
+
+
+@pytest.mark.parametrize("case, n", [
+    ("apart beyond the joint", 0),         # 12 mm apart, joint of 10 mm
+    ("side by side", 0),                    # faces in line, not facing
+    ("offset, not overlapping", 0),         # facing planes, no overlap
+    ("half overlapping", 4),                # half the upper face over the lower one
+])
+def test_what_is_not_a_joint(case, n):
+    lower = box_mesh(np.array([0.0, 0.0, 0.0]), np.array([0.3, 0.1, 0.15]), (2, 1, 1))
+    origin = {"apart beyond the joint": (0.0, 0.112, 0.0), "side by side": (0.31, 0.0, 0.0),
+              "offset, not overlapping": (0.31, 0.11, 0.0),
+              "half overlapping": (0.15, 0.11, 0.0)}[case]
+    upper = box_mesh(np.array(origin), np.array([0.3, 0.1, 0.15]), (2, 1, 1))
+    bodies = [_block(*lower), _block(*upper)]
+    pts = contact_points(bodies, lambda j, a: (0, KIND_JOINT, 0), max_gap=0.01)
+    if case == "side by side":  # the facing end faces form a head joint, no bed joint
+        assert all(abs(p.frame[0][1]) < 1e-12 for p in pts)
+        return
+    assert len(pts) == n
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.tuples(st.floats(0, 10), st.floats(0, 10), st.floats(0, 10),
+                          st.floats(0, 3), st.floats(0, 3), st.floats(0, 0.5)),
+                min_size=0, max_size=40))
+def test_the_grid_broad_phase_finds_every_overlapping_pair(boxes):
+    lo = np.array([b[:3] for b in boxes]).reshape(-1, 3)
+    hi = lo + np.array([b[3:] for b in boxes]).reshape(-1, 3)
+    got = {tuple(p) for p in candidate_pairs(lo, hi)}
+    want = {(i, j) for i in range(len(lo)) for j in range(i + 1, len(lo))
+            if np.all(lo[i] <= hi[j]) and np.all(lo[j] <= hi[i])}
+    assert got == want
+
+
+@pytest.mark.parametrize("material", ["elastic", "rigid"])
+def test_every_point_faces_its_antagonist(material):
+    """On the study's wall, each contact point projected across its gap lies on a boundary
+    face of its antagonist (the old builder tied the bed points of rigid units to the first
+    unit below, wherever they were)."""
+    scene = build_scene(load_case("cases/wall_0.5MPa_elastic.yaml",
+                                  [f"blocks.material={material}"]))
+    bodies = scene.bodies
+    for p in scene.points:
+        ant = bodies[p.bodies[1]]
+        xa = p.x - p.gap * p.frame[0]
+        lo, hi = ant.X.min(axis=0), ant.X.max(axis=0)
+        assert np.all(xa >= lo - 1e-9) and np.all(xa <= hi + 1e-9), (p.x, p.bodies)
+    assert len(scene.points) == 1096
+
+
+def test_rigid_smoke_wall_is_symmetric_under_the_vertical_load(tmp_path):
+    """Rigid units on a symmetric wall: no horizontal force before the horizontal stage."""
+    from masonry_nscd.io.runfolder import read_curve_csv
+    from masonry_nscd.run import run_case
+
+    case = load_case("cases/smoke.yaml", ["blocks.material=rigid", "output.vtu=false",
+                                          "output.hdf5=false"])
+    run_case(case, tmp_path / "r", echo=lambda m: None)
+    c = read_curve_csv(tmp_path / "r" / "force_displacement.csv")
+    before = c["time_s"] < case.loading.horizontal.start_s
+    assert np.abs(c["fx_kN"][before]).max() < 1e-6 * np.abs(c["fy_kN"][before]).max()
+
+
+def test_a_rigid_body_from_a_mesh_has_the_box_mass_properties():
+    X, conn = box_mesh(np.array([0.1, 0.2, 0.3]), np.array([0.3, 0.1, 0.15]), (3, 2, 1))
+    a = RigidBody.from_mesh(X @ _rotation(0.0).T, conn, 2000.0)
+    b = RigidBody.box((0.1, 0.2, 0.3), (0.3, 0.1, 0.15), 2000.0)
+    assert a.mass == pytest.approx(b.mass, rel=1e-12)
+    assert np.allclose(a.center, b.center, atol=1e-14)
+    scale = np.abs(b.inertia).max()  # the second moment less m c c^T: round-off of 1e-14
+    assert np.allclose(a.inertia, b.inertia, rtol=0.0, atol=1e-12 * scale)
+    turned = RigidBody.from_mesh(X @ _rotation(0.4).T, conn, 2000.0)
+    R = _rotation(0.4)
+    assert np.allclose(turned.inertia, R @ b.inertia @ R.T, rtol=0.0, atol=1e-12 * scale)
+
+
+def test_a_point_is_located_in_a_general_quad():
+    P = np.array([[[0.0, 0.0, 0.0], [2.0, 0.2, 0.0], [2.5, 1.5, 0.0], [-0.2, 1.0, 0.0]]])
+    xi, eta = np.array([-0.3, 0.7, 0.9]), np.array([0.5, -0.8, 0.95])
+    N = 0.25 * np.stack([(1 - xi) * (1 - eta), (1 + xi) * (1 - eta), (1 + xi) * (1 + eta),
+                         (1 - xi) * (1 + eta)], axis=-1)
+    x = N @ P[0]
+    gx, ge, inside = locate(P, x)
+    assert np.allclose(gx[:, 0], xi, atol=1e-12) and np.allclose(ge[:, 0], eta, atol=1e-12)
+    assert inside.all()
+    assert not locate(P, np.array([[3.0, 3.0, 0.0]]))[2].any()
+
+
+def test_find_joints_names_one_joint_per_candidate_face():
+    scene_bodies = build_scene(load_case("cases/smoke.yaml")).bodies
+    found = find_joints(scene_bodies, max_gap=0.01)
+    # smoke wall: 3 + 4 + 3 units; bed faces of courses 2-3 (7), head faces (2 + 3 + 2),
+    # glue under course 1 (3) and over course 3 (3)
+    assert len(found.joints) == 7 + 7 + 3 + 3

@@ -1,0 +1,155 @@
+"""Test-rig conditions of the wall scene: a top beam loaded then held, the height of the point
+where U_x is imposed, clamped courses, and the rigid body's mass matrix about a point that is
+not its centre of mass; the two new cases in short form."""
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from masonry_nscd.case import load_case
+from masonry_nscd.cli import app
+from masonry_nscd.io.runfolder import read_curve_csv
+from masonry_nscd.loading import Ramp, at_rest
+from masonry_nscd.model import RigidBody
+from masonry_nscd.run import run_case
+from masonry_nscd.scenes import build_scene
+
+SMOKE = "cases/smoke.yaml"
+QUIET = {"echo": lambda m: None}
+
+
+@pytest.fixture(scope="module")
+def held(tmp_path_factory):
+    out = tmp_path_factory.mktemp("held") / "run"
+    case = load_case(SMOKE, ["supports.top_vertical=load_then_fixed", "output.vtu=false"])
+    run_case(case, out, **QUIET)
+    return case, out, read_curve_csv(out / "force_displacement.csv")
+
+
+def test_load_then_fixed_holds_the_beam_where_the_load_left_it(held):
+    case, out, c = held
+    force_kN = case.vertical_force_N / 1e3
+    start = case.loading.horizontal.start_s
+    h = case.solver.time_step_s
+    loaded = (c["time_s"] > 0.09) & (c["time_s"] <= start)
+    assert np.allclose(c["fy_kN"][loaded], -force_kN, rtol=1e-2)  # the load carried
+    held_rows = c["time_s"] > start + 1e-12  # every step that ends after the start
+    first = int(np.flatnonzero(held_rows)[0])
+    assert c["time_s"][first] - h < start + 1e-12
+    # the beam does not move in y from the step before: imposed at rest
+    assert np.all(c["uy_mm"][held_rows] == c["uy_mm"][first - 1])
+    # while the wall is sheared, the vertical reaction moves (here it grows as the wall
+    # dilates against the held beam)
+    assert abs(c["fy_kN"][-1] - c["fy_kN"][first - 1]) > 0.01 * force_kN
+    scene = json.loads((out / "scene.json").read_text())
+    assert scene["holds"] == [{"body": "upper beam", "dof": "y", "from_s": start}]
+    assert "upper beam held in y" in (out / "run.log").read_text()
+
+
+def test_a_held_run_resumes_across_the_hold(held, tmp_path):
+    """Interrupted after the beam was held, resumed: the integrator of the held stage is built
+    again from the checkpoint, and the curve is the uninterrupted one (solver tolerance)."""
+    case, _, ref = held
+    out = tmp_path / "cut"
+
+    def interrupt(curve):
+        if len(curve["step"]) >= 80:  # past the start of the horizontal stage (step 50)
+            raise KeyboardInterrupt
+        return False
+
+    with pytest.raises(KeyboardInterrupt):
+        run_case(case, out, stop_when=interrupt, **QUIET)
+    run_case(case, out, resume=True, **QUIET)
+    c = read_curve_csv(out / "force_displacement.csv")
+    assert len(c["step"]) == len(ref["step"])
+    for col in ("fx_kN", "fy_kN", "uy_mm"):
+        assert np.abs(c[col] - ref[col]).max() <= 1e-5 * np.abs(ref[col]).max(), col
+
+
+def _top_moment_about_reference(case, steps):
+    """Moment (N m) about the upper beam's reference point of the forces of the wall on the
+    beam, and the beam's horizontal force times its lever arm to the base (N m)."""
+    scene = build_scene(case)
+    integ = scene.integrator()
+    for _ in range(steps):
+        assert integ.step().converged
+    beam = scene.bodies[scene.driven]
+    on_beam = integ.sys.side_body[:, 1] == scene.driven
+    f = -integ.point_forces()[on_beam]  # the wall's force on the beam
+    r = np.array([p.x for p, b in zip(integ.points, on_beam) if b]) - beam.reference
+    moment = float(np.sum(r[:, 0] * f[:, 1] - r[:, 1] * f[:, 0]))
+    return moment, float(f[:, 0].sum()) * beam.reference[1]
+
+
+@pytest.mark.parametrize("height", [0.1, 0.6])
+def test_a_free_beam_is_pushed_at_its_load_point(height):
+    """Top beam free to rotate: the wall's forces on it have no moment about the point where
+    U_x is imposed (quasi-static), so the shear span is the wall's height plus load_height_m."""
+    case = load_case(SMOKE, ["supports.top_rotation=free", f"supports.load_height_m={height}"])
+    moment, lever = _top_moment_about_reference(case, 150)
+    assert abs(moment) < 2e-3 * abs(lever)
+
+
+def test_a_level_beam_does_not_feel_the_load_height(tmp_path):
+    curves = []
+    for height in (0.1, 0.6):
+        case = load_case(SMOKE, [f"supports.load_height_m={height}", "output.vtu=false",
+                                 "output.hdf5=false"])
+        run_case(case, tmp_path / str(height), **QUIET)
+        curves.append(read_curve_csv(tmp_path / str(height) / "force_displacement.csv"))
+    for col in ("ux_mm", "fx_kN", "fy_kN"):
+        assert np.abs(curves[0][col] - curves[1][col]).max() <= \
+            1e-9 * np.abs(curves[0][col]).max()
+
+
+def test_an_imposed_velocity_off_the_centre_of_mass_swings_the_body():
+    """A rigid body hanging a length L below the point whose x velocity is imposed (a pendulum
+    whose pivot accelerates), free to turn about z: from rest, its angular velocity is
+    ``-m L v / (I_c + m L^2)`` at all times (the momentum about the pivot stays zero)."""
+    from masonry_nscd.loading import Loads
+    from masonry_nscd.nscd.integrator import Integrator
+
+    m, L, Ic = 3.0, 0.4, 0.05
+    body = RigidBody(center=(0.0, -L, 0.0), reference=(0.0, 0.0, 0.0), mass=m,
+                     inertia=(1.0, 1.0, Ic),
+                     imposed_velocity={0: Ramp(0.2, 0.0, 0.05), 1: at_rest, 2: at_rest,
+                                       3: at_rest, 4: at_rest})
+    integ = Integrator([body], [], np.zeros((1, 16)), Loads(), h=1e-3)
+    for _ in range(80):
+        integ.step()
+        v = integ.v
+        assert v[5] == pytest.approx(-m * L * v[0] / (Ic + m * L * L), rel=1e-12, abs=1e-15)
+    assert v[0] == pytest.approx(0.2)
+
+
+def test_clamped_courses_meet_the_wall_through_mortar_joints():
+    scene = build_scene(load_case("cases/brick_wall_pattern.yaml"))
+    groups = {scene.groups[p.group] for p in scene.points}
+    assert groups == {"bed", "head", "bed_bottom", "bed_top"}  # no glue
+    assert len(scene.structure) == 16 * 5  # 18 courses, the outer two in the beams
+    info = scene.info()
+    assert {s["course"] for s in info["structure"]} == set(range(2, 18))
+    assert info["joint_groups"] == ["bed", "head", "bed_bottom", "bed_top"]
+
+
+@pytest.mark.parametrize("case_file, target, extra", [
+    ("cases/brick_wall_pattern.yaml", 0.5e-3, []),
+    ("cases/wall_window.yaml", 0.3e-3, []),
+])
+def test_the_new_cases_run_to_their_target(tmp_path, case_file, target, extra):
+    out = tmp_path / "run"
+    res = CliRunner().invoke(app, ["run", case_file, "-o", str(out), "--set",
+                                   f"loading.horizontal.target_m={target}",
+                                   "--set", "output.vtu=false", *extra])
+    assert res.exit_code == 0, res.output
+    s = json.loads((out / "summary.json").read_text())
+    assert s["target_reached"] and s["unconverged_steps"] == 0
+    assert s["force_at_target_kN"] > 0.0
+    scene = json.loads((out / "scene.json").read_text())
+    if "window" in case_file:
+        names = [b["name"] for b in scene["structure"]]
+        assert "lintel over opening 1" in names and len(names) == 63
+    res = CliRunner().invoke(app, ["plot", str(out), "-o", str(tmp_path / "plots")])
+    assert res.exit_code == 0, res.output
