@@ -45,7 +45,7 @@ and 0.17, 18.4 ms. Near the peak (from U_x = 2.5 mm) 63.5 against 49.7 ms per st
 
 The law needs a spring in series (finite ``T(u)``, the law's ``newton_ready``); for dry
 Signorini-Coulomb contacts use the Gauss-Seidel solver. The tangent per status is the law's
-(``contact.laws.tangent``; for the FCZM, ``contact.laws.fczm.tangent``).
+(``contact.laws.response``; for the FCZM, ``contact.laws.fczm.tangent``).
 """
 
 from __future__ import annotations
@@ -62,37 +62,10 @@ from masonry_nscd.contact import laws
 
 
 @njit(cache=True)
-def joint_tangent_fd(u, T, uc_old, beta_old, P, K):
-    """Consistent tangent ``K = dT/du`` (3x3, Pa/m) of the law with the integrity implicit in
-    the step (the law's ``solve``), by forward differences.
-
-    Used where the integrity drops within the step: ``T(u) = T(u; beta(u))`` with
-    ``beta = beta_env(u_c(u, beta))``. Steps ``delta = 1e-7 max(|u|, 1e-9 m)``; the regula
-    falsi solves beta to 1e-14, so the difference quotient carries about 1e-7 of noise.
-    """
-    A = np.zeros((3, 3))
-    up = np.empty(3)
-    tp = np.empty(3)
-    cp = np.empty(3)
-    delta = 1e-7 * max(math.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]), 1e-9)
-    for j in range(3):
-        for i in range(3):
-            up[i] = u[i]
-        up[j] += delta
-        laws.solve(up, A, uc_old, beta_old, P, laws.KIND_JOINT, tp, cp)
-        for i in range(3):
-            K[i, j] = (tp[i] - T[i]) / delta
-
-
-@njit(cache=True)
 def evaluate_joints(u_pred, Hv, h, theta, kind, law, params, uc_old, beta_old,
                     T, uc, beta, status, K):
-    """Law and tangent at every joint point for ``u = u_pred + h theta H^T v`` (Hv = H^T v).
-
-    The tangent is consistent: with the integrity frozen where it does not drop within the
-    step (the law's ``tangent``), by differences of the implicit law where it does
-    (``joint_tangent_fd``).
-    """
+    """Law and consistent tangent at every joint point for ``u = u_pred + h theta H^T v``
+    (Hv = H^T v), from ``contact.laws.response``."""
     npt = u_pred.shape[0]
     A = np.zeros((3, 3))
     u = np.empty(3)
@@ -106,14 +79,7 @@ def evaluate_joints(u_pred, Hv, h, theta, kind, law, params, uc_old, beta_old,
         for i in range(3):
             u[i] = u_pred[a, i] + h * theta * Hv[a, i]
             co[i] = uc_old[a, i]
-        st, bn = laws.solve(u, A, co, beta_old[a], params[law[a]], laws.KIND_JOINT, t, c)
-        if bn < beta_old[a]:
-            # the integrity drops within the step: the frozen-integrity tangent would miss the
-            # softening (wrong by 100 % and in sign on opening joints), forward differences
-            # of the law give the consistent one
-            joint_tangent_fd(u, t, co, beta_old[a], params[law[a]], Ka)
-        else:
-            laws.tangent(u, t, co, bn, st, params[law[a]], Ka)
+        st, bn = laws.response(u, A, co, beta_old[a], params[law[a]], t, c, Ka)
         for i in range(3):
             T[a, i] = t[i]
             uc[a, i] = c[i]
