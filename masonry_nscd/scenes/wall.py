@@ -32,7 +32,7 @@ import numpy as np
 from masonry_nscd.contact import laws
 from masonry_nscd.fe import hex8
 from masonry_nscd.loading import Loads, Ramp, at_rest
-from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody
+from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody, dof_offsets
 from masonry_nscd.model.detection import find_joints, joint_points
 from masonry_nscd.scenes.layout import course_levels, unit_boxes, wall_size
 from masonry_nscd.scenes.scene import Hold, Scene, SolverSettings, Stage
@@ -132,7 +132,7 @@ def build_wall(case) -> Scene:
     points = joint_points(bodies, detection.joints, classify, n_gauss=w.contact_points_per_face)
 
     # --- loads, stages, stop rule -------------------------------------------------------------
-    dof0 = np.concatenate([[0], np.cumsum([b.ndof for b in bodies])])
+    dof0 = dof_offsets(bodies)
     ndof = int(dof0[-1])
     loads = Loads()
     G = np.zeros(ndof)
