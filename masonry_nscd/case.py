@@ -69,11 +69,13 @@ __all__ = [
     "GravityStage",
     "HorizontalStage",
     "Joint",
+    "JointScatter",
     "Lintel",
     "Loading",
     "Opening",
     "Output",
     "PatternCourse",
+    "RefineRegion",
     "Solver",
     "StressStage",
     "Supports",
@@ -195,6 +197,26 @@ class Opening(_Section):
     lintel: Lintel | None = Field(None, description="a lintel over the opening (null: none)")
 
 
+class RefineRegion(_Section):
+    """Units meshed with other ``elements_per_unit``: the units ``units`` (positions in their
+    course from the left end) of the courses ``courses`` (from the bottom), both counted from 1,
+    negative from the other end (-1: the top course, the right end unit); ``units`` null: every
+    unit of those courses. Example, the two end units of the first and last courses:
+    ``{courses: [1, -1], units: [1, -1], elements_per_unit: [6, 6, 2]}``."""
+
+    courses: list[Annotated[Whole, Field(ge=-200, le=200)]] = Field(
+        min_length=1, max_length=200, description="courses, from 1 at the bottom (-1: the top)"
+    )
+    units: list[Annotated[Whole, Field(ge=-500, le=500)]] | None = Field(
+        None, max_length=500,
+        description="positions in the course, from 1 at the left end (-1: the right end); "
+        "null: all",
+    )
+    elements_per_unit: tuple[ElementCount, ElementCount, ElementCount] = Field(
+        description="hexahedra per unit along length, height, thickness (counts, 1..8 each)"
+    )
+
+
 class Wall(_Section):
     """Geometry of the wall: units, joints, bond, openings and mesh (lengths in m).
 
@@ -268,6 +290,11 @@ class Wall(_Section):
         (2, 2, 1),
         description="hexahedra per unit along length, height, thickness (counts, 1..8 each)",
     )
+    refine: list[RefineRegion] = Field(
+        default_factory=list, max_length=100,
+        description="units meshed otherwise: {courses, units, elements_per_unit} (the last "
+        "region that names a unit wins)",
+    )
     contact_points_per_face: Whole = Field(
         2,
         ge=1,
@@ -329,10 +356,10 @@ class Wall(_Section):
             problems.append(("pattern", (f"given with bond {self.bond!r}; set bond: pattern to "
                              "use it, or remove it")))
         if not problems:
-            from masonry_nscd.scenes.layout import LayoutError, unit_boxes
+            from masonry_nscd.scenes.layout import LayoutError, unit_boxes, unit_divisions
 
             try:
-                unit_boxes(self)
+                unit_divisions(self, unit_boxes(self))
             except LayoutError as exc:
                 problems.append((exc.field, exc.message))
         _problems(problems)
@@ -481,6 +508,24 @@ class Blocks(_Section):
 # ---------------------------------------------------------------------------------------------
 
 
+class JointScatter(_Section):
+    """Scatter of the joint properties (masonry_nscd/contact/scatter.py): each of ``fields``
+    drawn independently from a lognormal law whose mean is the case's value and whose
+    coefficient of variation is ``cv``, once per joint (``per: joint``, the interface between
+    two units) or per element face of the joint (``per: face``), with the random ``seed``. The
+    glue is not scattered."""
+
+    cv: Real = Field(0.2, gt=0.0, le=2.0, description="coefficient of variation (dimensionless)")
+    seed: Whole = Field(1, ge=0, le=2**63 - 1, description="seed of the random draws (integer)")
+    fields: list[Literal["sigma_I_e_Pa", "sigma_II_e_Pa", "G_fI_J_m2", "G_fII_J_m2"]] = Field(
+        default_factory=lambda: ["sigma_I_e_Pa", "sigma_II_e_Pa", "G_fI_J_m2", "G_fII_J_m2"],
+        min_length=1, max_length=4, description="joint fields drawn",
+    )
+    per: Literal["joint", "face"] = Field(
+        "joint", description="one draw per joint (two units) or per element face of a joint"
+    )
+
+
 class Joint(_Section):
     """The joint law, per unit area of interface (docs/model.md section 2).
 
@@ -547,6 +592,9 @@ class Joint(_Section):
     compression_spring: Literal["damaged", "undamaged"] = Field(
         "damaged",
         description="normal spring in compression: damaged (the study) or undamaged (LMGC90)",
+    )
+    scatter: JointScatter | None = Field(
+        None, description="lognormal scatter of the joint strengths and energies (null: none)"
     )
 
     @model_validator(mode="after")

@@ -31,6 +31,10 @@ Initial stiffness (kN/mm)
 Force at the target
     ``fx`` interpolated linearly in ``ux`` at the case's target displacement
     (``loading.horizontal.target_m``, 10 mm for the study), ``None`` if the run stopped before.
+Failure mode
+    Named from the joint and block damage at the output step nearest the peak
+    (``failure_mode_at_peak``) and at the last one (``failure_mode``): base sliding, rocking,
+    diagonal stair-step, toe crushing, or their combinations (:mod:`masonry_nscd.post.failure`).
 Largest damages
     Read at the last output step of ``results.h5``: every damage is irreversible, so the last
     step holds the largest values. Blocks: ``d_c`` (post-peak compressive damage, crushing),
@@ -59,6 +63,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from masonry_nscd.io.runfolder import read_curve_csv
+from masonry_nscd.post.failure import failure_mode
 
 #: Fractions of the peak force between which the initial stiffness is measured.
 STIFFNESS_FRACTIONS = (0.10, 0.40)
@@ -238,6 +243,7 @@ class RunFields:
     step: int
     time_s: float
     nodal_displacement_m: FloatArray | None = None  # (nn, 3)
+    joint_u_m: FloatArray | None = None  # (npt, 3) relative displacements (n, t, s)
 
     @property
     def joint_d_coh(self) -> FloatArray:
@@ -281,7 +287,8 @@ def read_fields(h5_path: Path | str, step: int | None = None) -> RunFields | Non
         contact_initial_damage=mesh["contact_initial_damage"],
         d_c=data.get("element_d_c", np.zeros(ne)), d_cpp=data.get("element_d_cpp", np.zeros(ne)),
         d_t=data.get("element_d_t", np.zeros(ne)), joint_beta=data["joint_beta"],
-        step=int(step), time_s=time_s, nodal_displacement_m=data.get("nodal_displacement_m"))
+        step=int(step), time_s=time_s, nodal_displacement_m=data.get("nodal_displacement_m"),
+        joint_u_m=data.get("joint_u_m"))
 
 
 def body_names(scene: Mapping[str, Any]) -> dict[int, str]:
@@ -383,6 +390,7 @@ def compute_summary(curve: Mapping[str, Sequence[float]], *, target_ux_mm: float
         out["damage_time_s"] = fields.time_s
         out["damage_ux_mm"] = _num(ux_by_step.get(fields.step))
         out["largest_damage"] = largest_damages(fields, scene)
+        out["failure_mode"] = failure_mode(fields, scene, fields.joint_u_m)
     return out
 
 
@@ -405,14 +413,21 @@ def summarize_run(outdir: Path | str,
     h5 = outdir / rf.RESULTS
     fields = read_fields(h5) if h5.exists() else None
     start = push_stage_start(scene)
+    summary = compute_summary(curve, target_ux_mm=1e3 * scene["target_m"],
+                              horizontal_start_s=start, fields=fields, scene=scene)
+    if fields is not None and summary.get("step_at_peak") is not None:
+        steps = [k for k, _ in output_steps(h5)]
+        peak = min(steps, key=lambda k: (abs(k - summary["step_at_peak"]), -k))
+        at_peak = read_fields(h5, peak)
+        summary["failure_mode_at_peak"] = {"step": peak, **failure_mode(at_peak, scene,
+                                                                        at_peak.joint_u_m)}
     head = {"case_name": case.name, "block_material": case.blocks.material,
             "vertical_stress_MPa": case.loading.vertical_stress.value_Pa / 1e6,
             "vertical_force_kN": case.vertical_force_N / 1e3,
             "horizontal_start_s": start, "stiffness_definition": (
                 "secant between the first crossings of 10 % and 40 % of the peak force in the "
                 "horizontal stage, displacements interpolated linearly")}
-    return {**head, **compute_summary(curve, target_ux_mm=1e3 * scene["target_m"],
-                                      horizontal_start_s=start, fields=fields, scene=scene)}
+    return {**head, **summary}
 
 
 def write_summary(outdir: Path | str, summary: Mapping[str, Any]) -> Path:
@@ -458,6 +473,9 @@ def format_summary(s: Mapping[str, Any]) -> list[str]:
         else:
             where = " (undamaged)"
         lines.append(f"largest {name.replace('_', ' ', 1)} {_fmt(e['value'], '.6g')}{where}")
+    for key, when in (("failure_mode_at_peak", "at the peak"), ("failure_mode", "at the end")):
+        if s.get(key):
+            lines.append(f"failure mode {when}: {s[key]['mode']}")
     return lines
 
 

@@ -89,7 +89,8 @@ def output_mesh_arrays(scene, mesh, integ) -> dict:
             "contact_group": np.array([p.group for p in scene.points], dtype=np.int64),
             "contact_bodies": s.side_body.copy(), "contact_area_m2": s.area,
             "contact_frame": s.frame, "contact_gap_m": np.array([p.gap for p in scene.points]),
-            "contact_initial_damage": point_initial_damage(integ.params, s.kind, s.law)}
+            "contact_initial_damage": point_initial_damage(integ.params, s.kind, s.law),
+            **{f"contact_{k}": v for k, v in scene.point_fields.items()}}
 
 
 def run_case(case, outdir: Path, *, overwrite: bool = False,

@@ -71,7 +71,7 @@ from typing import Any
 
 #: Summary values (masonry_nscd.report) kept per run, in the order of the table.
 OUTPUT_KEYS = ("initial_stiffness_kN_mm", "peak_force_kN", "ux_at_peak_mm", "force_at_target_kN",
-               "target_ux_mm", "unconverged_steps")
+               "target_ux_mm", "unconverged_steps", "failure_mode_at_peak", "failure_mode")
 #: Columns of the table after the swept fields.
 TAIL_COLUMNS = (*OUTPUT_KEYS, "run_time_s", "status", "message", "run")
 STATUSES = ("ok", "failed", "invalid", "error")
@@ -340,7 +340,10 @@ def _outputs(run_dir: Path) -> dict[str, Any]:
         from masonry_nscd.report import summarize_run
 
         summary = summarize_run(run_dir)
-    return {k: summary.get(k) for k in OUTPUT_KEYS}
+    out = {k: summary.get(k) for k in OUTPUT_KEYS}
+    for k in ("failure_mode_at_peak", "failure_mode"):  # the name of the mechanism
+        out[k] = (out[k] or {}).get("mode")
+    return out
 
 
 def _write_marker(run_dir: Path, point: Point, record: RunRecord) -> None:

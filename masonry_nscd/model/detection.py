@@ -157,6 +157,7 @@ def joint_points(bodies: Sequence, joints: Sequence[Joint],
     """
     dof0 = dof_offsets(bodies) if dof0 is None else dof0
     out: list[ContactPoint] = []
+    faces = 0  # element faces of the candidates, numbered joint after joint
     for jt in joints:
         cand = jt.candidate
         cb = bodies[cand.body]
@@ -189,7 +190,8 @@ def joint_points(bodies: Sequence, joints: Sequence[Joint],
                 out.append(ContactPoint(
                     x=x, frame=frame, area=float(areas[q, k]), gap=float(gap[q, k]), kind=kind,
                     law=law, group=group, bodies=(cand.body, ant.body),
-                    sides=[cand_side, ant_side]))
+                    sides=[cand_side, ant_side], face=faces + q))
+        faces += len(cand.quads)
     return out
 
 

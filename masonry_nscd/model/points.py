@@ -34,6 +34,7 @@ class ContactPoint:
     group: int  # joint group id (the scene names them)
     bodies: tuple[int, int]  # body indices
     sides: list  # [(dofs (k,), coef (k, 3)), ...] velocity map per side
+    face: int = -1  # the candidate's element face that carries the point (numbered by joint)
 
 
 def frame_from(normal, tangent) -> np.ndarray:

@@ -12,7 +12,8 @@ body in ``scene.structure``. Per step:
   the largest ``d_t`` and crack opening (m), zero elsewhere;
 * per contact point: the joint damage ``d_coh = 1 - beta (1 - d_0)`` with ``d_0`` the damage of
   the point's law as built (:func:`masonry_nscd.contact.laws.initial_damage`), the opening and
-  slip (m), the normal and shear tractions (Pa), the status code and the group id.
+  slip (m), the normal and shear tractions (Pa), the status code and the group id, and the
+  scene's per-point data (the drawn joint properties of ``joint.scatter``).
 """
 
 from __future__ import annotations
@@ -68,6 +69,7 @@ class StepFields:
     def __init__(self, scene, mesh: OutputMesh, integ):
         self.mesh = mesh
         self.integ = integ
+        self.point_fields = scene.point_fields
         s = integ.sys
         self.joint = s.kind == laws.KIND_JOINT
         self.d0 = point_initial_damage(integ.params, s.kind, s.law)
@@ -132,7 +134,7 @@ class StepFields:
         return {"d_coh": self.joint_damage(), "opening_m": j.u[:, 0],
                 "slip_m": np.hypot(j.u[:, 1], j.u[:, 2]), "T_n_Pa": j.T[:, 0],
                 "T_t_Pa": np.hypot(j.T[:, 1], j.T[:, 2]), "status": j.status.astype(float),
-                "group": self.group.astype(float)}
+                "group": self.group.astype(float), **self.point_fields}
 
     def largest(self, damage: dict[str, np.ndarray]) -> tuple[float, float, float]:
         """The curve's damage columns: largest joint ``d_coh`` (joint points only), largest

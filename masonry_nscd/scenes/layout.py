@@ -23,12 +23,17 @@ is one unit spanning ``[x - bearing, x + width + bearing]`` whose bottom is the 
 course above the opening and whose height is that of whole courses; the units of those courses
 within a joint of it are removed or cut, as for an opening.
 
+The mesh of each unit (:func:`unit_divisions`): ``elements_per_unit`` hexahedra, a lintel as
+many per metre as a whole unit, and the regions of ``wall.refine`` over that (the last region
+that names a unit wins).
+
 Everything here is plain Python, so that the case schema can check a layout without loading
 the solver. Problems raise :class:`LayoutError` naming the field (relative to ``wall``).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 #: Geometric tolerance of the layout (m): lengths that agree to this are equal.
@@ -221,3 +226,39 @@ def _cut(a: float, b: float, cuts: list[tuple[float, float, str]], joint: float,
                 nxt.append((q0, q1))
         pieces = nxt
     return pieces
+
+
+def _count_index(k: int, count: int, what: str, field: str) -> int:
+    """0-based index of a 1-based (negative: from the end) ``k`` among ``count`` items."""
+    if not (1 <= k <= count or -count <= k <= -1):
+        raise LayoutError(field, f"got {k}; there are {count} {what}: allowed 1 to {count} "
+                          f"(or -1 to -{count} from the other end)")
+    return k - 1 if k > 0 else count + k
+
+
+def unit_divisions(wall, boxes: list[UnitBox]) -> list[tuple[int, int, int]]:
+    """Hexahedra per unit (along its length, height, thickness) of every box of ``boxes``
+    (module docstring); LayoutError for a region naming a course or unit that is not there."""
+    nx, ny, nz = wall.elements_per_unit
+    out = []
+    for b in boxes:
+        if b.kind == "lintel":
+            out.append((max(nx, math.ceil(nx * b.length / wall.unit_length_m - 1e-9)),
+                        max(ny, math.ceil(ny * b.height / wall.unit_height_m - 1e-9)), nz))
+        else:
+            out.append((nx, ny, nz))
+    count = {}
+    for b in boxes:
+        count[b.course] = count.get(b.course, 0) + 1
+    for r, region in enumerate(getattr(wall, "refine", None) or []):
+        courses = {_count_index(k, wall.courses, "courses", f"refine[{r}].courses")
+                   for k in region.courses}
+        for c in sorted(courses):
+            n = count.get(c, 0)
+            units = None if region.units is None else {
+                _count_index(u, n, f"units in course {c + 1}", f"refine[{r}].units")
+                for u in region.units}
+            for i, b in enumerate(boxes):
+                if b.course == c and (units is None or b.index in units):
+                    out[i] = tuple(region.elements_per_unit)
+    return out

@@ -13,7 +13,8 @@ the recorders, the summary and the plots need, so that none of them knows what w
 * the load stages (name, start time) and the stage whose force-displacement curve the summary
   reads; dofs held from a time on (``Hold``: the top beam held in y once the vertical load is
   on); the stop rule: the driven displacement reaching ``target_m``, or ``time_limit_s``;
-* the solver settings.
+* the solver settings, and per-point data to write out (the drawn joint properties of
+  ``joint.scatter``).
 
 A held dof changes the system (its velocity becomes imposed), so :meth:`Scene.integrator` builds
 the integrator of the stage a step starts in; the run loop moves the state into a new one when a
@@ -92,6 +93,7 @@ class Scene:
     time_limit_s: float  # the run stops at this time in any case (s)
     holds: list[Hold] = field(default_factory=list)
     builder: str = ""
+    point_fields: dict[str, np.ndarray] = field(default_factory=dict)  # per point, written out
     meta: dict[str, Any] = field(default_factory=dict)  # builder's values for the summary
 
     # --- what changes with time -----------------------------------------------------------

@@ -3,8 +3,8 @@
 Coordinates: x along the wall from its left end, y up from the bottom of its first course, z
 through the thickness. The units come from the course layout (:mod:`masonry_nscd.scenes.layout`:
 running, stack or pattern bond, openings, lintels), each a block meshed with
-``elements_per_unit`` hexahedra (a lintel with as many per metre as a whole unit), or a rigid
-body with that mesh as its geometry.
+``elements_per_unit`` hexahedra (a lintel with as many per metre as a whole unit; the units of
+``wall.refine`` as it says), or a rigid body with that mesh as its geometry.
 
 The rig: two rigid steel beams 0.2 m tall, as long as the wall. The lower one is fixed. The
 upper one has the mass ``supports.top_beam_mass_kg`` (centre 0.1 m above the wall), an in-plane
@@ -20,21 +20,21 @@ thickness as the largest gap, and named: ``bed`` (horizontal) and ``head`` (vert
 between units; ``glue_bottom`` and ``glue_top`` between the wall and the beams (bilateral
 glue, the study's epoxy). With ``supports.clamped_courses`` = k the k outer courses at each end
 are part of their beam, and the wall meets the beams through mortar joints of the joint law,
-``bed_bottom`` and ``bed_top``.
+``bed_bottom`` and ``bed_top``. With ``joint.scatter`` the joint points take scattered
+parameter rows (:mod:`masonry_nscd.contact.scatter`).
 """
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from masonry_nscd.contact import laws
+from masonry_nscd.contact.scatter import scatter_rows
 from masonry_nscd.fe import hex8
 from masonry_nscd.loading import Loads, Ramp, at_rest
 from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody, dof_offsets
 from masonry_nscd.model.detection import find_joints, joint_points
-from masonry_nscd.scenes.layout import course_levels, unit_boxes, wall_size
+from masonry_nscd.scenes.layout import course_levels, unit_boxes, unit_divisions, wall_size
 from masonry_nscd.scenes.scene import Hold, Scene, SolverSettings, Stage
 
 X, Y, Z = 0, 1, 2
@@ -61,20 +61,18 @@ def build_wall(case) -> Scene:
     levels = course_levels(w)
     k = sup.clamped_courses
     first, last = k, w.courses - 1 - k  # the courses between the beams
-    boxes = [b for b in unit_boxes(w) if first <= b.course <= last]
-    count = {c: sum(1 for b in boxes if b.course == c) for c in range(first, last + 1)}
-    nx, ny, nz = w.elements_per_unit
+    every = unit_boxes(w)
+    divisions = unit_divisions(w, every)
+    boxes = [(b, d) for b, d in zip(every, divisions) if first <= b.course <= last]
+    count = {c: sum(1 for b, _ in boxes if b.course == c) for c in range(first, last + 1)}
     bodies: list = []
     info = []
-    for b in boxes:
-        div = (nx, ny, nz)
+    for b, div in boxes:
         name = unit_name(b.course + 1, first + 1, last + 1, b.index + 1, count[b.course])
         place = {"name": name, "course": b.course + 1, "position_in_course": b.index + 1,
                  "units_in_course": count[b.course]}
         material = MAT_ENDO3D if blk.material == "endo3d" else MAT_ELASTIC
         if b.kind == "lintel":
-            div = (max(nx, math.ceil(nx * b.length / w.unit_length_m - 1e-9)),
-                   max(ny, math.ceil(ny * b.height / w.unit_height_m - 1e-9)), nz)
             name = place["name"] = f"lintel over opening {b.opening + 1}"
             material = MAT_ELASTIC
         origin, size = (b.x0, b.y0, 0.0), (b.length, b.height, t)
@@ -130,6 +128,10 @@ def build_wall(case) -> Scene:
 
     detection = find_joints(bodies, max_gap=j)
     points = joint_points(bodies, detection.joints, classify, n_gauss=w.contact_points_per_face)
+    params, rows, drawn = scatter_rows(
+        case.joint, points, np.array([p.kind == laws.KIND_JOINT for p in points], dtype=bool))
+    for p, row in zip(points, rows):
+        p.law = int(row)
 
     # --- loads, stages, stop rule -------------------------------------------------------------
     dof0 = dof_offsets(bodies)
@@ -163,7 +165,8 @@ def build_wall(case) -> Scene:
         endo3d_tau=blk.endo3d.relaxation_time_s)
     return Scene(
         name=case.name, builder="wall", bodies=bodies, points=points, groups=GROUPS,
-        params=laws.params_from_case(case.joint)[None, :], loads=loads, solver=solver,
+        params=params, loads=loads, solver=solver,
+        point_fields={f"joint_{k}": v for k, v in drawn.items()},
         structure=list(range(n_units)), body_info=info, driven=i_up,
         reactions={"top": i_up, "bottom": i_low},
         stages=[Stage("gravity", 0.0), Stage("vertical", ld.vertical_stress.start_s),

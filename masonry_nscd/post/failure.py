@@ -1,0 +1,107 @@
+r"""The failure mode of a wall, named from its joint and block damage at one output step.
+
+A joint point has lost its cohesion when its integrity ``beta`` is below 0.01
+(``report.COHESION_LOST_BETA``); fractions are fractions of the tributary area. The mechanisms,
+read from the scene's joint groups and the places of its units (``scene.json``):
+
+``base sliding``
+    the base bed joint (the lowest joint of a ``bed`` group, the glue left out) has lost its
+    cohesion over at least 80 % of its area;
+``rocking``
+    not base sliding, and the base bed joint is open (normal relative displacement above
+    0.1 mm) over at least 20 % of its area: the wall turns about its toe;
+``diagonal stair-step``
+    in at least half of the courses between the bottom and the top ones a head joint has lost
+    its cohesion over at least half of its area (a crack that steps through the courses);
+``toe crushing``
+    a unit of the bottom or the top course has an element with a post-peak compressive damage
+    ``d_c`` of 0.5 or more.
+
+The name is the mechanisms found, joined by `` + `` in that order, or ``none``; with it come
+the numbers that decide each, and the joints and units that make it. A scene without bed and
+head groups or without courses (not a wall) gives ``n/a``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+COHESION_LOST_BETA = 0.01
+BASE_LOST_FRACTION = 0.8
+BASE_OPEN_FRACTION = 0.2
+OPEN_M = 1e-4
+HEAD_LOST_FRACTION = 0.5
+COURSES_FRACTION = 0.5
+CRUSHED_D_C = 0.5
+
+
+def failure_mode(fields, scene: Mapping[str, Any], joint_u_m: np.ndarray | None) -> dict[str, Any]:
+    """The failure mode at the output step of ``fields`` (``report.RunFields``); ``joint_u_m``:
+    the relative displacements of the contact points (n, t, s) at that step, m."""
+    groups = list(scene["groups"])
+    structure = scene["structure"]
+    if "head" not in groups or not any(g.startswith("bed") for g in groups) \
+            or not all("course" in s for s in structure):
+        return {"mode": "n/a"}
+    lost = fields.joint_beta < COHESION_LOST_BETA
+    area = fields.contact_area_m2
+    group = fields.contact_group
+    out: dict[str, Any] = {}
+    modes = []
+
+    # --- the base bed joint -----------------------------------------------------------------
+    bed = np.isin(group, [i for i, g in enumerate(groups) if g.startswith("bed")])
+    y = fields.contact_points_m[:, 1]
+    base = bed & (np.abs(y - y[bed].min()) < 1e-6) if bed.any() else bed
+    lost_base = float(area[base & lost].sum() / area[base].sum()) if base.any() else 0.0
+    open_base = 0.0
+    if joint_u_m is not None and base.any():
+        open_base = float(area[base & (joint_u_m[:, 0] > OPEN_M)].sum() / area[base].sum())
+    out["base_joint_y_m"] = float(y[base].min()) if base.any() else None
+    out["base_joint_cohesion_lost"] = lost_base
+    out["base_joint_open"] = open_base
+    if lost_base >= BASE_LOST_FRACTION:
+        modes.append("base sliding")
+    elif open_base >= BASE_OPEN_FRACTION:
+        modes.append("rocking")
+
+    # --- head joints through the courses ------------------------------------------------------
+    body_course = {s["body"]: s["course"] for s in structure}
+    courses = sorted(set(body_course.values()))
+    inner = courses[1:-1]
+    head = group == groups.index("head")
+    cracked: dict[int, list[tuple[int, int]]] = {}
+    pairs = {tuple(b) for b in fields.contact_bodies[head]}
+    for pair in pairs:
+        sel = head & (fields.contact_bodies[:, 0] == pair[0]) & \
+            (fields.contact_bodies[:, 1] == pair[1])
+        if area[sel & lost].sum() >= HEAD_LOST_FRACTION * area[sel].sum():
+            c = body_course.get(int(pair[0]))
+            if c is not None:
+                cracked.setdefault(c, []).append((int(pair[1]), int(pair[0])))
+    crossed = [c for c in inner if c in cracked]
+    out["courses_with_cracked_head_joints"] = sorted(cracked)
+    if inner and len(crossed) >= COURSES_FRACTION * len(inner):
+        modes.append("diagonal stair-step")
+
+    # --- crushing at the toes -----------------------------------------------------------------
+    names = dict(enumerate(scene["bodies"]))
+    ends = {courses[0], courses[-1]}
+    crushed = []
+    for k, s in enumerate(structure):
+        if s["course"] not in ends:
+            continue
+        d = fields.d_c[fields.block_of_element == k]
+        if d.size and d.max() >= CRUSHED_D_C:
+            crushed.append(names[s["body"]])
+    out["crushed_units"] = crushed
+    out["largest_d_c_end_courses"] = float(max(
+        (fields.d_c[fields.block_of_element == k].max(initial=0.0)
+         for k, s in enumerate(structure) if s["course"] in ends), default=0.0))
+    if crushed:
+        modes.append("toe crushing")
+    out["mode"] = " + ".join(modes) if modes else "none"
+    return {"mode": out.pop("mode"), **out}
