@@ -410,6 +410,12 @@ class Endo3d(_Section):
         lt=1.0,
         description="post-peak compressive damage strain scale (dimensionless)",
     )
+    crushing_length_m: Real = Field(
+        0.0, ge=0.0, le=10.0,
+        description="length of an element whose post-peak strain scale is eps_kdc (m; 0: the "
+        "law as specified, eps_kdc a strain whatever the mesh; > 0: regularised by the element "
+        "size)",
+    )
     DCPK: Real = Field(
         1.0, ge=0.0, le=1.0, description="cap on the pre-peak compressive damage (dimensionless)"
     )

@@ -148,3 +148,31 @@ def test_the_failure_mode_is_named_from_the_damage(smoke_fields):
     fm = failure_mode(f, scene, f.joint_u_m)
     assert fm["mode"] == "toe crushing"
     assert fm["crushed_units"] == ["course 1 (bottom), unit 3 of 3 (right end)"]
+
+
+def test_a_crushing_length_makes_the_compressive_softening_mesh_objective():
+    """ENDO3D in uniaxial compression: as specified (no crushing length) the post-peak stress is
+    a function of the strain, whatever the element; with ``crushing_length_m = l_c`` it is a
+    function of the post-peak shortening of the element: elements of 0.05, 0.025 and 0.0125 m
+    give the same stress at the same shortening past the peak."""
+    from masonry_nscd.materials.point_driver import drive_block_path, params_from_case
+
+    def post_peak(l_c, h):
+        case = load_case("cases/wall_0.5MPa.yaml",
+                         [f"blocks.endo3d.crushing_length_m={l_c}"])
+        eps = -np.linspace(0.0, 0.1, 801)
+        out = drive_block_path(params_from_case(case), eps, h, "free")
+        sig = -np.asarray(out["sigma_axial_Pa"])
+        ip = int(np.argmax(sig))
+        shortening = (-eps[ip:] + eps[ip]) * h  # m
+        return lambda u: np.interp(u, shortening, sig[ip:])
+
+    u = np.array([0.2e-3, 0.5e-3, 1.0e-3])
+    ref = post_peak(0.05, 0.05)(u)
+    assert np.all(ref < 0.99 * 9.46e6)  # softening
+    for h in (0.025, 0.0125):
+        assert np.allclose(post_peak(0.05, h)(u), ref, rtol=1e-6)
+        # as specified: a given shortening is a larger strain in a smaller element, which has
+        # softened further (its band dissipates less: no convergence with the mesh)
+        assert np.all(post_peak(0.0, h)(u) < ref * 0.98)
+    assert np.allclose(post_peak(0.0, 0.05)(u), ref, rtol=1e-9)  # l_c = h: the same law

@@ -112,7 +112,14 @@ Damage (Hillerborg regularisation)
   ``d_cpp = d_pic x`` while ``0 < lambda_D < lambda_pk``, else ``d_pic x^((1-d_pic)/d_pic)``
   (``0`` when ``d_pic = 0``); irreversible (running maximum).
 * Post-peak compressive damage: ``kappa = tr(eps_pD) - beta lambda_pk``,
-  ``d_c = kappa/(kappa + eps_kdc)`` for ``kappa > 0``; irreversible.
+  ``d_c = kappa/(kappa + eps_kdc)`` for ``kappa > 0``; irreversible. As specified this is a
+  strain law: ``eps_kdc`` is the plastic volumetric strain past the peak at which ``d_c = 1/2``
+  whatever the element, so the energy of a crushing band shrinks with the element and the
+  softening does not converge with the mesh. With a crushing length ``l_c > 0``
+  (``P_L_CRUSH``; our choice, not in model.md) ``eps_kdc`` is the strain of an element ``l_c``
+  long: an element of extent ``L`` along its most compressive principal direction uses
+  ``eps_kdc l_c / L``, so that the post-peak shortening of a band, ``kappa L``, is the same
+  whatever the mesh (Hillerborg's regularisation, as in tension).
 
 Apparent stress
 ---------------
@@ -225,7 +232,8 @@ P_W_K = 23  # G_ft / R_t (m)
 P_W_R = 24  # GFR / REF (m)
 P_EXP_CPP = 25  # (1 - d_pic)/d_pic, exponent of the pre-peak damage (0 if d_pic = 0)
 P_TOL = 26  # absolute tolerance of the return mapping (Pa)
-N_PARAMS = 27
+P_L_CRUSH = 27  # crushing length (m): eps_kdc is the strain of an element this long; 0: none
+N_PARAMS = 28
 
 # --------------------------------------------------------------------------------------------
 # State vector layout
@@ -278,12 +286,15 @@ def endo3d_params(
     DCPK: float,
     REF: float,
     GFR: float,
+    crushing_length: float = 0.0,
 ) -> FloatArray:
     """Parameter vector of the ENDO3D kernels, with the derived quantities precomputed.
 
     Arguments in SI units: ``E``, ``R_t``, ``R_c``, ``REF`` in Pa; ``G_ft``, ``GFR`` in J/m^2;
     ``nu``, ``eps_pic_t``, ``eps_pic_c``, ``delta``, ``beta``, ``eps_kdc``, ``DCPK``
-    dimensionless. Raises ``ValueError`` for values outside the range where the law is defined
+    dimensionless; ``crushing_length`` in m (0: the post-peak compressive law as specified, a
+    strain law; > 0: regularised by the element size, see the module docstring). Raises
+    ``ValueError`` for values outside the range where the law is defined
     (E, R_t, G_ft, R_c, REF, GFR, eps_kdc > 0; -1 < nu < 0.5; 0 <= delta, beta < sqrt 3;
     0 <= DCPK <= 1; R_t < R_c,eff; C_min <= C_max). Warns when ``eps_pic_t`` differs from
     ``R_t/E`` by more than 1 % (the law ignores it: its tensile peak is at ``R_t/E``) and when
@@ -404,6 +415,7 @@ def endo3d_params(
     p[P_W_R] = GFR / REF
     p[P_EXP_CPP] = exp_cpp
     p[P_TOL] = 1e-8 * max(R_t, rc_eff, REF)
+    p[P_L_CRUSH] = crushing_length
     return p
 
 
@@ -1681,7 +1693,14 @@ def endo3d_update(eps, state_in, params, xe, state_out, sigma):
     kappa = epsD[0, 0] + epsD[1, 1] + epsD[2, 2] - beta * params[P_LAMBDA_PK]
     d_c = state_in[S_D_C]
     if kappa > 0.0:
-        dn = kappa / (kappa + params[P_EPS_KDC])
+        eps_kdc = params[P_EPS_KDC]
+        if params[P_L_CRUSH] > 0.0:  # regularised: along the most compressive direction
+            k_c = 0
+            for k in range(1, 3):
+                if s[k] < s[k_c]:
+                    k_c = k
+            eps_kdc *= params[P_L_CRUSH] / _extent(xe, Q, k_c)
+        dn = kappa / (kappa + eps_kdc)
         d_c = max(d_c, dn)
     state_out[S_D_C] = d_c
 

@@ -90,6 +90,7 @@ def params_from_case(case: Any) -> FloatArray:
         delta=float(e.delta),
         beta=float(e.beta),
         eps_kdc=float(e.eps_kdc),
+        crushing_length=float(e.crushing_length_m),
         DCPK=float(e.DCPK),
         REF=float(e.REF_Pa),
         GFR=float(e.GFR_J_m2),
