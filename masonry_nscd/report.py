@@ -63,7 +63,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from masonry_nscd.io.runfolder import read_curve_csv
-from masonry_nscd.post.failure import failure_mode
+from masonry_nscd.post.failure import failure_mode, failure_sequence
 
 #: Fractions of the peak force between which the initial stiffness is measured.
 STIFFNESS_FRACTIONS = (0.10, 0.40)
@@ -421,6 +421,9 @@ def summarize_run(outdir: Path | str,
         at_peak = read_fields(h5, peak)
         summary["failure_mode_at_peak"] = {"step": peak, **failure_mode(at_peak, scene,
                                                                         at_peak.joint_u_m)}
+        ux_by_step = dict(zip(np.asarray(curve["step"], dtype=int),
+                              (float(v) for v in curve["ux_mm"]), strict=True))
+        summary["failure_sequence"] = failure_sequence(h5, scene, ux_by_step)
     head = {"case_name": case.name, "block_material": case.blocks.material,
             "vertical_stress_MPa": case.loading.vertical_stress.value_Pa / 1e6,
             "vertical_force_kN": case.vertical_force_N / 1e3,

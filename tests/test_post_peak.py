@@ -126,6 +126,9 @@ def test_the_failure_mode_is_named_from_the_damage(smoke_fields):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["failure_mode"]["mode"] == "none"  # elastic, 0.5 mm: nothing broken
     assert "failure_mode_at_peak" in summary
+    assert summary["failure_sequence"] == {"base_joint_80pct_lost_at_ux_mm": None,
+                                           "middle_course_head_joint_cracked_at_ux_mm": None,
+                                           "middle_course": 2}
     groups = scene["groups"]
     y = f.contact_points_m[:, 1]
     bed = f.contact_group == groups.index("bed")

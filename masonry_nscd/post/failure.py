@@ -20,6 +20,11 @@ read from the scene's joint groups and the places of its units (``scene.json``):
 The name is the mechanisms found, joined by `` + `` in that order, or ``none``; with it come
 the numbers that decide each, and the joints and units that make it. A scene without bed and
 head groups or without courses (not a wall) gives ``n/a``.
+
+The order of events (:func:`failure_sequence`), over the output steps: the displacement at which
+the base bed joint has lost its cohesion over 80 % of its area, and the one at which a head
+joint of the middle course (the diagonal crack crossing mid-height) has lost it over half of
+its area.
 """
 
 from __future__ import annotations
@@ -38,6 +43,61 @@ COURSES_FRACTION = 0.5
 CRUSHED_D_C = 0.5
 
 
+def _base_points(fields, groups: list[str]) -> np.ndarray:
+    """The contact points of the base bed joint (the lowest joint of a bed group)."""
+    bed = np.isin(fields.contact_group, [i for i, g in enumerate(groups) if g.startswith("bed")])
+    if not bed.any():
+        return bed
+    y = fields.contact_points_m[:, 1]
+    return bed & (np.abs(y - y[bed].min()) < 1e-6)
+
+
+def _cracked_head_joints(fields, groups: list[str], lost: np.ndarray) -> list[tuple[int, int]]:
+    """(antagonist, candidate) body pairs of the head joints that lost their cohesion over
+    half of their area or more."""
+    head = fields.contact_group == groups.index("head")
+    area = fields.contact_area_m2
+    out = []
+    for pair in sorted({tuple(int(b) for b in pb) for pb in fields.contact_bodies[head]}):
+        sel = head & (fields.contact_bodies[:, 0] == pair[0]) & \
+            (fields.contact_bodies[:, 1] == pair[1])
+        if area[sel & lost].sum() >= HEAD_LOST_FRACTION * area[sel].sum():
+            out.append((pair[1], pair[0]))
+    return out
+
+
+def failure_sequence(h5_path, scene: Mapping[str, Any], ux_by_step: Mapping[int, float]
+                     ) -> dict[str, float | None]:
+    """``U_x`` (mm) of the first output step at which the base bed joint has lost its cohesion
+    over 80 % of its area, and of the first at which a head joint of the middle course has lost
+    it over half of its area (None: never)."""
+    from masonry_nscd.report import output_steps, read_fields
+
+    groups = list(scene["groups"])
+    structure = scene["structure"]
+    if "head" not in groups or not all("course" in s for s in structure):
+        return {}
+    courses = sorted({s["course"] for s in structure})
+    middle = courses[len(courses) // 2]
+    body_course = {s["body"]: s["course"] for s in structure}
+    out: dict[str, float | None] = {"base_joint_80pct_lost_at_ux_mm": None,
+                                    "middle_course_head_joint_cracked_at_ux_mm": None,
+                                    "middle_course": middle}
+    for step, _ in output_steps(h5_path):
+        f = read_fields(h5_path, step)
+        lost = f.joint_beta < COHESION_LOST_BETA
+        base = _base_points(f, groups)
+        area = f.contact_area_m2
+        ux = ux_by_step.get(step)
+        if out["base_joint_80pct_lost_at_ux_mm"] is None and base.any() and \
+                area[base & lost].sum() >= BASE_LOST_FRACTION * area[base].sum():
+            out["base_joint_80pct_lost_at_ux_mm"] = ux
+        if out["middle_course_head_joint_cracked_at_ux_mm"] is None and any(
+                body_course.get(c) == middle for _, c in _cracked_head_joints(f, groups, lost)):
+            out["middle_course_head_joint_cracked_at_ux_mm"] = ux
+    return out
+
+
 def failure_mode(fields, scene: Mapping[str, Any], joint_u_m: np.ndarray | None) -> dict[str, Any]:
     """The failure mode at the output step of ``fields`` (``report.RunFields``); ``joint_u_m``:
     the relative displacements of the contact points (n, t, s) at that step, m."""
@@ -48,14 +108,12 @@ def failure_mode(fields, scene: Mapping[str, Any], joint_u_m: np.ndarray | None)
         return {"mode": "n/a"}
     lost = fields.joint_beta < COHESION_LOST_BETA
     area = fields.contact_area_m2
-    group = fields.contact_group
     out: dict[str, Any] = {}
     modes = []
 
     # --- the base bed joint -----------------------------------------------------------------
-    bed = np.isin(group, [i for i, g in enumerate(groups) if g.startswith("bed")])
     y = fields.contact_points_m[:, 1]
-    base = bed & (np.abs(y - y[bed].min()) < 1e-6) if bed.any() else bed
+    base = _base_points(fields, groups)
     lost_base = float(area[base & lost].sum() / area[base].sum()) if base.any() else 0.0
     open_base = 0.0
     if joint_u_m is not None and base.any():
@@ -72,16 +130,11 @@ def failure_mode(fields, scene: Mapping[str, Any], joint_u_m: np.ndarray | None)
     body_course = {s["body"]: s["course"] for s in structure}
     courses = sorted(set(body_course.values()))
     inner = courses[1:-1]
-    head = group == groups.index("head")
     cracked: dict[int, list[tuple[int, int]]] = {}
-    pairs = {tuple(b) for b in fields.contact_bodies[head]}
-    for pair in pairs:
-        sel = head & (fields.contact_bodies[:, 0] == pair[0]) & \
-            (fields.contact_bodies[:, 1] == pair[1])
-        if area[sel & lost].sum() >= HEAD_LOST_FRACTION * area[sel].sum():
-            c = body_course.get(int(pair[0]))
-            if c is not None:
-                cracked.setdefault(c, []).append((int(pair[1]), int(pair[0])))
+    for ant, cand in _cracked_head_joints(fields, groups, lost):
+        c = body_course.get(cand)
+        if c is not None:
+            cracked.setdefault(c, []).append((ant, cand))
     crossed = [c for c in inner if c in cracked]
     out["courses_with_cracked_head_joints"] = sorted(cracked)
     if inner and len(crossed) >= COURSES_FRACTION * len(inner):
