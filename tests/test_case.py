@@ -91,11 +91,17 @@ def test_defaults_reproduce_the_study():
 
 @pytest.mark.parametrize("stem,sigma", sorted(STUDY_CASES.items()))
 def test_study_cases_are_the_defaults_but_sigma(stem, sigma):
+    """The schema's defaults are the study's model as model.md writes it; the study's cases set
+    sigma_N and the two settings of issue 15 (refined corner units, a crushing length), whose
+    defaults keep the law and the mesh as specified."""
     case = load_case(ROOT / "cases" / f"{stem}.yaml")
     assert case.loading.vertical_stress.value_Pa == sigma
     assert case.vertical_force_N == pytest.approx(sigma * 1.85 * 0.15, rel=1e-12)
     expected = Case().model_dump(exclude={"name", "description"})
     expected["loading"]["vertical_stress"]["value_Pa"] = sigma
+    expected["wall"]["refine"] = [{"courses": [1, -1], "units": [1, -1],
+                                   "elements_per_unit": (4, 4, 1)}]
+    expected["blocks"]["endo3d"]["crushing_length_m"] = 0.005
     assert case.model_dump(exclude={"name", "description"}) == expected
 
 

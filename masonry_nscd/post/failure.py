@@ -52,26 +52,30 @@ def _base_points(fields, groups: list[str]) -> np.ndarray:
     return bed & (np.abs(y - y[bed].min()) < 1e-6)
 
 
-def _cracked_head_joints(fields, groups: list[str], lost: np.ndarray) -> list[tuple[int, int]]:
-    """(antagonist, candidate) body pairs of the head joints that lost their cohesion over
-    half of their area or more."""
+def _head_joints(fields, groups: list[str]) -> list[tuple[int, int, np.ndarray]]:
+    """(antagonist, candidate, point mask) of every head joint."""
     head = fields.contact_group == groups.index("head")
-    area = fields.contact_area_m2
     out = []
-    for pair in sorted({tuple(int(b) for b in pb) for pb in fields.contact_bodies[head]}):
-        sel = head & (fields.contact_bodies[:, 0] == pair[0]) & \
-            (fields.contact_bodies[:, 1] == pair[1])
-        if area[sel & lost].sum() >= HEAD_LOST_FRACTION * area[sel].sum():
-            out.append((pair[1], pair[0]))
+    for cand, ant in sorted({tuple(int(b) for b in pb) for pb in fields.contact_bodies[head]}):
+        sel = head & (fields.contact_bodies[:, 0] == cand) & (fields.contact_bodies[:, 1] == ant)
+        out.append((ant, cand, sel))
     return out
+
+
+def _cracked(joints, area: np.ndarray, lost: np.ndarray) -> list[tuple[int, int]]:
+    """The joints of ``joints`` that lost their cohesion over half of their area or more."""
+    return [(ant, cand) for ant, cand, sel in joints
+            if area[sel & lost].sum() >= HEAD_LOST_FRACTION * area[sel].sum()]
 
 
 def failure_sequence(h5_path, scene: Mapping[str, Any], ux_by_step: Mapping[int, float]
                      ) -> dict[str, float | None]:
     """``U_x`` (mm) of the first output step at which the base bed joint has lost its cohesion
     over 80 % of its area, and of the first at which a head joint of the middle course has lost
-    it over half of its area (None: never)."""
-    from masonry_nscd.report import output_steps, read_fields
+    it over half of its area (None: never). Reads the integrities of every output step."""
+    from types import SimpleNamespace
+
+    from masonry_nscd.io.results_h5 import _open_for_reading
 
     groups = list(scene["groups"])
     structure = scene["structure"]
@@ -83,18 +87,23 @@ def failure_sequence(h5_path, scene: Mapping[str, Any], ux_by_step: Mapping[int,
     out: dict[str, float | None] = {"base_joint_80pct_lost_at_ux_mm": None,
                                     "middle_course_head_joint_cracked_at_ux_mm": None,
                                     "middle_course": middle}
-    for step, _ in output_steps(h5_path):
-        f = read_fields(h5_path, step)
-        lost = f.joint_beta < COHESION_LOST_BETA
-        base = _base_points(f, groups)
-        area = f.contact_area_m2
-        ux = ux_by_step.get(step)
-        if out["base_joint_80pct_lost_at_ux_mm"] is None and base.any() and \
-                area[base & lost].sum() >= BASE_LOST_FRACTION * area[base].sum():
-            out["base_joint_80pct_lost_at_ux_mm"] = ux
-        if out["middle_course_head_joint_cracked_at_ux_mm"] is None and any(
-                body_course.get(c) == middle for _, c in _cracked_head_joints(f, groups, lost)):
-            out["middle_course_head_joint_cracked_at_ux_mm"] = ux
+    with _open_for_reading(h5_path, 2.0) as f:
+        mesh = SimpleNamespace(**{k: f["mesh"][k][()] for k in (
+            "contact_group", "contact_points_m", "contact_area_m2", "contact_bodies")})
+        base = _base_points(mesh, groups)
+        joints = [jt for jt in _head_joints(mesh, groups) if body_course.get(jt[1]) == middle]
+        area = mesh.contact_area_m2
+        steps = sorted((int(g.attrs["step"]), name) for name, g in f["steps"].items()
+                       if "step" in g.attrs and "time" in g.attrs)
+        for step, name in steps:
+            lost = f["steps"][name]["joint_beta"][()] < COHESION_LOST_BETA
+            ux = ux_by_step.get(step)
+            if out["base_joint_80pct_lost_at_ux_mm"] is None and base.any() and \
+                    area[base & lost].sum() >= BASE_LOST_FRACTION * area[base].sum():
+                out["base_joint_80pct_lost_at_ux_mm"] = ux
+            if out["middle_course_head_joint_cracked_at_ux_mm"] is None and \
+                    _cracked(joints, area, lost):
+                out["middle_course_head_joint_cracked_at_ux_mm"] = ux
     return out
 
 
@@ -131,7 +140,7 @@ def failure_mode(fields, scene: Mapping[str, Any], joint_u_m: np.ndarray | None)
     courses = sorted(set(body_course.values()))
     inner = courses[1:-1]
     cracked: dict[int, list[tuple[int, int]]] = {}
-    for ant, cand in _cracked_head_joints(fields, groups, lost):
+    for ant, cand in _cracked(_head_joints(fields, groups), area, lost):
         c = body_course.get(cand)
         if c is not None:
             cracked.setdefault(c, []).append((ant, cand))
