@@ -119,7 +119,10 @@ def test_every_point_faces_its_antagonist(material):
         xa = p.x - p.gap * p.frame[0]
         lo, hi = ant.X.min(axis=0), ant.X.max(axis=0)
         assert np.all(xa >= lo - 1e-9) and np.all(xa <= hi + 1e-9), (p.x, p.bodies)
-    assert len(scene.points) == 1096
+    # 1096 points at 2 x 2 x 1 (tests/test_wall_run.py); the four corner units at 4 x 4 x 1
+    # carry 16 points per bed and head face instead of 8: +16 on each glue, +16 on the bed
+    # faces of the top course's two corners, +16 on the head faces of the two right corners
+    assert len(scene.points) == 1096 + 4 * 16
 
 
 def test_rigid_smoke_wall_is_symmetric_under_the_vertical_load(tmp_path):

@@ -36,7 +36,7 @@ def test_running_bond_of_the_reference_wall():
 def test_contact_points_of_the_reference_wall():
     from masonry_nscd.scenes.wall import build_wall
 
-    case = load_case("cases/wall_0.5MPa_elastic.yaml")
+    case = load_case("cases/wall_0.5MPa_elastic.yaml", ["wall.refine=[]"])
     scene = build_wall(case)
     group = np.array([p.group for p in scene.points])
     count = {n: int((group == i).sum()) for i, n in enumerate(GROUPS) if (group == i).any()}
@@ -50,6 +50,17 @@ def test_contact_points_of_the_reference_wall():
     assert np.allclose(gaps[group < 2], 0.010, atol=1e-12)
     assert np.allclose(gaps[group >= 2], 0.0, atol=1e-12)
     area = np.array([p.area for p in scene.points])
+    assert np.sum(area[group == 2]) == pytest.approx(1.8 * 0.15)
+    # the case as shipped refines its four corner units to 4 x 4 x 1: their bed faces carry
+    # 4 x 1 element faces x 4 Gauss points = 16 points. Glues: 4 units of 8 and 2 corners of 16
+    # each; beds: the top course's two corners gain 8 each; heads: the points sit on the right
+    # unit's face, so the right corners of courses 0 and 10 gain 8 each.
+    refined = build_wall(load_case("cases/wall_0.5MPa_elastic.yaml"))
+    group = np.array([p.group for p in refined.points])
+    count = {n: int((group == i).sum()) for i, n in enumerate(GROUPS) if (group == i).any()}
+    assert count == {"bed": 8 * (5 * 7 + 5 * 6) + 2 * 8, "head": 8 * (6 * 5 + 5 * 6) + 2 * 8,
+                     "glue_bottom": 4 * 8 + 2 * 16, "glue_top": 4 * 8 + 2 * 16}
+    area = np.array([p.area for p in refined.points])
     assert np.sum(area[group == 2]) == pytest.approx(1.8 * 0.15)
 
 
