@@ -543,6 +543,10 @@ class Joint(_Section):
       friction in compression with ``mu_eff = mu (1 - beta b)^p``.
     - ``coulomb``: dry Signorini-Coulomb contact with friction ``mu``; no cohesion, no spring
       (the spring and cohesive parameters are then unused).
+    - ``dry``: a dry joint, Signorini-Coulomb contact with friction ``mu`` in series with
+      interface stiffnesses ``K_n_Pa_m``, ``K_t_Pa_m`` (the closure of rough dry joints), no
+      cohesion: ``T_n = K_n <u_n>_-``, ``|T_t| <= mu |T_n|``. Only ``mu`` and the two
+      stiffnesses are used.
 
     Stiffnesses in Pa/m (traction per opening), stresses in Pa, fracture energies in J/m^2.
     Mode I is normal opening, mode II tangential sliding. The softening slope
@@ -550,8 +554,20 @@ class Joint(_Section):
     mode; it is checked here for the pure modes and for mixed modes.
     """
 
-    law: Literal["fczm", "coulomb"] = Field(
-        "fczm", description="fczm: cohesive zone + friction + spring; coulomb: dry friction only"
+    law: Literal["fczm", "coulomb", "dry"] = Field(
+        "fczm",
+        description=(
+            "fczm: cohesive zone + friction + spring; coulomb: dry friction only (rigid contact); "
+            "dry: dry friction in series with the interface stiffnesses K_n_Pa_m, K_t_Pa_m"
+        ),
+    )
+    K_n_Pa_m: Real | None = Field(
+        None, gt=0, le=1e16,
+        description="dry law: normal stiffness of the joint's closure (Pa/m; needed with law dry)",
+    )
+    K_t_Pa_m: Real | None = Field(
+        None, gt=0, le=1e16,
+        description="dry law: tangential stiffness of the joint (Pa/m; needed with law dry)",
     )
     K_I_spring_Pa_m: Real = Field(
         4.3e11, ge=1e6, le=1e16, description="normal stiffness of the series spring (Pa/m)"
@@ -602,6 +618,16 @@ class Joint(_Section):
     scatter: JointScatter | None = Field(
         None, description="lognormal scatter of the joint strengths and energies (null: none)"
     )
+
+    @model_validator(mode="after")
+    def _check_dry(self) -> Joint:
+        if self.law == "dry":
+            _problems([(f, "the dry law needs it (Pa/m, > 0)") for f in ("K_n_Pa_m", "K_t_Pa_m")
+                       if getattr(self, f) is None])
+        if self.law != "fczm" and self.scatter is not None:
+            _problems([("scatter", f"the {self.law} law has no cohesion to scatter: "
+                        "remove joint.scatter or use law fczm")])
+        return self
 
     @model_validator(mode="after")
     def _check_fracture_energies(self) -> Joint:
@@ -816,7 +842,8 @@ class Solver(_Section):
         1e-6,
         ge=1e-14,
         lt=1.0,
-        description="convergence: relative change of the contact forces (dimensionless)",
+        description="convergence: relative change of the contact forces, and for newton the "
+        "momentum residual against the contact impulses (dimensionless)",
     )
     max_iterations: Whole = Field(
         20000, ge=1, le=1_000_000_000,
@@ -920,7 +947,8 @@ class Case(_Section):
                     "solver.method",
                     (
                         "got 'newton' with joint.law = 'coulomb'; the Newton solver needs joints "
-                        "with a spring in series (law 'fczm'): use method 'nlgs' for dry contacts"
+                        "with a spring in series (law 'fczm' or 'dry'): use method 'nlgs' for "
+                        "rigid dry contacts, or law 'dry' with the joints' stiffnesses"
                     ),
                 )
             )

@@ -271,6 +271,10 @@ BAD_FILES = {
     "duplicate key": ("joint:\n  mu: 0.5\n  mu: 0.6\n", ["duplicate", "line 3"]),
     "python tag": ("!!python/object:os.system {}\n", ["YAML"]),
     "bad name": ("name: a/b\n", ["name", "'a/b'"]),
+    "dry without stiffnesses": ("joint: {law: dry}\n", ["joint.K_n_Pa_m", "joint.K_t_Pa_m"]),
+    "scatter of a dry joint": (
+        "joint: {law: dry, K_n_Pa_m: 1e11, K_t_Pa_m: 4e10, scatter: {cv: 0.2}}\n",
+        ["joint.scatter", "no cohesion"]),
 }
 
 

@@ -156,6 +156,39 @@ def test_coulomb_law_is_rigid_plastic():
     assert st == jl.ST_OPEN and np.all(T == 0.0)
 
 
+def test_dry_law_is_a_spring_in_series_with_coulomb_friction():
+    """``law='dry'``: ``T_n = K_n u_n`` in compression, nothing in tension, ``T_t = K_t u_t``
+    while ``K_t |u_t| <= mu K_n |u_n|``, then ``|T_t| = mu |T_n|`` with the slip carrying the
+    rest; the tangent is ``diag(K_n, K_t, K_t)`` in stick, ``K_tn = -mu e K_n`` in slide."""
+    K_n, K_t, mu = 1e11, 4e10, 0.65
+    P = jl.joint_params(law="dry", mu=mu, K_n=K_n, K_t=K_t)
+    A0 = np.zeros((3, 3))
+    T, uc, K = np.zeros(3), np.zeros(3), np.zeros((3, 3))
+    un = -2e-5  # T_n = -2 MPa; slides once K_t u_t > 1.3 MPa, u_t > 3.25e-5 m
+    st, _ = jl.solve(np.array([un, 3e-5, 0.0]), A0, np.zeros(3), 1.0, P, T, uc)
+    assert st == jl.ST_STICK
+    assert T == pytest.approx([K_n * un, K_t * 3e-5, 0.0], rel=1e-12)
+    jl.tangent(np.array([un, 3e-5, 0.0]), T, np.zeros(3), 1.0, st, P, K)
+    assert np.diag(K) == pytest.approx([K_n, K_t, K_t], rel=1e-12)
+    u = np.array([un, 3e-5, 4e-5])  # |u_t| = 5e-5 m
+    st, _ = jl.solve(u, A0, np.zeros(3), 1.0, P, T, uc)
+    assert st == jl.ST_SLIDE
+    assert T[0] == pytest.approx(K_n * un, rel=1e-12)
+    assert T[1:] == pytest.approx(mu * -K_n * un * np.array([0.6, 0.8]), rel=1e-10)
+    # the slip is what the spring does not carry: |u_t| - |T_t| / K_t along e
+    assert uc[1:] == pytest.approx((5e-5 - 1.3e6 / K_t) * np.array([0.6, 0.8]), rel=1e-9)
+    jl.tangent(u, T, np.zeros(3), 1.0, st, P, K)
+    assert K[1:, 0] == pytest.approx(-mu * K_n * np.array([0.6, 0.8]), rel=1e-10)
+    st, _ = jl.solve(np.array([1e-6, 3e-5, 0.0]), A0, np.zeros(3), 1.0, P, T, uc)
+    assert st == jl.ST_OPEN and np.all(T == 0.0)
+    assert jl.initial_damage(P) == 1.0  # no cohesion: the joint is broken as built
+
+
+def test_dry_law_needs_its_stiffnesses():
+    with pytest.raises(ValueError, match="K_n > 0 and K_t > 0"):
+        jl.joint_params(law="dry", mu=0.6)
+
+
 def test_coupled_compliance_slide_satisfies_the_law():
     """With a full (coupled) compliance the iterated slide solution meets every condition.
 

@@ -64,7 +64,7 @@ from masonry_nscd.contact.laws.common import (  # noqa: F401 (re-exported for th
     solve3,
 )
 
-NAMES = ("fczm", "coulomb")  # the case's joint.law values this module serves
+NAMES = ("fczm", "coulomb", "dry")  # the case's joint.law values this module serves
 CODE = 0  # its code in column P_LAW
 
 # --- layout of the parameter vector of one joint law (float64) ----------------------------
@@ -100,28 +100,39 @@ def joint_params(
     eta: float = 1e-4,
     compression_spring: str = "damaged",
     law: str = "fczm",
+    K_n: float | None = None,
+    K_t: float | None = None,
 ) -> np.ndarray:
     """Pack the joint parameters (SI units, model.md Table 3) into a float64 vector.
 
     ``law='coulomb'`` gives dry Signorini-Coulomb: no cohesion (b = 0), no spring (zero
-    compliance), friction coefficient ``mu``.
+    compliance), friction coefficient ``mu``. ``law='dry'`` gives a dry joint: no cohesion,
+    a spring of normal and tangential stiffnesses ``K_n``, ``K_t`` (Pa/m) in series with
+    Signorini-Coulomb contact (the closure of a rough joint), so that
+    ``T_n = K_n <u_n>_-`` and ``|T_t| <= mu |T_n|``: the b = 0 limit of the law, which the
+    Newton solver takes.
     """
     P = np.zeros(N_COLUMNS)
     P[P_LAW] = CODE
     P[P_MU] = mu
     P[P_P] = p
     P[P_ETA] = eta
-    if law == "coulomb":
-        # no spring, no cohesion: the envelope is never evaluated (b = 0)
+    if law in ("coulomb", "dry"):
+        # no cohesion: the envelope is never evaluated (b = 0); its columns stay finite
         P[P_KI] = K_I_coh
         P[P_KII] = K_II_coh
         P[P_D1] = sigma_I_e / K_I_coh
         P[P_D2] = sigma_II_e / K_II_coh
         P[P_GI] = G_fI
         P[P_GII] = G_fII
+        if law == "dry":
+            if not (K_n is not None and K_n > 0.0 and K_t is not None and K_t > 0.0):
+                raise ValueError(f"the dry law needs K_n > 0 and K_t > 0 (Pa/m), got {K_n}, {K_t}")
+            P[P_CN_T] = P[P_CN_C] = 1.0 / K_n
+            P[P_CT] = 1.0 / K_t
         return P
     if law != "fczm":
-        raise ValueError(f"unknown joint law {law!r}: allowed 'fczm' or 'coulomb'")
+        raise ValueError(f"unknown joint law {law!r}: allowed 'fczm', 'coulomb' or 'dry'")
     if compression_spring not in ("damaged", "undamaged"):
         raise ValueError("compression_spring must be 'damaged' or 'undamaged'")
     P[P_CN_T] = 1.0 / ((1.0 - d_spring) * K_I_spring)
@@ -710,6 +721,7 @@ def params_from_case(joint) -> np.ndarray:
         G_fI=joint.G_fI_J_m2, sigma_II_e=joint.sigma_II_e_Pa, K_II_coh=joint.K_II_coh_Pa_m,
         G_fII=joint.G_fII_J_m2, d_coh_initial=joint.d_coh_initial, mu=joint.mu, p=joint.p,
         eta=joint.eta, compression_spring=joint.compression_spring, law=joint.law,
+        K_n=joint.K_n_Pa_m, K_t=joint.K_t_Pa_m,
     )
 
 
