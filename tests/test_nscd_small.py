@@ -36,12 +36,16 @@ def test_column_at_rest_reaction_equals_weight_and_no_drift():
     assert np.abs(integ.u - u500).max() < 1e-3 * settle
 
 
-def _slide_distance(ratio, steps=400):
+DRY = {"K_n": 1e11, "K_t": 4e10}  # the dry law's interface stiffnesses (Pa/m)
+
+
+def _slide_distance(ratio, steps=400, law="coulomb", method="nlgs"):
     N = 10e3
     mu = 0.6
-    integ, info = block_on_support(law="coulomb", mu=mu, normal_force=N,
+    integ, info = block_on_support(law=law, mu=mu, normal_force=N,
                                    shear_force=ratio * mu * N, shear_start=0.05,
-                                   shear_ramp=0.1, rigid=True)
+                                   shear_ramp=0.1, rigid=True, method=method,
+                                   joint_kw=DRY if law == "dry" else None)
     xs = []
     for _ in range(steps):
         assert integ.step().converged
@@ -65,6 +69,21 @@ def test_coulomb_block_slides_above_mu_N_with_newtons_acceleration():
     a = np.polyfit(t[sel], xs[sel], 2)[0] * 2.0
     expected = 0.01 * 0.6 * 10e3 / info["mass"]
     assert a == pytest.approx(expected, rel=1e-2)
+
+
+def test_dry_joint_with_newton_sticks_below_mu_N_and_slides_above():
+    """A rigid block on a dry joint (``law='dry'``), Newton's solver: below ``mu N`` it moves
+    only by the joint's shear spring, ``F / (K_t A)``; above, it accelerates at
+    ``(F - mu N) / m`` within 1 %."""
+    xs, info = _slide_distance(0.99, law="dry", method="newton")
+    spring = 0.99 * 0.6 * 10e3 / (DRY["K_t"] * info["area"])
+    assert xs[-1] == pytest.approx(spring, rel=1e-3)
+    assert abs(xs[-1] - xs[-100]) < 1e-3 * spring
+    xs, info = _slide_distance(1.01, law="dry", method="newton")
+    t = np.arange(1, len(xs) + 1) * 1e-3
+    sel = t > 0.2
+    a = np.polyfit(t[sel], xs[sel], 2)[0] * 2.0
+    assert a == pytest.approx(0.01 * 0.6 * 10e3 / info["mass"], rel=1e-2)
 
 
 @pytest.mark.parametrize("sigma", [0.0, 0.5e6])

@@ -86,7 +86,8 @@ def block_between_plates(size=(0.2, 0.1, 0.15), divisions=(2, 2, 1), E=11.1e9, n
 def block_on_support(*, law: str = "coulomb", mu: float = 0.6, normal_force: float = 10e3,
                      shear_force: float = 0.0, rigid: bool = False, divisions=(2, 2, 1),
                      size=(0.3, 0.1, 0.15), h=1e-3, tolerance=1e-10, shear_start=0.1,
-                     shear_ramp=0.1, shear_velocity: float | None = None, joint_kw=None):
+                     shear_ramp=0.1, shear_velocity: float | None = None, joint_kw=None,
+                     method: str = "nlgs"):
     """A block on a fixed support, pressed by ``normal_force`` (N) and pushed sideways.
 
     The normal force is a uniform pressure on the top face ramped over [0, 0.05] s. The shear is
@@ -126,7 +127,7 @@ def block_on_support(*, law: str = "coulomb", mu: float = 0.6, normal_force: flo
             Fs[X:body.ndof:3] = shear_force * m[X::3] / m[X::3].sum()
         loads.add(Fs, Ramp(1.0, shear_start, shear_ramp))
     integ = Integrator(bodies, pts, P, loads, h=h, theta=1.0, tolerance=tolerance,
-                       max_iterations=20000, check_every=1)
+                       max_iterations=20000, check_every=1, method=method)
     return integ, {"mass": mass, "area": size[0] * size[2], "dofs_x": slice(X, body.ndof, 3)
                    if not rigid else slice(0, 1)}
 
