@@ -153,3 +153,28 @@ def test_the_new_cases_run_to_their_target(tmp_path, case_file, target, extra):
         assert "lintel over opening 1" in names and len(names) == 63
     res = CliRunner().invoke(app, ["plot", str(out), "-o", str(tmp_path / "plots")])
     assert res.exit_code == 0, res.output
+
+
+def test_dry_stone_wall_in_short_form(tmp_path):
+    """The dry wall (law ``dry``, Newton) to 0.5 mm: every step converged; the beams balance
+    the wall (vertical: the beam's load and the wall's weight; horizontal: equal and opposite
+    forces, quasi-static); and no more horizontal force passes than friction allows through
+    the lowest bed joint, ``mu`` times the normal force on it (the load and the eight courses
+    above it)."""
+    out = tmp_path / "run"
+    res = CliRunner().invoke(app, ["run", "cases/dry_stone_wall.yaml", "-o", str(out),
+                                   "--set", "loading.horizontal.target_m=0.5e-3",
+                                   "--set", "output.vtu=false"])
+    assert res.exit_code == 0, res.output
+    s = json.loads((out / "summary.json").read_text())
+    assert s["target_reached"] and s["unconverged_steps"] == 0
+    c = read_curve_csv(out / "force_displacement.csv")
+    end = -1
+    weight = 1.0 * 0.9 * 0.2 * 2300 * 9.81  # N
+    assert -c["fy_kN"][end] * 1e3 == pytest.approx(100e3, rel=1e-3)
+    assert c["fy_bottom_kN"][end] * 1e3 == pytest.approx(100e3 + weight, rel=1e-3)
+    assert c["fx_bottom_kN"][end] == pytest.approx(-c["fx_kN"][end], rel=1e-3)
+    assert c["fx_kN"][end] > 10.0  # the wall carries shear
+    st = c["time_s"] >= 0.25  # the horizontal stage: gravity and the load fully on
+    bound = 0.65 * (c["fy_bottom_kN"][st] - weight / 1e3 / 9)  # kN, lowest bed joint
+    assert np.all(np.abs(c["fx_kN"][st]) <= bound * (1 + 1e-6))
