@@ -819,8 +819,8 @@ class Solver(_Section):
     """Time integration (Moreau-Jean theta scheme) and the contact solver.
 
     ``tolerance`` bounds the relative change of the contact impulses between two Newton
-    iterations, or between two convergence checks of the non-linear Gauss-Seidel (NLGS), made
-    every ``check_every`` sweeps. It matters for NLGS: a loose tolerance lowers the apparent
+    iterations (and Newton's momentum residual against the contact impulses), or between two
+    convergence checks of the non-linear Gauss-Seidel (NLGS), made every ``check_every`` sweeps. It matters for NLGS: a loose tolerance lowers the apparent
     initial stiffness of the wall (docs/model.md section 4); Newton's curve is the same from
     1e-5 to 1e-9 on the elastic wall (docs/performance.md).
 
