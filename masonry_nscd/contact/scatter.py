@@ -12,8 +12,8 @@ candidate that carries the point. Keys are numbered in the order of the points, 
 and a seed always give the same draws. Each draw becomes a row of the parameter table
 (``contact.laws.params_from_case`` of the case's joint section with the drawn values), and
 every point of the key takes that row; row 0 keeps the case's values (the glue, and the points
-of the other groups). A draw the law refuses (a fracture energy below the elastic energy of its
-mode) raises ValueError naming it.
+of the other groups). A draw the law refuses (the checks of ``case.Joint``: a fracture energy
+below the elastic energy of its mode, pure or mixed) raises ValueError naming it.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
+from pydantic import ValidationError
 
 from masonry_nscd.contact import laws
 
@@ -55,18 +56,16 @@ def scatter_rows(joint, points: Sequence, scattered: np.ndarray) -> tuple[np.nda
     rng = np.random.default_rng(sc.seed)
     factors = lognormal_factors(sc.cv, (len(keys), len(sc.fields)), rng)
     rows = [base]
+    case_values = joint.model_dump()
     for k in range(len(keys)):
         drawn = {f: float(getattr(joint, f)) * factors[k, i] for i, f in enumerate(sc.fields)}
-        mode = [("G_fI_J_m2", "sigma_I_e_Pa", "K_I_coh_Pa_m"),
-                ("G_fII_J_m2", "sigma_II_e_Pa", "K_II_coh_Pa_m")]
-        for g, sig, kc in mode:
-            G = drawn.get(g, getattr(joint, g))
-            sigma = drawn.get(sig, getattr(joint, sig))
-            if not G > sigma * sigma / (2.0 * getattr(joint, kc)):
-                raise ValueError(
-                    f"joint.scatter: a draw gives {g} = {G:.4g} J/m^2 with {sig} = {sigma:.4g} "
-                    f"Pa, below the elastic energy of the mode: lower joint.scatter.cv")
-        rows.append(laws.params_from_case(joint.model_copy(update=drawn)))
+        try:  # the schema's own checks of the joint (fracture energies, pure and mixed modes)
+            drawn_joint = type(joint).model_validate({**case_values, **drawn})
+        except ValidationError as exc:
+            values = ", ".join(f"{f} = {v:.4g}" for f, v in drawn.items())
+            raise ValueError(f"joint.scatter: a draw ({values}) is one the law refuses: "
+                             f"{exc.errors()[0]['msg']}; lower joint.scatter.cv") from None
+        rows.append(laws.params_from_case(drawn_joint))
     values = {}
     for i, f in enumerate(sc.fields):
         scale = np.concatenate([[1.0], factors[:, i]])
