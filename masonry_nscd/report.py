@@ -63,12 +63,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from masonry_nscd.io.runfolder import read_curve_csv
-from masonry_nscd.post.failure import failure_mode, failure_sequence
+from masonry_nscd.post.failure import COHESION_LOST_BETA, failure_mode, failure_sequence
 
 #: Fractions of the peak force between which the initial stiffness is measured.
 STIFFNESS_FRACTIONS = (0.10, 0.40)
-#: A joint point whose integrity ``beta`` is below this has lost its cohesion (counted).
-COHESION_LOST_BETA = 0.01
 
 FloatArray = NDArray[np.float64]
 

@@ -1,8 +1,9 @@
 r"""The failure mode of a wall, named from its joint and block damage at one output step.
 
 A joint point has lost its cohesion when its integrity ``beta`` is below 0.01
-(``report.COHESION_LOST_BETA``); fractions are fractions of the tributary area. The mechanisms,
-read from the scene's joint groups and the places of its units (``scene.json``):
+(``COHESION_LOST_BETA``, which the summary's counts use too); fractions are fractions of the
+tributary area. The mechanisms, read from the scene's joint groups and the places of its units
+(``scene.json``):
 
 ``base sliding``
     the base bed joint (the lowest joint of a ``bed`` group, the glue left out) has lost its
@@ -34,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+#: A joint point whose integrity ``beta`` is below this has lost its cohesion.
 COHESION_LOST_BETA = 0.01
 BASE_LOST_FRACTION = 0.8
 BASE_OPEN_FRACTION = 0.2
@@ -152,17 +154,11 @@ def failure_mode(fields, scene: Mapping[str, Any], joint_u_m: np.ndarray | None)
     # --- crushing at the toes -----------------------------------------------------------------
     names = dict(enumerate(scene["bodies"]))
     ends = {courses[0], courses[-1]}
-    crushed = []
-    for k, s in enumerate(structure):
-        if s["course"] not in ends:
-            continue
-        d = fields.d_c[fields.block_of_element == k]
-        if d.size and d.max() >= CRUSHED_D_C:
-            crushed.append(names[s["body"]])
+    end_d_c = {k: float(fields.d_c[fields.block_of_element == k].max(initial=0.0))
+               for k, s in enumerate(structure) if s["course"] in ends}
+    crushed = [names[structure[k]["body"]] for k, d in end_d_c.items() if d >= CRUSHED_D_C]
     out["crushed_units"] = crushed
-    out["largest_d_c_end_courses"] = float(max(
-        (fields.d_c[fields.block_of_element == k].max(initial=0.0)
-         for k, s in enumerate(structure) if s["course"] in ends), default=0.0))
+    out["largest_d_c_end_courses"] = max(end_d_c.values(), default=0.0)
     if crushed:
         modes.append("toe crushing")
     out["mode"] = " + ".join(modes) if modes else "none"
