@@ -39,7 +39,8 @@ __all__ = ["CSV_COLUMNS", "LOST_RESIDUAL", "TERMINATE", "RunFailure", "RunInputE
 TERMINATE = threading.Event()
 
 #: A step that ends with a residual (relative change of the contact forces between the last
-#: iterates; for Newton also the momentum residual against the contact impulses) above this has lost its solution: the run stops (RunFailure) rather than record it.
+#: iterates; for Newton also the momentum residual against the contact impulses) above this
+#: has lost its solution: the run stops (RunFailure) rather than record it.
 #: Steps that stall below it are recorded and counted (measured on the ENDO3D wall at 0.5 MPa:
 #: worst 7e-3 over 2638 steps; an ENDO3D block driven far past its peak: 1.96, with forces off
 #: by a factor of ten).
@@ -140,6 +141,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     try:
         scene = build_scene(case)
     except ValueError as exc:  # parameters the schema lets through but the scene refuses
+        log.close()
         raise RunInputError(f"invalid case {case.name}: {exc}") from exc
     integ = scene.integrator(point.state["t"] if point else 0.0)
     s = integ.sys
