@@ -625,8 +625,8 @@ class Joint(_Section):
             _problems([(f, "the dry law needs it (Pa/m, > 0)") for f in ("K_n_Pa_m", "K_t_Pa_m")
                        if getattr(self, f) is None])
         if self.law != "fczm" and self.scatter is not None:
-            _problems([("scatter", f"the {self.law} law has no cohesion to scatter: "
-                        "remove joint.scatter or use law fczm")])
+            _problems([("scatter", (f"the {self.law} law has no cohesion to scatter: "
+                                    "remove joint.scatter or use law fczm"))])
         return self
 
     @model_validator(mode="after")
@@ -820,9 +820,10 @@ class Solver(_Section):
 
     ``tolerance`` bounds the relative change of the contact impulses between two Newton
     iterations (and Newton's momentum residual against the contact impulses), or between two
-    convergence checks of the non-linear Gauss-Seidel (NLGS), made every ``check_every`` sweeps. It matters for NLGS: a loose tolerance lowers the apparent
-    initial stiffness of the wall (docs/model.md section 4); Newton's curve is the same from
-    1e-5 to 1e-9 on the elastic wall (docs/performance.md).
+    convergence checks of the non-linear Gauss-Seidel (NLGS), made every ``check_every``
+    sweeps. It matters for NLGS: a loose tolerance lowers the apparent initial stiffness of
+    the wall (docs/model.md section 4); Newton's curve is the same from 1e-5 to 1e-9 on the
+    elastic wall (docs/performance.md).
 
     The defaults (h = 4e-3 s, 1e-6) are those of the study's cases with ENDO3D blocks, on the
     Pareto front of ``masonry bench`` (docs/performance.md); with elastic blocks 1e-5 gives the

@@ -50,8 +50,9 @@ first alone is not enough at the friction limit, where ``T_t = mu N`` stops chan
 slip rate is still wrong.
 
 The law needs a spring in series (finite ``T(u)``, the law's ``newton_ready``: ``fczm`` and
-``dry``); for rigid dry Signorini-Coulomb contacts (``coulomb``) use the Gauss-Seidel solver. The tangent per status is the law's
-(``contact.laws.response``; for the FCZM, ``contact.laws.fczm.tangent``).
+``dry``); for rigid dry Signorini-Coulomb contacts (``coulomb``) use the Gauss-Seidel solver.
+The tangent per status is the law's (``contact.laws.response``; for the FCZM,
+``contact.laws.fczm.tangent``).
 """
 
 from __future__ import annotations
