@@ -46,6 +46,29 @@ def test_a_rotated_stack_has_one_bed_joint_at_the_joint_thickness(angle):
     assert sum(p.area for p in pts) == pytest.approx(0.3 * 0.15, rel=1e-12)
 
 
+@pytest.mark.parametrize(("order", "count"), [(2, 3 * 2), (3, 5 * 3), (4, 7 * 4)])
+def test_lobatto_points_sit_on_the_corners_once_each(order, count):
+    """The Gauss-Lobatto rule on a 2 x 1 quad face of 0.3 x 0.15 m: the points shared by the two
+    quads are made once (order 2: the 3 x 2 nodes), the outer ones on the face's edges, and the
+    areas add up to the face's, the shared points' counted from both quads."""
+    bodies = []
+    for y0 in (0.0, 0.11):
+        X, conn = box_mesh(np.array([0.0, y0, 0.0]), np.array([0.3, 0.1, 0.15]), (2, 1, 1))
+        bodies.append(_block(X, conn))
+    pts = contact_points(bodies, JOINT, max_gap=0.01, n_gauss=order, rule="lobatto")
+    assert len(pts) == count
+    x = np.array([p.x for p in pts])
+    assert x[:, 0].min() == pytest.approx(0.0, abs=1e-12)
+    assert x[:, 0].max() == pytest.approx(0.3, abs=1e-12)
+    assert x[:, 2].min() == pytest.approx(0.0, abs=1e-12)
+    assert x[:, 2].max() == pytest.approx(0.15, abs=1e-12)
+    assert sum(p.area for p in pts) == pytest.approx(0.3 * 0.15, rel=1e-12)
+    assert len({tuple(np.round(xi, 9)) for xi in x}) == count  # no twins
+    if order == 2:  # trapezoidal rule: a quarter of a quad at a corner, a half on the middle
+        areas = sorted(p.area for p in pts)
+        assert areas == pytest.approx([0.15 * 0.15 / 4] * 4 + [0.15 * 0.15 / 2] * 2)
+
+
 def test_voussoirs_meet_on_their_inclined_joint():
     """Two wedge-shaped voussoirs (hexahedra that are not boxes) of an arch, their joint a
     radial plane: detected, points on the joint's plane, the normal along the arch."""

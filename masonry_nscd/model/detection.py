@@ -16,8 +16,13 @@ outward normal points down (``n_y < 0``), or, for a vertical joint, left (``n_x 
 joint in the x-y plane, back (``n_z < 0``); the first component of the normal larger than
 ``1e-6`` decides. On a wall, the unit above a bed joint and the unit right of a head joint.
 
-Contact points sit at the ``n_gauss x n_gauss`` Gauss points of each candidate face quad, with
-the tributary area of their Gauss weight. Each projects along the normal onto the antagonist
+Contact points sit at the ``n_gauss x n_gauss`` points of a rule on each candidate face quad,
+with the tributary area of their weight: Gauss-Legendre points inside the quad (``gauss``), or
+Gauss-Lobatto points, the quad's corners among them (``lobatto``). A point that two quads of the
+candidate face share (a corner, an edge point) is made once, with the sum of their areas; it
+belongs to the first of them. Where a rigid block rocks on a face, it turns about its corner
+points: at the edge of the face with ``lobatto``, at the outer Gauss point with ``gauss``
+(``(1 - 1/sqrt(3)) / 2`` of a quad's width inside the edge). Each projects along the normal onto the antagonist
 face; the first antagonist (in body order) whose face contains the projection takes the point,
 and a point that faces none (an open end) is dropped. The point's gap is the distance to the
 antagonist's plane along the normal, and its frame (n, t, s) has ``n`` from the antagonist to
@@ -149,8 +154,10 @@ def find_joints(bodies: Sequence, *, max_gap: float, gap_tol: float = 1e-6,
 
 def joint_points(bodies: Sequence, joints: Sequence[Joint],
                  classify: Callable[[Joint, Patch], tuple[int, int, int] | None], *,
-                 n_gauss: int = 2, dof0: np.ndarray | None = None) -> list[ContactPoint]:
-    """The contact points of ``joints`` (module docstring).
+                 n_gauss: int = 2, rule: str = "gauss",
+                 dof0: np.ndarray | None = None) -> list[ContactPoint]:
+    """The contact points of ``joints`` (module docstring), ``n_gauss`` per direction of each
+    face quad with the quadrature ``rule`` (``gauss`` or ``lobatto``).
 
     ``classify(joint, antagonist_patch)`` gives the ``(group, kind, law)`` of the points that
     the antagonist takes, or None to make none there.
@@ -163,8 +170,11 @@ def joint_points(bodies: Sequence, joints: Sequence[Joint],
         cb = bodies[cand.body]
         frame = joint_frame(jt.normal)
         n_out = cand.normal  # outward normal of the candidate face
-        xs, areas, ref = gauss_points(cb.X[cand.quads], n_gauss)  # (nq, k, 3), (nq, k)
+        xs, areas, ref = gauss_points(cb.X[cand.quads], n_gauss, rule)  # (nq, k, 3), (nq, k)
         taken = np.zeros(xs.shape[:2], dtype=bool)
+        if rule != "gauss":
+            areas, twin = _merge_shared(xs, areas)
+            taken |= twin
         for ant in jt.antagonists:
             tag = classify(jt, ant)
             ab = bodies[ant.body]
@@ -195,6 +205,23 @@ def joint_points(bodies: Sequence, joints: Sequence[Joint],
     return out
 
 
+def _merge_shared(xs: np.ndarray, areas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points of the quads of one face that coincide (within 1e-9 of the face's size): the
+    areas (nq, k) with each first occurrence carrying the sum of its twins', and a mask
+    (nq, k) of the later occurrences."""
+    flat = xs.reshape(-1, 3)
+    size = float(np.ptp(flat, axis=0).max()) or 1.0
+    keys = np.round((flat - flat.min(axis=0)) / (1e-9 * size)).astype(np.int64)
+    _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.ravel()
+    total = np.bincount(inverse, weights=areas.reshape(-1))
+    merged = np.zeros(flat.shape[0])
+    merged[first] = total
+    twin = np.ones(flat.shape[0], dtype=bool)
+    twin[first] = False
+    return merged.reshape(areas.shape), twin.reshape(areas.shape)
+
+
 def _side(body, dof0: int, quad: np.ndarray, x: np.ndarray, frame: np.ndarray, sign: float,
           ref) -> tuple[np.ndarray, np.ndarray]:
     """Velocity map of point ``x`` of ``body``, at reference coordinates ``ref`` of its face
@@ -205,9 +232,9 @@ def _side(body, dof0: int, quad: np.ndarray, x: np.ndarray, frame: np.ndarray, s
 
 
 def contact_points(bodies: Sequence, classify: Callable[[Joint, Patch], tuple[int, int, int] | None],
-                   *, max_gap: float, n_gauss: int = 2, gap_tol: float = 1e-6,
-                   angle_tol: float = 1e-3) -> list[ContactPoint]:
+                   *, max_gap: float, n_gauss: int = 2, rule: str = "gauss",
+                   gap_tol: float = 1e-6, angle_tol: float = 1e-3) -> list[ContactPoint]:
     """The contact points of every joint of ``bodies``: :func:`find_joints`, then
     :func:`joint_points` with ``classify``."""
     found = find_joints(bodies, max_gap=max_gap, gap_tol=gap_tol, angle_tol=angle_tol)
-    return joint_points(bodies, found.joints, classify, n_gauss=n_gauss)
+    return joint_points(bodies, found.joints, classify, n_gauss=n_gauss, rule=rule)

@@ -50,11 +50,30 @@ def quad_frame(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return n / np.linalg.norm(n, axis=-1, keepdims=True), P.mean(axis=-2)
 
 
-def gauss_points(P: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+#: Gauss-Lobatto rules on [-1, 1] (points, weights) by number of points: the ends are points
+LOBATTO = {
+    2: (np.array([-1.0, 1.0]), np.array([1.0, 1.0])),
+    3: (np.array([-1.0, 0.0, 1.0]), np.array([1.0, 4.0, 1.0]) / 3.0),
+    4: (np.array([-1.0, -1.0 / np.sqrt(5.0), 1.0 / np.sqrt(5.0), 1.0]),
+        np.array([1.0, 5.0, 5.0, 1.0]) / 6.0),
+}
+
+
+def gauss_points(P: np.ndarray, order: int, rule: str = "gauss"
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Points (nq, order^2, 3), tributary areas (nq, order^2) and reference coordinates
-    (order^2, 2) of the Gauss-Legendre rule of ``order`` points per direction on quads ``P``
-    (nq, 4, 3); points ordered with xi outer."""
-    g, w = np.polynomial.legendre.leggauss(order)
+    (order^2, 2) of a rule of ``order`` points per direction on quads ``P`` (nq, 4, 3); points
+    ordered with xi outer. ``rule``: ``gauss`` (Gauss-Legendre, inside the quad) or ``lobatto``
+    (Gauss-Lobatto, ``order`` 2 to 4: the corners and, from 3, points on the edges among them;
+    2 is the trapezoidal rule, a quarter of a parallelogram's area at each corner)."""
+    if rule == "lobatto":
+        if order not in LOBATTO:
+            raise ValueError(f"the Gauss-Lobatto rule takes 2 to 4 points, got {order}")
+        g, w = LOBATTO[order]
+    elif rule == "gauss":
+        g, w = np.polynomial.legendre.leggauss(order)
+    else:
+        raise ValueError(f"unknown quadrature rule {rule!r}: 'gauss' or 'lobatto'")
     xi, eta = np.repeat(g, order), np.tile(g, order)
     wt = np.repeat(w, order) * np.tile(w, order)
     N = shape4(xi, eta)  # (k, 4)
