@@ -222,3 +222,63 @@ def test_coupled_compliance_slide_satisfies_the_law():
             s = uc[1:] - uc_old[1:]
             assert np.dot(s, R) >= 0.0
             assert math.isclose(abs(np.dot(s, R)), np.linalg.norm(s) * np.linalg.norm(R), rel_tol=1e-8)
+
+
+def _ac(u, r, old, mu=0.6, rho=1e4):
+    from masonry_nscd.contact import alart_curnier
+
+    Phi, uc = np.empty(3), np.empty(3)
+    Gu, Gr = np.empty((3, 3)), np.empty((3, 3))
+    st = alart_curnier.residual(np.asarray(u, float), np.asarray(r, float),
+                                np.asarray(old, float), mu, rho, Phi, Gu, Gr, uc)
+    return st, Phi, Gu, Gr, uc
+
+
+def test_alart_curnier_zeros_are_the_signorini_coulomb_states():
+    """The function vanishes exactly at the states of the law: open with no impulse, closed and
+    stuck within the cone, closed and sliding with the impulse on the cone against the slip; and
+    not elsewhere (a penetration, a pull, an impulse off the cone)."""
+    old = np.array([0.0, 2e-4, -1e-4])
+    mu = 0.6
+    st, Phi, *_ = _ac([3e-4, 1e-3, 0.0], [0.0, 0.0, 0.0], old, mu)
+    assert st == jl.ST_OPEN and np.all(Phi == 0.0)
+    st, Phi, *_ = _ac([0.0, 2e-4, -1e-4], [10.0, 3.0, -4.0], old, mu)  # |r_t| = 5 <= 6
+    assert st == jl.ST_STICK and np.all(Phi == 0.0)
+    slip = np.array([3e-5, 4e-5])
+    st, Phi, *_ = _ac([0.0, *(old[1:] + slip)], [10.0, *(-6.0 * slip / 5e-5)], old, mu)
+    assert st == jl.ST_SLIDE and np.abs(Phi).max() < 1e-18
+    for u, r in (([-1e-6, 2e-4, -1e-4], [10.0, 0.0, 0.0]),  # penetrates
+                 ([0.0, 2e-4, -1e-4], [-1.0, 0.0, 0.0]),  # pulls
+                 ([0.0, 2e-4, -1e-4], [10.0, 7.0, 0.0]),  # off the cone
+                 ([0.0, *(old[1:] + slip)], [10.0, *(6.0 * slip / 5e-5)])):  # helps the slip
+        assert np.abs(_ac(u, r, old, mu)[1]).max() > 1e-9
+
+
+def test_alart_curnier_derivatives_are_those_of_the_function():
+    """``Gu``, ``Gr`` against central differences at random states of each status (away from
+    the kinks, where both sides of the difference have the same status)."""
+    rng = np.random.default_rng(0)
+    rho, seen, worst = 1e4, set(), 0.0
+    for _ in range(300):
+        u, r = rng.normal(size=3) * 1e-4, rng.normal(size=3)
+        old = rng.normal(size=3) * 1e-4
+        st, _, Gu, Gr, _ = _ac(u, r, old, rho=rho)
+        for x, G, dx in ((u, Gu, 1e-10), (r, Gr, 1e-6)):
+            for j in range(3):
+                xp, xm = x.copy(), x.copy()
+                xp[j] += dx
+                xm[j] -= dx
+                if x is u:
+                    sp, Pp, *_ = _ac(xp, r, old, rho=rho)
+                    sm, Pm, *_ = _ac(xm, r, old, rho=rho)
+                else:
+                    sp, Pp, *_ = _ac(u, xp, old, rho=rho)
+                    sm, Pm, *_ = _ac(u, xm, old, rho=rho)
+                if sp != st or sm != st:
+                    continue
+                seen.add(st)
+                fd = (Pp - Pm) / (2 * dx)
+                scale = np.abs(G).max() or 1.0  # Gu = 0 when open: the difference must be too
+                worst = max(worst, np.abs(fd - G[:, j]).max() / scale)
+    assert seen == {jl.ST_OPEN, jl.ST_STICK, jl.ST_SLIDE}
+    assert worst < 1e-6

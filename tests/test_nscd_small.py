@@ -1,11 +1,19 @@
 """The NSCD engine on small scenes, against closed-form answers."""
 
+import math
+
 import numpy as np
 import pytest
 
 from masonry_nscd.contact.laws import fczm as jl
 from masonry_nscd.contact.point_driver import drive_joint_history
-from masonry_nscd.scenes.small import block_between_plates, block_on_support, column
+from masonry_nscd.scenes.small import (
+    block_between_plates,
+    block_on_incline,
+    block_on_support,
+    column,
+    slender_block_pushed,
+)
 
 
 @pytest.mark.parametrize("divisions", [(1, 1, 1), (2, 2, 1), (3, 2, 2)])
@@ -53,15 +61,18 @@ def _slide_distance(ratio, steps=400, law="coulomb", method="nlgs"):
     return np.array(xs), info
 
 
-def test_coulomb_block_sticks_below_mu_N():
-    xs, _ = _slide_distance(0.99)
-    # a rigid block that sticks does not move at all
+@pytest.mark.parametrize("method", ["nlgs", "newton"])
+def test_coulomb_block_sticks_below_mu_N(method):
+    xs, _ = _slide_distance(0.99, method=method)
+    # a rigid block that sticks does not move (Newton: by the 1e-9 compliance of its
+    # multipliers, a slip of 1e-9 of one step's, which does not accumulate)
     assert abs(xs[-1]) < 1e-12
-    assert abs(xs[-1] - xs[-100]) < 1e-9
+    assert abs(xs[-1] - xs[-100]) < 1e-12
 
 
-def test_coulomb_block_slides_above_mu_N_with_newtons_acceleration():
-    xs, info = _slide_distance(1.01)
+@pytest.mark.parametrize("method", ["nlgs", "newton"])
+def test_coulomb_block_slides_above_mu_N_with_newtons_acceleration(method):
+    xs, info = _slide_distance(1.01, method=method)
     h = 1e-3
     # once the shear is fully applied (t > 0.15 s) the block accelerates at (F - mu N) / m
     t = np.arange(1, len(xs) + 1) * h
@@ -69,6 +80,66 @@ def test_coulomb_block_slides_above_mu_N_with_newtons_acceleration():
     a = np.polyfit(t[sel], xs[sel], 2)[0] * 2.0
     expected = 0.01 * 0.6 * 10e3 / info["mass"]
     assert a == pytest.approx(expected, rel=1e-2)
+
+
+@pytest.mark.parametrize(("law", "method"), [("coulomb", "nlgs"), ("coulomb", "newton"),
+                                            ("dry", "newton")])
+def test_block_on_an_incline_sticks_below_the_friction_angle_and_slides_above(law, method):
+    """A free rigid block on a plane inclined by ``a``: it stays put while ``tan a < mu``
+    (1 degree below), and slides down at ``g (sin a - mu cos a)`` within 1 % above (3 degrees
+    above), without turning."""
+    mu, g, h = 0.6, 9.81, 1e-3
+    angle = math.degrees(math.atan(mu))
+    kw = DRY if law == "dry" else None
+    for a_deg, moves in ((angle - 1.0, False), (angle + 3.0, True)):
+        integ, info = block_on_incline(a_deg, law=law, mu=mu, method=method, h=h,
+                                       joint_kw=kw)
+        xs = []
+        for _ in range(300):
+            assert integ.step().converged
+            xs.append(integ.u[:3] @ info["slope"])
+        xs = np.array(xs)
+        a = math.radians(a_deg)
+        if not moves:
+            # the rigid contact does not move; the dry joint by its springs only (shear
+            # m g sin a / (K_t A) = 2.5e-8 m, and the turn of the block on its normal springs
+            # under the moment of the friction) and it does not creep
+            spring = info["mass"] * g * math.sin(a) / (DRY["K_t"] * 0.3 * 0.15)
+            bound = 1e-12 if law == "coulomb" else 2.0 * spring
+            assert np.abs(xs).max() < bound
+            assert abs(xs[-1] - xs[-100]) < 1e-12
+            continue
+        t = np.arange(1, len(xs) + 1) * h
+        sel = t > 0.1  # the weight is ramped over 0.05 s
+        acc = np.polyfit(t[sel], xs[sel], 2)[0] * 2.0
+        assert acc == pytest.approx(-g * (math.sin(a) - mu * math.cos(a)), rel=1e-2)
+        # no rotation on the rigid contact; on the dry joint that of its normal springs under
+        # the moment of the friction about the centre, mu m g cos a 0.05 / (K_n 0.15 0.3^3 / 12)
+        turn = mu * info["mass"] * g * math.cos(a) * 0.05 / (DRY["K_n"] * 0.15 * 0.3**3 / 12)
+        assert np.abs(integ.u[3:6]).max() < (1e-9 if law == "coulomb" else 1.1 * turn)
+
+
+@pytest.mark.parametrize("law", ["coulomb", "dry"])
+def test_slender_block_tips_at_its_closed_form_push(law):
+    """A rigid block 0.1 m wide and 0.4 m tall, pressed by its weight W and N = 2 kN, pushed at
+    the top: it tips about its toe when the push reaches ``(W + N) b / (2 h)``. With the
+    contact points at the corners of the base (``lobatto``); with them at the Gauss
+    points (``gauss``) it tips about the outer Gauss point, whose lever arm is short of
+    ``b / 2`` by ``(1 - 1/sqrt(3)) / 2`` of a quad's width (b / 2 here, two quads)."""
+    b, H, N = 0.1, 0.4, 2e3
+    kw = DRY if law == "dry" else None
+    for rule, arm in (("lobatto", b / 2), ("gauss", b / 2 - (1 - 1 / math.sqrt(3)) * b / 4)):
+        integ, info = slender_block_pushed(width=b, height=H, normal_force=N, law=law,
+                                           method="newton", joint_kw=kw, rule=rule)
+        fx = []
+        for _ in range(300):
+            assert integ.step().converged
+            fx.append(-integ.point_forces()[:, 0].sum())  # the base shear: the push
+        assert integ.u[info["rotation_dof"]] < -5e-4  # it tipped (clockwise, about z)
+        # within 2e-3 on rigid contacts; 2 % on the dry joint's springs (the issue's bound),
+        # whose closure lets the block turn and gather momentum before it tips (0.5 % over)
+        rel = 2e-3 if law == "coulomb" else 2e-2
+        assert max(fx) == pytest.approx((info["weight"] + N) * arm / H, rel=rel)
 
 
 def test_dry_joint_with_newton_sticks_below_mu_N_and_slides_above():

@@ -169,10 +169,10 @@ class Integrator:
             joints = s.kind == laws.KIND_JOINT
             used = self.params[np.unique(s.law[joints])] if joints.any() else self.params[:0]
             if not all(laws.newton_ready(P) for P in used):
-                raise ValueError("the Newton solver needs joints with a spring in series "
-                                 "(dry Signorini-Coulomb contacts: use method 'nlgs')")
+                raise ValueError("the Newton solver needs joints with a spring in series or "
+                                 "rigid Signorini-Coulomb contacts: use method 'nlgs'")
             self.newton = NewtonSolver(s, s.minv_off, s.mhat, tolerance,
-                                       min(max_iterations, NEWTON_MAX_ITERATIONS))
+                                       min(max_iterations, NEWTON_MAX_ITERATIONS), self.params)
             self.newton.on_slow = self._on_slow
 
     # --- one step -----------------------------------------------------------------------

@@ -49,10 +49,20 @@ the contact impulses, ``|R_v| / (h sqrt(sum |S T|^2))``, both at most the tolera
 first alone is not enough at the friction limit, where ``T_t = mu N`` stops changing while the
 slip rate is still wrong.
 
-The law needs a spring in series (finite ``T(u)``, the law's ``newton_ready``: ``fczm`` and
-``dry``); for rigid dry Signorini-Coulomb contacts (``coulomb``) use the Gauss-Seidel solver.
 The tangent per status is the law's (``contact.laws.response``; for the FCZM,
-``contact.laws.fczm.tangent``).
+``contact.laws.fczm.tangent``); a law with a spring in series has a finite ``T(u)`` (``fczm``,
+``dry``).
+
+Rigid contacts (``coulomb``: Signorini-Coulomb with no spring, ``laws.rigid_friction``) have no
+``T(u)``: their impulses are unknowns, like the glue's, and their rows are the Alart-Curnier
+function of the point in velocity units (``contact.alart_curnier``),
+``F_c = Phi(u_c, r_c) / (h theta) + eps r_c``, with its generalised derivative in the matrix
+(rows ``Gu H^T`` and ``Gr``), and the compliance ``eps`` of the glue (1e-9 of the point's
+Delassus diagonal). A rigid block's contact points outnumber its six dofs, so their impulses are
+not unique (only their resultant is): the change of the tractions between iterates is judged
+at the points with a law and the glue only; the rigid contacts are judged by their rows, the impulse that would meet each
+condition, ``|F_c / w| / (h sqrt(sum |S T|^2))`` (``w`` the mean diagonal of the point's Delassus
+matrix), at most the tolerance.
 """
 
 from __future__ import annotations
@@ -65,14 +75,14 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numba import njit
 
-from masonry_nscd.contact import laws
+from masonry_nscd.contact import alart_curnier, laws
 
 
 @njit(cache=True)
-def evaluate_joints(u_pred, Hv, h, theta, kind, law, params, uc_old, beta_old,
+def evaluate_joints(u_pred, Hv, h, theta, mult_of, law, params, uc_old, beta_old,
                     T, uc, beta, status, K):
-    """Law and consistent tangent at every joint point for ``u = u_pred + h theta H^T v``
-    (Hv = H^T v), from ``contact.laws.response``."""
+    """Law and consistent tangent at every joint point with a spring (``mult_of < 0``) for
+    ``u = u_pred + h theta H^T v`` (Hv = H^T v), from ``contact.laws.response``."""
     npt = u_pred.shape[0]
     A = np.zeros((3, 3))
     u = np.empty(3)
@@ -81,7 +91,7 @@ def evaluate_joints(u_pred, Hv, h, theta, kind, law, params, uc_old, beta_old,
     co = np.empty(3)
     Ka = np.empty((3, 3))
     for a in range(npt):
-        if kind[a] != laws.KIND_JOINT:
+        if mult_of[a] >= 0:
             continue
         for i in range(3):
             u[i] = u_pred[a, i] + h * theta * Hv[a, i]
@@ -97,8 +107,49 @@ def evaluate_joints(u_pred, Hv, h, theta, kind, law, params, uc_old, beta_old,
 
 
 @njit(cache=True)
-def residual(body_dof0, mhat_off, mhat, v, v_free, side_dofs, side_coef, kind, area, T, r_glue,
-             glue_of, h, R):
+def evaluate_multipliers(u_pred, Hv, h, theta, mult, mu, rho, eps, uc_old, r, area, F, Gu, Gr,
+                         T, uc, status):
+    """Rows of the points whose impulses ``r`` (N s) are unknowns: glue (``mu < 0``) and rigid
+    Signorini-Coulomb contacts, at ``u = u_pred + h theta H^T v`` (Hv = H^T v), in velocity
+    units: ``F = Phi / (h theta) + eps r`` with ``Phi = u`` for the glue and the Alart-Curnier
+    function (``contact.alart_curnier``, with ``rho`` in N s/m) for a contact; ``Gu``, ``Gr``
+    the derivatives of ``F`` along ``H^T v`` and ``r``. The tractions ``T = -r / (h S)`` (Pa),
+    the cohesive displacements and the statuses of these points are written too."""
+    phi = np.empty(3)
+    u = np.empty(3)
+    gu = np.empty((3, 3))
+    gr = np.empty((3, 3))
+    c = np.empty(3)
+    ht = h * theta
+    for m in range(mult.shape[0]):
+        a = mult[m]
+        e = eps[m]
+        if mu[m] < 0.0:
+            for i in range(3):
+                F[3 * m + i] = Hv[a, i] + u_pred[a, i] / ht + e * r[3 * m + i]
+                for j in range(3):
+                    Gu[m, i, j] = 1.0 if i == j else 0.0
+                    Gr[m, i, j] = e if i == j else 0.0
+                uc[a, i] = 0.0
+            status[a] = laws.ST_GLUED
+        else:
+            for i in range(3):
+                u[i] = u_pred[a, i] + ht * Hv[a, i]
+            status[a] = alart_curnier.residual(u, r[3 * m:3 * m + 3], uc_old[a], mu[m], rho[m],
+                                               phi, gu, gr, c)
+            for i in range(3):
+                F[3 * m + i] = phi[i] / ht + e * r[3 * m + i]
+                for j in range(3):
+                    Gu[m, i, j] = gu[i, j]
+                    Gr[m, i, j] = gr[i, j] / ht + (e if i == j else 0.0)
+                uc[a, i] = c[i]
+        for i in range(3):
+            T[a, i] = -r[3 * m + i] / (h * area[a])
+
+
+@njit(cache=True)
+def residual(body_dof0, mhat_off, mhat, v, v_free, side_dofs, side_coef, mult_of, area, T,
+             r_mult, h, R):
     """``R_v = M_hat (v - v_free) - H r`` over all dofs (imposed ones included)."""
     nb = body_dof0.shape[0] - 1
     for b in range(nb):
@@ -111,16 +162,16 @@ def residual(body_dof0, mhat_off, mhat, v, v_free, side_dofs, side_coef, kind, a
                 s += mhat[mo + i * n + j] * (v[d0 + j] - v_free[d0 + j])
             R[d0 + i] = s
     for a in range(side_dofs.shape[0]):
-        if kind[a] == laws.KIND_JOINT:
+        g = mult_of[a]
+        if g < 0:
             f = -h * area[a]
             r0 = f * T[a, 0]
             r1 = f * T[a, 1]
             r2 = f * T[a, 2]
         else:
-            g = glue_of[a]
-            r0 = r_glue[3 * g]
-            r1 = r_glue[3 * g + 1]
-            r2 = r_glue[3 * g + 2]
+            r0 = r_mult[3 * g]
+            r1 = r_mult[3 * g + 1]
+            r2 = r_mult[3 * g + 2]
         for s in range(2):
             for j in range(side_dofs.shape[2]):
                 d = side_dofs[a, s, j]
@@ -131,9 +182,11 @@ def residual(body_dof0, mhat_off, mhat, v, v_free, side_dofs, side_coef, kind, a
 
 
 @njit(cache=True)
-def jacobian_coo(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_coef, kind,
-                 area, K, glue_of, glue_eps, h, theta, keep_zeros=False):
-    """COO triplets of the Newton matrix (free dofs, then 3 glue multipliers per glue point).
+def jacobian_coo(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_coef, mult_of,
+                 area, K, Gu, Gr, full_block, h, theta, keep_zeros=False):
+    """COO triplets of the Newton matrix (free dofs, then 3 impulses per multiplier point: glue
+    and rigid contacts, rows ``Gu H^T`` and ``Gr``, of which only the diagonal unless
+    ``full_block``).
 
     ``keep_zeros``: emit every entry that can be non-zero, zeros included, always in the same
     order; the triplets then fit the fixed pattern of ``NewtonSolver`` (``_pattern``)."""
@@ -144,7 +197,7 @@ def jacobian_coo(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_c
         cap += n * n
     npt = side_dofs.shape[0]
     ms = 2 * side_dofs.shape[2]
-    cap += npt * ms * ms + npt * 2 * ms * 3 + 3 * glue_eps.shape[0]
+    cap += npt * ms * ms + npt * 2 * ms * 3 + 9 * Gr.shape[0]
     rows = np.empty(cap, dtype=np.int64)
     cols = np.empty(cap, dtype=np.int64)
     vals = np.empty(cap)
@@ -182,7 +235,8 @@ def jacobian_coo(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_c
                 for c in range(3):
                     coef[m, c] = side_coef[a, s, j, c]
                 m += 1
-        if kind[a] == laws.KIND_JOINT:
+        g = mult_of[a]
+        if g < 0:
             w = h * h * theta * area[a]
             for i in range(m):
                 # row_i = coef_i . K
@@ -197,24 +251,29 @@ def jacobian_coo(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_c
                         vals[k] = val
                         k += 1
         else:
-            g = nfree + 3 * glue_of[a]
+            row0 = nfree + 3 * g
             for i in range(m):
                 for c in range(3):
+                    val = Gu[g, c, 0] * coef[i, 0] + Gu[g, c, 1] * coef[i, 1] \
+                        + Gu[g, c, 2] * coef[i, 2]
                     if coef[i, c] != 0.0 or keep_zeros:
                         rows[k] = dofs[i]
-                        cols[k] = g + c
+                        cols[k] = row0 + c
                         vals[k] = -coef[i, c]
                         k += 1
-                        rows[k] = g + c
+                    if val != 0.0 or keep_zeros:
+                        rows[k] = row0 + c
                         cols[k] = dofs[i]
-                        vals[k] = coef[i, c]
+                        vals[k] = val
                         k += 1
-    for gi in range(glue_eps.shape[0]):
+    for gi in range(Gr.shape[0]):
         for c in range(3):
-            rows[k] = nfree + 3 * gi + c
-            cols[k] = nfree + 3 * gi + c
-            vals[k] = glue_eps[gi]
-            k += 1
+            for d in range(3):
+                if c == d or (full_block[gi] and (Gr[gi, c, d] != 0.0 or keep_zeros)):
+                    rows[k] = nfree + 3 * gi + c
+                    cols[k] = nfree + 3 * gi + d
+                    vals[k] = Gr[gi, c, d]
+                    k += 1
     return rows[:k], cols[:k], vals[:k]
 
 
@@ -297,7 +356,8 @@ class _Pattern:
 class NewtonSolver:
     """Semi-smooth Newton (chord) solver of one step; keeps its factorisation between steps."""
 
-    def __init__(self, sys, mhat_off, mhat, tolerance: float, max_iterations: int = 50):
+    def __init__(self, sys, mhat_off, mhat, tolerance: float, max_iterations: int = 50,
+                 params: np.ndarray | None = None):
         self.sys = sys
         self.mhat_off = mhat_off
         self.mhat = mhat
@@ -308,14 +368,35 @@ class NewtonSolver:
         self.free = np.flatnonzero(free)
         self.free_index = np.full(sys.ndof, -1, dtype=np.int64)
         self.free_index[self.free] = np.arange(len(self.free))
-        self.glue = np.flatnonzero(sys.kind == laws.KIND_GLUED)
-        self.glue_of = np.full(sys.npt, -1, dtype=np.int64)
-        self.glue_of[self.glue] = np.arange(len(self.glue))
-        # Glue compliance (1/kg): 1e-9 of the point's own Delassus diagonal. It makes the Newton
-        # matrix quasi-definite when glue points outnumber the dofs of the face they hold (8
-        # points on the 6 nodes of a 2 x 1 face quad pair), and moves the glue by 1e-9 of the
-        # relative displacement it resists.
-        self.glue_eps = 1e-9 * np.trace(sys.W[self.glue], axis1=1, axis2=2) / 3.0
+        # Points whose impulses are unknowns ("multipliers"): the glue, and the joints of a
+        # rigid Signorini-Coulomb law (friction coefficient ``mu``; -1 marks the glue)
+        mu = np.full(sys.npt, np.nan)
+        mu[sys.kind == laws.KIND_GLUED] = -1.0
+        if params is not None:
+            for row, P in enumerate(np.atleast_2d(params)):
+                f = laws.rigid_friction(P)
+                if f is not None:
+                    mu[(sys.kind == laws.KIND_JOINT) & (sys.law == row)] = f
+        self.mult = np.flatnonzero(~np.isnan(mu))
+        self.mult_of = np.full(sys.npt, -1, dtype=np.int64)
+        self.mult_of[self.mult] = np.arange(len(self.mult))
+        self.mu = mu[self.mult]
+        self.glue_rows = np.repeat(self.mu < 0.0, 3)
+        self.rigid_rows = ~self.glue_rows
+        self.has_rigid = bool(self.rigid_rows.any())
+        # the mean diagonal of each point's Delassus matrix (1/kg), and rho = 1 / (theta h w)
+        # of the Alart-Curnier function
+        trace = np.trace(sys.W[self.mult], axis1=1, axis2=2)
+        self.w = trace / 3.0
+        self.rho = 1.0 / (sys.theta * sys.h * self.w)
+        # Compliance of the multipliers (1/kg): 1e-9 of the point's own Delassus diagonal. It
+        # makes the Newton matrix quasi-definite when glue points outnumber the dofs of the face
+        # they hold (8 points on the 6 nodes of a 2 x 1 face quad pair), or rigid contacts those
+        # of the bodies they hold (4 points on a face of a rigid block), and moves the glue or
+        # the contact by 1e-9 of the relative displacement it resists.
+        self.eps = 1e-9 * trace / 3.0
+        self.Gu = np.zeros((len(self.mult), 3, 3))
+        self.Gr = np.zeros((len(self.mult), 3, 3))
         self.lu = None
         self.factorisations = 0
         self._K_factorised = None
@@ -328,8 +409,9 @@ class NewtonSolver:
         # refresh of the material's part of the matrix)
         self.on_slow = None
         # a list to receive (iteration, residual, merit norm, step length, refactorised, index
-        # and value of the largest residual entry) per iteration, for diagnosis; None (the
-        # default) records nothing
+        # and value of the largest residual entry, and the three parts of the residual: change
+        # of the tractions, momentum, rigid contacts' rows) per iteration, for diagnosis; None
+        # (the default) records nothing
         self.trace = None
         # refactorise when the residual falls by less than this per iteration, two in a row
         self.slow_rate = 0.6
@@ -349,20 +431,23 @@ class NewtonSolver:
         self.mhat_jac = mhat_jac
         self.lu = None
 
-    def _factorise(self, K, pivoting: bool = False):
-        """Factorise the Newton matrix with the joint tangents ``K`` (sparse LU), unless the
-        factorisation in place is already of that matrix; ``pivoting``: partial pivoting
-        (the robust, slower factorisation) instead of diagonal pivots."""
+    def _factorise(self, tangents, pivoting: bool = False):
+        """Factorise the Newton matrix with the joint tangents and the multipliers' derivatives
+        ``tangents = (K, Gu, Gr)`` (sparse LU), unless the factorisation in place is already of
+        that matrix; ``pivoting``: partial pivoting (the robust, slower factorisation) instead
+        of diagonal pivots."""
+        K, Gu, Gr = tangents
         if self.lu is not None and self._K_factorised is not None and \
-                np.array_equal(K, self._K_factorised):
+                all(np.array_equal(x, y) for x, y in zip(tangents, self._K_factorised,
+                                                          strict=True)):
             return  # the same matrix: refactorising would not help
-        self._K_factorised = K.copy()
+        self._K_factorised = (K.copy(), Gu.copy(), Gr.copy())
         s = self.sys
         nf = len(self.free)
-        n = nf + 3 * len(self.glue)
+        n = nf + 3 * len(self.mult)
         r, c, v = jacobian_coo(s.body_dof0, self.mhat_off, self.mhat_jac, self.free_index, nf,
-                               s.side_dofs, s.side_coef, s.kind, s.area, K, self.glue_of,
-                               self.glue_eps, s.h, s.theta, True)
+                               s.side_dofs, s.side_coef, self.mult_of, s.area, K, Gu, Gr,
+                               self.mu >= 0.0, s.h, s.theta, True)
         if self._pattern is None or len(self._pattern.slot) != len(v):
             self._pattern = _Pattern(r, c, n)
         pat = self._pattern
@@ -380,7 +465,7 @@ class NewtonSolver:
 
     def _refresh(self, K) -> None:
         """Factorise the matrix of the current iterate: the material's part refreshed
-        (``on_slow``), the joints' tangents ``K``."""
+        (``on_slow``), the joints' tangents and the multipliers' derivatives ``K``."""
         if self.lu is not None and self.on_slow is not None:
             self.on_slow()
         self.lu = None
@@ -459,10 +544,16 @@ class NewtonSolver:
         h, th = s.h, s.theta
         npt = s.npt
         u_pred = u_old + h * (1.0 - th) * U_old
-        g = self.glue
-        w_glue = (-u_pred[g] / (h * th)).ravel()
+        g = self.mult
         nf = len(self.free)
         glue_scale = float(np.mean(np.abs(self.mhat))) * 10.0 if len(self.mhat) else 1.0
+        # the rows of the rigid contacts in impulse units (N s): F / w
+        rigid_w = np.repeat(self.w, 3)[self.rigid_rows]
+        glue_rows = nf + np.flatnonzero(self.glue_rows)
+        rigid_rows = nf + np.flatnonzero(self.rigid_rows)
+        lawful = np.ones(npt, dtype=bool)
+        rigid_pts = self.mult[self.mu >= 0.0]
+        lawful[rigid_pts] = False
         Hv = np.empty((npt, 3))
         R = np.empty(s.ndof)
 
@@ -472,19 +563,26 @@ class NewtonSolver:
             out_beta = beta_old.copy()
             out_status = np.full(npt, laws.ST_GLUED, dtype=np.int64)
             K = np.zeros((npt, 3, 3))
+            Gu = np.empty_like(self.Gu)
+            Gr = np.empty_like(self.Gr)
+            F = np.empty(nf + 3 * len(g))
             kernels.local_velocities(s.side_dofs, s.side_coef, v, Hv)
-            evaluate_joints(u_pred, Hv, h, th, s.kind, s.law, params, uc_old, beta_old, out_T,
-                            out_uc, out_beta, out_status, K)
-            out_T[g] = -r_glue.reshape(-1, 3) / (h * s.area[g, None])
+            evaluate_joints(u_pred, Hv, h, th, self.mult_of, s.law, params, uc_old, beta_old,
+                            out_T, out_uc, out_beta, out_status, K)
+            evaluate_multipliers(u_pred, Hv, h, th, g, self.mu, self.rho, self.eps, uc_old,
+                                 r_glue, s.area, F[nf:], Gu, Gr, out_T, out_uc, out_status)
             residual(s.body_dof0, self.mhat_off, self.mhat, v, v_free, s.side_dofs,
-                     s.side_coef, s.kind, s.area, out_T, r_glue, self.glue_of, h, R)
+                     s.side_coef, self.mult_of, s.area, out_T, r_glue, h, R)
             cvec, cscale = (None, 0.0) if correction is None else correction(v)
             if cvec is not None:
                 R[:] += cvec
-            F = np.concatenate([R[self.free],
-                                Hv[g].ravel() - w_glue + np.repeat(self.glue_eps, 3) * r_glue])
-            norm = math.sqrt(np.sum(F[:nf] ** 2) + glue_scale ** 2 * np.sum(F[nf:] ** 2))
-            return F, norm, (out_T, out_uc, out_beta, out_status, K, cvec, cscale)
+            F[:nf] = R[self.free]
+            if self.has_rigid:
+                norm = math.sqrt(np.sum(F[:nf] ** 2) + glue_scale ** 2 * np.sum(F[glue_rows] ** 2)
+                                 + np.sum((F[rigid_rows] / rigid_w) ** 2))
+            else:
+                norm = math.sqrt(np.sum(F[:nf] ** 2) + glue_scale ** 2 * np.sum(F[nf:] ** 2))
+            return F, norm, (out_T, out_uc, out_beta, out_status, (K, Gu, Gr), cvec, cscale)
 
         if len(self._solutions) == 2:
             # the solution of the step extrapolated linearly from the last two: in a slow,
@@ -506,17 +604,23 @@ class NewtonSolver:
         # Anderson history: the iterate (free velocities, glue impulses) and its chord step at
         # the last iterate, and the differences of both over the last full steps with this
         # matrix; glue impulses weighted by 1 / glue_scale in the least squares (velocity units)
-        weight = np.concatenate([np.ones(nf), np.full(3 * len(g), 1.0 / glue_scale)])
+        weight = np.concatenate([np.ones(nf), np.where(self.glue_rows, 1.0 / glue_scale,
+                                                       np.repeat(self.w, 3))])
         last, d_x, d_f = None, [], []
         for it in range(1, self.max_iterations + 1):
             Tn = state[0]
-            num = np.sum((s.area[:, None] * (Tn - T_prev)) ** 2)
+            # the change of the tractions of the points with a law (a rigid contact's impulse
+            # can shift between redundant points at no cost: its rows below judge it)
+            num = np.sum((s.area[lawful, None] * (Tn[lawful] - T_prev[lawful])) ** 2)
             den = np.sum((s.area[:, None] * Tn) ** 2)
             res = math.sqrt(num / den) if den > 0 else (0.0 if num == 0 else math.inf)
             if den > 0:
                 # and the momentum balance against the contact impulses: at the friction limit
                 # the tractions (mu N) stop changing before the velocities are right
                 res = max(res, math.sqrt(np.sum(F[:nf] ** 2) / den) / h)
+                if self.has_rigid:
+                    # and the rigid contacts' conditions, as the impulses that would meet them
+                    res = max(res, math.sqrt(np.sum((F[rigid_rows] / rigid_w) ** 2) / den) / h)
             cvec, cscale = state[5], state[6]
             if cvec is not None and c_prev is not None:
                 dc = float(np.linalg.norm(cvec - c_prev))
@@ -571,7 +675,10 @@ class NewtonSolver:
                 fresh = True
             if self.trace is not None:
                 worst = int(np.argmax(np.abs(F)))
-                self.trace.append((it, res, norm, alpha, fresh, worst, float(F[worst])))
+                d = den if den > 0 else math.inf
+                self.trace.append((it, res, norm, alpha, fresh, worst, float(F[worst]),
+                                   math.sqrt(num / d), math.sqrt(np.sum(F[:nf] ** 2) / d) / h,
+                                   math.sqrt(np.sum((F[rigid_rows] / rigid_w) ** 2) / d) / h))
             T_prev = Tn
             c_prev = cvec
             v, r_glue, F, norm, state = v_try, r_try, F_try, norm_try, state_try

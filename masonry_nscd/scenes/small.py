@@ -158,3 +158,74 @@ def column(n_blocks: int = 3, size=(0.3, 0.1, 0.15), divisions=(2, 2, 1), joint=
     integ = Integrator(bodies, pts, P, loads, h=h, theta=1.0, tolerance=tolerance,
                        max_iterations=20000, check_every=1)
     return integ, {"weight": weight}
+
+
+def _rotation_z(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def block_on_incline(angle_deg: float, *, law: str = "coulomb", mu: float = 0.6,
+                     size=(0.3, 0.1, 0.15), divisions=(2, 1, 1), h=1e-3, tolerance=1e-10,
+                     gravity=9.81, ramp=0.05, method: str = "nlgs", joint_kw=None):
+    """A rigid block (2000 kg/m^3) on a fixed plane inclined by ``angle_deg`` about z, free in its
+    six dofs, under gravity ``-gravity`` along y ramped over ``ramp`` s.
+
+    The plane rises towards +x; the block's bottom face lies on it, its points at the Gauss
+    points of that face. ``info["slope"]`` is the unit vector up the slope: a sliding block
+    accelerates along ``-slope`` at ``g (sin a - mu cos a)``.
+    """
+    a = np.radians(angle_deg)
+    Q = _rotation_z(a)
+    P = fczm.joint_params(law=law, mu=mu, **dict(joint_kw or {}))
+    Xp, cp = hex8.box_mesh((-0.5, -0.1, -0.1), (1.0 + size[0], 0.1, 0.2 + size[2]), (1, 1, 1))
+    Xb, cb = hex8.box_mesh((0.0, 0.0, 0.0), size, divisions)
+    plane = RigidBody.fixed(center=Q @ Xp.mean(axis=0), X=Xp @ Q.T, conn=cp)
+    block = RigidBody.from_mesh(Xb @ Q.T, cb, 2000.0, name="block")
+    bodies = [block, plane]
+    n = int(dof_offsets(bodies)[-1])
+    pts = contact_points(bodies, _all_joints(), max_gap=0.0)
+    loads = Loads()
+    G = np.zeros(n)
+    G[:6] = block.weight_load(np.array([0.0, -gravity, 0.0]))
+    loads.add(G, Ramp(1.0, 0.0, ramp))
+    integ = Integrator(bodies, pts, P, loads, h=h, theta=1.0, tolerance=tolerance,
+                       max_iterations=20000, check_every=1, method=method)
+    return integ, {"mass": block.mass, "slope": Q[:, 0]}
+
+
+def slender_block_pushed(*, width=0.1, height=0.4, depth=0.15, normal_force=2e3, mu=0.6,
+                         law: str = "coulomb", push_velocity=2e-3, push_start=0.1,
+                         push_ramp=0.02, gravity=9.81, h=1e-3, divisions=(2, 4, 1),
+                         tolerance=1e-10, method: str = "nlgs", joint_kw=None,
+                         rule: str = "lobatto"):
+    """A slender rigid block (2000 kg/m^3; ``width`` along x, ``height`` along y) on a fixed
+    support, under its weight and a vertical force ``normal_force`` (N) through its centre (both
+    ramped over [0, 0.05] s), pushed along +x at the middle of its top face at a horizontal
+    velocity ``push_velocity`` (m/s, ramped from ``push_start`` over ``push_ramp``).
+
+    The block's dofs move that top point (``reference``); its horizontal dof is imposed, its
+    vertical translation and its rotation about z are free, the others held. It tips about its
+    toe when the push reaches ``(W + N) width / (2 height)``, if friction holds that much
+    (``width / (2 height) < mu``), and if its contact points sit at the corners of its base
+    (``rule`` ``lobatto``, :mod:`masonry_nscd.model.detection`).
+    """
+    P = fczm.joint_params(law=law, mu=mu, **dict(joint_kw or {}))
+    size = (width, height, depth)
+    support = _fixed_plate((width / 2, -0.05, depth / 2), (3 * width, 0.1, depth))
+    imposed = {d: at_rest for d in (2, 3, 4)}
+    imposed[0] = Ramp(push_velocity, push_start, push_ramp)
+    top = np.array([width / 2, height, depth / 2])
+    block = RigidBody.box((0, 0, 0), size, 2000.0, divisions, imposed_velocity=imposed,
+                          reference=top, name="block")
+    bodies = [block, support]
+    n = int(dof_offsets(bodies)[-1])
+    pts = contact_points(bodies, _all_joints(), max_gap=0.0, rule=rule)
+    loads = Loads()
+    W = block.mass * gravity
+    F = np.zeros(n)
+    F[:6] = block.weight_load(np.array([0.0, -(W + normal_force) / block.mass, 0.0]))
+    loads.add(F, Ramp(1.0, 0.0, 0.05))
+    integ = Integrator(bodies, pts, P, loads, h=h, theta=1.0, tolerance=tolerance,
+                       max_iterations=20000, check_every=1, method=method)
+    return integ, {"weight": W, "rotation_dof": 5}

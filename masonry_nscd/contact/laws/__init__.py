@@ -12,6 +12,8 @@ A law module provides, besides its own documentation and checks:
   integrity frozen, for the Newton matrix;
 * ``initial_damage(P)``: the damage of the joint as built (outputs: ``1 - beta (1 - d_0)``);
 * ``newton_ready(P)``: whether the Newton solver can take it;
+* ``rigid_friction(P)``: the friction coefficient when the law is rigid Signorini-Coulomb (the
+  Newton solver then keeps the point's impulse as an unknown), else None;
 * ``normal_displacement(sigma, beta, P)``: the normal displacement that carries a normal
   traction (``masonry point joint --path sliding``).
 
@@ -44,8 +46,8 @@ from masonry_nscd.contact.laws.common import (
 
 __all__ = ["KIND_GLUED", "KIND_JOINT", "LAWS", "N_COLUMNS", "P_LAW", "ST_AMBIGUOUS", "ST_GLUED",
            "ST_OPEN", "ST_SLIDE", "ST_STICK", "initial_damage", "law_module", "newton_ready",
-           "normal_displacement", "params_from_case", "response", "solve", "solve_joint",
-           "tangent_fd"]
+           "normal_displacement", "params_from_case", "response", "rigid_friction", "solve",
+           "solve_joint", "tangent_fd"]
 
 _MODULES = (fczm,)
 #: joint.law value -> law module
@@ -71,6 +73,11 @@ def initial_damage(P: np.ndarray) -> float:
 def newton_ready(P: np.ndarray) -> bool:
     """Whether the Newton solver can take the law of row ``P``."""
     return law_module(P).newton_ready(P)
+
+
+def rigid_friction(P: np.ndarray) -> float | None:
+    """The friction coefficient of a rigid Signorini-Coulomb law of row ``P``, else None."""
+    return law_module(P).rigid_friction(P)
 
 
 def normal_displacement(sigma: float, beta: float, P: np.ndarray) -> float:

@@ -745,6 +745,16 @@ def normal_displacement(sigma: float, beta: float, P: np.ndarray) -> float:
     return sigma / kn + sigma * P[P_CN_T]
 
 
+def rigid_friction(P: np.ndarray) -> float | None:
+    """The friction coefficient when the law is rigid Signorini-Coulomb (``coulomb``: no spring,
+    no cohesion), which the Newton solver takes with the impulse as an unknown
+    (``contact.alart_curnier``); None when ``T(u)`` is a function (a spring in series)."""
+    if P[P_CN_C] == 0.0 and P[P_CN_T] == 0.0 and P[P_CT] == 0.0 and P[P_B] == 0.0:
+        return float(P[P_MU])
+    return None
+
+
 def newton_ready(P: np.ndarray) -> bool:
-    """Whether the Newton solver can take the law: a spring in series (finite ``T(u)``)."""
-    return bool(P[P_CN_C] > 0.0 and P[P_CT] > 0.0)
+    """Whether the Newton solver can take the law: a spring in series (finite ``T(u)``), or
+    rigid Signorini-Coulomb (:func:`rigid_friction`)."""
+    return bool(P[P_CN_C] > 0.0 and P[P_CT] > 0.0) or rigid_friction(P) is not None
