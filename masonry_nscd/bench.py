@@ -117,11 +117,10 @@ class Setting:
 
 
 def allowed_methods(case) -> tuple[str, ...]:
-    """Contact solvers the case can use: ENDO3D blocks need Newton, dry contacts need NLGS."""
+    """Contact solvers the case can use: ENDO3D blocks need Newton; any other case takes
+    both."""
     if case.blocks.material == "endo3d":
         return ("newton",)
-    if case.joint.law == "coulomb":
-        return ("nlgs",)
     return ("newton", "nlgs")
 
 
@@ -192,7 +191,7 @@ def _method_settings(case) -> list[Setting]:
     out = []
     tol = case.solver.tolerance
     for m in allowed_methods(case):
-        if m != case.solver.method:
+        if m != case.contact_solver:
             out.append(Setting(m, "method", f"solver {m} (tolerance {tol:.3g})",
                                (f"solver.method={m}",)))
     if "nlgs" in allowed_methods(case) and not math.isclose(tol, ANCHOR_NLGS_TOLERANCE):
@@ -599,7 +598,7 @@ def warm_up_specs(case_path: Path, overrides: Sequence[str], case,
     combos = []
     for s in settings:
         c = load_case(case_path, [*overrides, *s.overrides])
-        combo = (c.solver.method, c.blocks.material)
+        combo = (c.contact_solver, c.blocks.material)
         if combo not in combos:
             combos.append(combo)
     h = max(case.solver.time_step_s, case.loading.end_time_s / 150.0)

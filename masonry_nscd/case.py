@@ -299,7 +299,14 @@ class Wall(_Section):
         2,
         ge=1,
         le=4,
-        description="Gauss points per direction on each element face in contact (count)",
+        description="contact points per direction on each element face in contact (count; "
+        "2 to 4 with contact_point_rule lobatto)",
+    )
+    contact_point_rule: Literal["gauss", "lobatto"] = Field(
+        "gauss",
+        description="where the contact points sit on a face: gauss (Gauss-Legendre points "
+        "inside each element face, the study's) or lobatto (Gauss-Lobatto points, the corners "
+        "among them: rigid blocks rock about the edges of their faces; shared points made once)",
     )
 
     @property
@@ -323,6 +330,10 @@ class Wall(_Section):
     @model_validator(mode="after")
     def _check_bond(self) -> Wall:
         problems: list[tuple[str, str]] = []
+        if self.contact_point_rule == "lobatto" and self.contact_points_per_face < 2:
+            problems.append(("contact_points_per_face", (
+                f"got {self.contact_points_per_face}; the lobatto rule takes 2 to 4 points per "
+                "direction (the corners, then points on the edges)")))
         if self.bond == "running":
             half, joint = self.half_unit_length_m, self.joint_thickness_m
             expected = (self.unit_length_m - joint) / 2.0
@@ -834,10 +845,11 @@ class Solver(_Section):
     theta: Real = Field(
         1.0, ge=0.5, le=1.0, description="theta of the theta-method (dimensionless, 0.5..1)"
     )
-    method: Literal["newton", "nlgs"] = Field(
-        "newton",
-        description="contact solver: newton (semi-smooth Newton, sparse LU) or nlgs "
-        "(non-linear Gauss-Seidel)",
+    method: Literal["auto", "newton", "nlgs"] = Field(
+        "auto",
+        description="contact solver: newton (semi-smooth Newton, sparse LU), nlgs (non-linear "
+        "Gauss-Seidel), or auto: the faster for the case's blocks and joints (nlgs when every "
+        "block is rigid and every joint rigid Signorini-Coulomb, newton otherwise)",
     )
     tolerance: Real = Field(
         1e-6,
@@ -934,6 +946,20 @@ class Case(_Section):
         )
 
     @property
+    def contact_solver(self) -> str:
+        """The contact solver the run uses: ``solver.method``, or for ``auto`` the faster one
+        measured for the case's blocks and joints (docs/performance.md, "Which solver"):
+        Gauss-Seidel (``nlgs``) when every block is rigid and every joint rigid
+        Signorini-Coulomb (``coulomb``), whose Delassus blocks are small and whose impulses
+        are the unknowns of both solvers; Newton otherwise (a spring in series, deformable
+        blocks; ENDO3D blocks need it)."""
+        if self.solver.method != "auto":
+            return self.solver.method
+        if self.blocks.material == "rigid" and self.joint.law == "coulomb":
+            return "nlgs"
+        return "newton"
+
+    @property
     def step_count(self) -> int:
         """Expected number of time steps, ``ceil(end_time_s / time_step_s)``."""
         return max(1, math.ceil(self.loading.end_time_s / self.solver.time_step_s - 1e-9))
@@ -942,17 +968,6 @@ class Case(_Section):
     def _check_supports(self) -> Case:
         problems: list[tuple[str, str]] = []
         stress = self.loading.vertical_stress.value_Pa
-        if self.solver.method == "newton" and self.joint.law == "coulomb":
-            problems.append(
-                (
-                    "solver.method",
-                    (
-                        "got 'newton' with joint.law = 'coulomb'; the Newton solver needs joints "
-                        "with a spring in series (law 'fczm' or 'dry'): use method 'nlgs' for "
-                        "rigid dry contacts, or law 'dry' with the joints' stiffnesses"
-                    ),
-                )
-            )
         if self.solver.method == "nlgs" and self.blocks.material == "endo3d":
             problems.append(
                 (

@@ -147,7 +147,8 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     s = integ.sys
     log(f"case {case.name}: {len(scene.structure)} units, {s.npt} contact points, {s.ndof} "
         f"dofs, blocks {case.blocks.material}, sigma_N "
-        f"{case.loading.vertical_stress.value_Pa:.4g} Pa")
+        f"{case.loading.vertical_stress.value_Pa:.4g} Pa, contact solver {scene.solver.method}"
+        + (" (auto)" if case.solver.method == "auto" else ""))
     if point is not None:
         try:
             restore_integrator(integ, point.state)

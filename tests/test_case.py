@@ -275,7 +275,35 @@ BAD_FILES = {
     "scatter of a dry joint": (
         "joint: {law: dry, K_n_Pa_m: 1e11, K_t_Pa_m: 4e10, scatter: {cv: 0.2}}\n",
         ["joint.scatter", "no cohesion"]),
+    "bad solver": ("solver: {method: cg}\n", ["solver.method", "'cg'", "'auto'"]),
+    "one lobatto point": ("wall: {contact_point_rule: lobatto, contact_points_per_face: 1}\n",
+                          ["wall.contact_points_per_face", "2 to 4"]),
 }
+
+
+@pytest.mark.parametrize(("overrides", "solver"), [
+    ([], "newton"),
+    (["blocks.material=elastic"], "newton"),
+    (["blocks.material=rigid"], "newton"),
+    (["joint.law=coulomb", "blocks.material=elastic"], "newton"),
+    (["joint.law=coulomb", "blocks.material=rigid"], "nlgs"),
+    (["joint.law=coulomb", "blocks.material=rigid", "solver.method=newton"], "newton"),
+    (["blocks.material=elastic", "solver.method=nlgs"], "nlgs"),
+])
+def test_auto_picks_the_solver_of_the_blocks_and_joints(overrides, solver):
+    """``solver.method: auto`` (the default): Gauss-Seidel for rigid blocks on rigid
+    Signorini-Coulomb joints only; a method named in the case is kept."""
+    case = load_case(ROOT / "cases" / "wall_0.5MPa.yaml", overrides)
+    assert case.solver.method == ("auto" if not any("method" in o for o in overrides)
+                                  else solver)
+    assert case.contact_solver == solver
+
+
+def test_shipped_cases_let_auto_pick_newton():
+    for path in sorted((ROOT / "cases").glob("*.yaml")):
+        case = load_case(path)
+        assert case.solver.method == "auto", path.name
+        assert case.contact_solver == "newton", path.name
 
 
 @pytest.mark.parametrize("label", sorted(BAD_FILES))

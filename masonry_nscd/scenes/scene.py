@@ -164,6 +164,7 @@ class Scene:
             "stages": [{"name": s.name, "start_s": s.start_s} for s in self.stages],
             "push_stage": self.push_stage, "target_m": self.target_m,
             "expected_end_s": self.expected_end_s, "time_limit_s": self.time_limit_s,
+            "contact_solver": self.solver.method,
             "driven": {"body": name(self.driven),
                        "reference_m": [float(v) for v in self.bodies[self.driven].reference]},
             "reactions": {k: name(b) for k, b in self.reactions.items()},

@@ -127,7 +127,8 @@ def build_wall(case) -> Scene:
         return GROUPS.index(name), kind, 0
 
     detection = find_joints(bodies, max_gap=j)
-    points = joint_points(bodies, detection.joints, classify, n_gauss=w.contact_points_per_face)
+    points = joint_points(bodies, detection.joints, classify, n_gauss=w.contact_points_per_face,
+                          rule=w.contact_point_rule)
     params, rows, drawn = scatter_rows(
         case.joint, points, np.array([p.kind == laws.KIND_JOINT for p in points], dtype=bool))
     for p, row in zip(points, rows):
@@ -160,7 +161,8 @@ def build_wall(case) -> Scene:
         endo = params_from_case(case)
     solver = SolverSettings(
         h=sol.time_step_s, theta=sol.theta, tolerance=sol.tolerance,
-        max_iterations=sol.max_iterations, check_every=sol.check_every, method=sol.method,
+        max_iterations=sol.max_iterations, check_every=sol.check_every,
+        method=case.contact_solver,
         max_halvings=sol.max_step_halvings, endo3d_params=endo,
         endo3d_tau=blk.endo3d.relaxation_time_s)
     return Scene(
