@@ -69,6 +69,25 @@ def test_lobatto_points_sit_on_the_corners_once_each(order, count):
         assert areas == pytest.approx([0.15 * 0.15 / 4] * 4 + [0.15 * 0.15 / 2] * 2)
 
 
+def test_a_lobatto_point_over_a_head_joint_is_shared_by_both_units_below():
+    """A 0.3 m unit (two quads along x) on two 0.15 m units that meet under its middle node:
+    that node's point is made for each unit below, with half its area each, so that both carry
+    it; with Gauss points none sits on that edge."""
+    X, conn = box_mesh(np.array([0.0, 0.1, 0.0]), np.array([0.3, 0.1, 0.15]), (2, 1, 1))
+    bodies = [_block(X, conn)]
+    for x0 in (0.0, 0.15):
+        X, conn = box_mesh(np.array([x0, 0.0, 0.0]), np.array([0.15, 0.1, 0.15]), (1, 1, 1))
+        bodies.append(_block(X, conn))
+    pts = [p for p in contact_points(bodies, JOINT, max_gap=0.0, rule="lobatto")
+           if p.bodies[0] == 0]  # the bed joint (the units below also meet at a head joint)
+    middle = [p for p in pts if abs(p.x[0] - 0.15) < 1e-12]
+    assert sorted(p.bodies[1] for p in middle) == [1, 1, 2, 2]
+    assert all(p.area == pytest.approx(0.15 * 0.15 / 4) for p in middle)
+    for below in (1, 2):
+        assert sum(p.area for p in pts if p.bodies[1] == below) == pytest.approx(0.15 * 0.15)
+    assert sum(p.bodies[0] == 0 for p in contact_points(bodies, JOINT, max_gap=0.0)) == 8
+
+
 def test_voussoirs_meet_on_their_inclined_joint():
     """Two wedge-shaped voussoirs (hexahedra that are not boxes) of an arch, their joint a
     radial plane: detected, points on the joint's plane, the normal along the arch."""

@@ -22,9 +22,11 @@ Gauss-Lobatto points, the quad's corners among them (``lobatto``). A point that 
 candidate face share (a corner, an edge point) is made once, with the sum of their areas; it
 belongs to the first of them. Where a rigid block rocks on a face, it turns about its corner
 points: at the edge of the face with ``lobatto``, at the outer Gauss point with ``gauss``
-(``(1 - 1/sqrt(3)) / 2`` of a quad's width inside the edge). Each projects along the normal onto the antagonist
-face; the first antagonist (in body order) whose face contains the projection takes the point,
-and a point that faces none (an open end) is dropped. The point's gap is the distance to the
+(``(1 - 1/sqrt(3)) / 2`` of a quad's width inside the edge). Each point projects along the
+normal onto the antagonists: with ``gauss`` the first antagonist (in body order) whose face
+contains the projection takes the point; with ``lobatto`` a point on the common edge of two
+antagonists (a corner right above a head joint of the course below) is made for each of them,
+its area shared equally. A point that faces none (an open end) is dropped. The point's gap is the distance to the
 antagonist's plane along the normal, and its frame (n, t, s) has ``n`` from the antagonist to
 the candidate (:func:`~masonry_nscd.model.points.joint_frame`).
 
@@ -172,20 +174,25 @@ def joint_points(bodies: Sequence, joints: Sequence[Joint],
         n_out = cand.normal  # outward normal of the candidate face
         xs, areas, ref = gauss_points(cb.X[cand.quads], n_gauss, rule)  # (nq, k, 3), (nq, k)
         taken = np.zeros(xs.shape[:2], dtype=bool)
-        if rule != "gauss":
-            areas, twin = _merge_shared(xs, areas)
-            taken |= twin
+        located = []
         for ant in jt.antagonists:
-            tag = classify(jt, ant)
-            ab = bodies[ant.body]
             # distance from each point to the antagonist's plane, along the candidate's normal
             gap = (ant.offset - xs @ ant.normal) / (n_out @ ant.normal)
             xa = xs + gap[..., None] * n_out
-            P = ab.X[ant.quads]
-            xi, eta, inside = locate(P, xa.reshape(-1, 3))
+            located.append((gap, xa, *locate(bodies[ant.body].X[ant.quads], xa.reshape(-1, 3))))
+        shares = np.ones(xs.shape[:2])
+        if rule != "gauss":
+            areas, taken = _merge_shared(xs, areas)
+            # the antagonists each point faces: its area is shared between them
+            faced = sum(loc[4].any(axis=1) for loc in located)
+            shares = np.maximum(faced, 1).reshape(xs.shape[:2])
+        for ant, (gap, xa, xi, eta, inside) in zip(jt.antagonists, located, strict=True):
+            tag = classify(jt, ant)
+            ab = bodies[ant.body]
             inside &= ~taken.reshape(-1)[:, None]
             hit = inside.any(axis=1)
-            taken |= hit.reshape(taken.shape)
+            if rule == "gauss":  # the first antagonist takes the point
+                taken |= hit.reshape(taken.shape)
             if tag is None:
                 continue
             group, kind, law = tag
@@ -198,7 +205,8 @@ def joint_points(bodies: Sequence, joints: Sequence[Joint],
                 ant_side = _side(ab, int(dof0[ant.body]), ant.quads[m], xa[q, k], frame, -1.0,
                                  (xi[flat, m], eta[flat, m]))
                 out.append(ContactPoint(
-                    x=x, frame=frame, area=float(areas[q, k]), gap=float(gap[q, k]), kind=kind,
+                    x=x, frame=frame, area=float(areas[q, k] / shares[q, k]),
+                    gap=float(gap[q, k]), kind=kind,
                     law=law, group=group, bodies=(cand.body, ant.body),
                     sides=[cand_side, ant_side], face=faces + q))
         faces += len(cand.quads)
