@@ -151,6 +151,18 @@ def test_the_failure_mode_is_named_from_the_damage(smoke_fields):
     fm = failure_mode(f, scene, f.joint_u_m)
     assert fm["mode"] == "toe crushing"
     assert fm["crushed_units"] == ["course 1 (bottom), unit 3 of 3 (right end)"]
+    f.d_c[toe] = 0.0
+    # dry joints (no cohesion as built, integrity 1 throughout): read from their motion
+    d0 = f.contact_initial_damage.copy()
+    f.contact_initial_damage[:] = 1.0
+    u = np.zeros_like(f.joint_u_m)
+    u[base, 1] = 2e-4  # the whole base slides by 0.2 mm
+    assert failure_mode(f, scene, u)["mode"] == "base sliding"
+    u[base, 1] = 0.5e-4  # 0.05 mm: still stuck, as far as a name goes
+    assert failure_mode(f, scene, u)["mode"] == "none"
+    f.contact_initial_damage[:] = d0
+    u[base, 1] = 2e-4  # a cohesive joint that slid is named from its integrity, not its motion
+    assert failure_mode(f, scene, u)["mode"] == "none"
 
 
 def test_a_crushing_length_makes_the_compressive_softening_mesh_objective():

@@ -60,9 +60,9 @@ function of the point in velocity units (``contact.alart_curnier``),
 (rows ``Gu H^T`` and ``Gr``), and the compliance ``eps`` of the glue (1e-9 of the point's
 Delassus diagonal). A rigid block's contact points outnumber its six dofs, so their impulses are
 not unique (only their resultant is): the change of the tractions between iterates is judged
-at the points with a law and the glue only; the rigid contacts are judged by their rows, the impulse that would meet each
-condition, ``|F_c / w| / (h sqrt(sum |S T|^2))`` (``w`` the mean diagonal of the point's Delassus
-matrix), at most the tolerance.
+at the points with a law and the glue only, and the rigid contacts by their rows: the impulse
+that would meet each condition, ``|F_c / w| / (h sqrt(sum |S T|^2))`` (``w`` the mean diagonal of
+the point's Delassus matrix), at most the tolerance.
 """
 
 from __future__ import annotations

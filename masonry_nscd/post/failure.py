@@ -1,8 +1,10 @@
 r"""The failure mode of a wall, named from its joint and block damage at one output step.
 
 A joint point has lost its cohesion when its integrity ``beta`` is below 0.01
-(``COHESION_LOST_BETA``, which the summary's counts use too); fractions are fractions of the
-tributary area. The mechanisms, read from the scene's joint groups and the places of its units
+(``COHESION_LOST_BETA``, which the summary's counts use too); a joint built with none (a dry
+joint: initial damage 1) counts as lost where it is open by more than 0.1 mm or has slid by more
+than 0.1 mm (``OPEN_M``, ``SLIP_M``), since its integrity says nothing. Fractions are fractions
+of the tributary area. The mechanisms, read from the scene's joint groups and the places of its units
 (``scene.json``):
 
 ``base sliding``
@@ -40,6 +42,7 @@ COHESION_LOST_BETA = 0.01
 BASE_LOST_FRACTION = 0.8
 BASE_OPEN_FRACTION = 0.2
 OPEN_M = 1e-4
+SLIP_M = 1e-4
 HEAD_LOST_FRACTION = 0.5
 COURSES_FRACTION = 0.5
 CRUSHED_D_C = 0.5
@@ -118,6 +121,11 @@ def failure_mode(fields, scene: Mapping[str, Any], joint_u_m: np.ndarray | None)
             or not all("course" in s for s in structure):
         return {"mode": "n/a"}
     lost = fields.joint_beta < COHESION_LOST_BETA
+    if joint_u_m is not None:
+        # joints with no cohesion as built (dry): open or slid
+        dry = np.asarray(fields.contact_initial_damage) >= 1.0
+        moved = (joint_u_m[:, 0] > OPEN_M) | (np.hypot(joint_u_m[:, 1], joint_u_m[:, 2]) > SLIP_M)
+        lost = lost | (dry & moved)
     area = fields.contact_area_m2
     out: dict[str, Any] = {}
     modes = []
