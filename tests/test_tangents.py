@@ -80,7 +80,7 @@ def _joint_case(u_now, beta_old):
 def _evaluate(params, u, uc_old, beta_old):
     T, uc, beta = np.zeros((1, 3)), np.zeros((1, 3)), beta_old.copy()
     status, K = np.zeros(1, dtype=np.int64), np.zeros((1, 3, 3))
-    evaluate_joints(u, np.zeros((1, 3)), 1.0, 1.0, np.array([jl.KIND_JOINT]),
+    evaluate_joints(u, np.zeros((1, 3)), 1.0, 1.0, np.array([-1]),  # not a multiplier
                     np.array([0]), params, uc_old, beta_old, T, uc, beta, status, K)
     return T[0], K[0], beta[0]
 
