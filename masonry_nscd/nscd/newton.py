@@ -395,8 +395,6 @@ class NewtonSolver:
         # of the bodies they hold (4 points on a face of a rigid block), and moves the glue or
         # the contact by 1e-9 of the relative displacement it resists.
         self.eps = 1e-9 * trace / 3.0
-        self.Gu = np.zeros((len(self.mult), 3, 3))
-        self.Gr = np.zeros((len(self.mult), 3, 3))
         self.lu = None
         self.factorisations = 0
         self._K_factorised = None
@@ -551,9 +549,16 @@ class NewtonSolver:
         rigid_w = np.repeat(self.w, 3)[self.rigid_rows]
         glue_rows = nf + np.flatnonzero(self.glue_rows)
         rigid_rows = nf + np.flatnonzero(self.rigid_rows)
-        lawful = np.ones(npt, dtype=bool)
-        rigid_pts = self.mult[self.mu >= 0.0]
-        lawful[rigid_pts] = False
+        # the points whose tractions' change is judged: all but the rigid contacts
+        lawful = slice(None)
+        if self.has_rigid:
+            lawful = np.ones(npt, dtype=bool)
+            lawful[self.mult[self.mu >= 0.0]] = False
+
+        def rigid_sq(F):
+            """Sum of squares of the rigid contacts' rows as impulses (F / w, N s)."""
+            return np.sum((F[rigid_rows] / rigid_w) ** 2)
+
         Hv = np.empty((npt, 3))
         R = np.empty(s.ndof)
 
@@ -563,8 +568,8 @@ class NewtonSolver:
             out_beta = beta_old.copy()
             out_status = np.full(npt, laws.ST_GLUED, dtype=np.int64)
             K = np.zeros((npt, 3, 3))
-            Gu = np.empty_like(self.Gu)
-            Gr = np.empty_like(self.Gr)
+            Gu = np.empty((len(g), 3, 3))
+            Gr = np.empty((len(g), 3, 3))
             F = np.empty(nf + 3 * len(g))
             kernels.local_velocities(s.side_dofs, s.side_coef, v, Hv)
             evaluate_joints(u_pred, Hv, h, th, self.mult_of, s.law, params, uc_old, beta_old,
@@ -579,7 +584,7 @@ class NewtonSolver:
             F[:nf] = R[self.free]
             if self.has_rigid:
                 norm = math.sqrt(np.sum(F[:nf] ** 2) + glue_scale ** 2 * np.sum(F[glue_rows] ** 2)
-                                 + np.sum((F[rigid_rows] / rigid_w) ** 2))
+                                 + rigid_sq(F))
             else:
                 norm = math.sqrt(np.sum(F[:nf] ** 2) + glue_scale ** 2 * np.sum(F[nf:] ** 2))
             return F, norm, (out_T, out_uc, out_beta, out_status, (K, Gu, Gr), cvec, cscale)
@@ -620,7 +625,7 @@ class NewtonSolver:
                 res = max(res, math.sqrt(np.sum(F[:nf] ** 2) / den) / h)
                 if self.has_rigid:
                     # and the rigid contacts' conditions, as the impulses that would meet them
-                    res = max(res, math.sqrt(np.sum((F[rigid_rows] / rigid_w) ** 2) / den) / h)
+                    res = max(res, math.sqrt(rigid_sq(F) / den) / h)
             cvec, cscale = state[5], state[6]
             if cvec is not None and c_prev is not None:
                 dc = float(np.linalg.norm(cvec - c_prev))
@@ -678,7 +683,7 @@ class NewtonSolver:
                 d = den if den > 0 else math.inf
                 self.trace.append((it, res, norm, alpha, fresh, worst, float(F[worst]),
                                    math.sqrt(num / d), math.sqrt(np.sum(F[:nf] ** 2) / d) / h,
-                                   math.sqrt(np.sum((F[rigid_rows] / rigid_w) ** 2) / d) / h))
+                                   math.sqrt(rigid_sq(F) / d) / h))
             T_prev = Tn
             c_prev = cvec
             v, r_glue, F, norm, state = v_try, r_try, F_try, norm_try, state_try
