@@ -302,11 +302,13 @@ class Wall(_Section):
         description="contact points per direction on each element face in contact (count; "
         "2 to 4 with contact_point_rule lobatto)",
     )
-    contact_point_rule: Literal["gauss", "lobatto"] = Field(
-        "gauss",
+    contact_point_rule: Literal["auto", "gauss", "lobatto"] = Field(
+        "auto",
         description="where the contact points sit on a face: gauss (Gauss-Legendre points "
-        "inside each element face, the study's) or lobatto (Gauss-Lobatto points, the corners "
-        "among them: rigid blocks rock about the edges of their faces; shared points made once)",
+        "inside each element face, the study's), lobatto (Gauss-Lobatto points, the corners "
+        "among them: rigid blocks rock about the edges of their faces; shared points made "
+        "once), or auto: lobatto for rigid contacts (joint law coulomb) with 2 or more points, "
+        "gauss otherwise",
     )
 
     @property
@@ -958,6 +960,22 @@ class Case(_Section):
         if self.blocks.material == "rigid" and self.joint.law == "coulomb":
             return "nlgs"
         return "newton"
+
+    @property
+    def contact_point_rule(self) -> str:
+        """Where the run puts the contact points: ``wall.contact_point_rule``, or for ``auto``
+        Gauss-Lobatto points when the joints are rigid contacts (``coulomb``) and a face has 2
+        or more per direction, Gauss points otherwise. On deformable blocks Lobatto points,
+        made once where quads share them, are the face's nodes: one point per node, so the
+        normal impulses that hold a face are unique, where 2 x 2 Gauss points per quad
+        outnumber the nodes and let Newton's contact statuses cycle among equivalent
+        impulses; on rigid blocks they put the rocking on the corners (docs/choices.md)."""
+        w = self.wall
+        if w.contact_point_rule != "auto":
+            return w.contact_point_rule
+        if self.joint.law == "coulomb" and w.contact_points_per_face >= 2:
+            return "lobatto"
+        return "gauss"
 
     @property
     def step_count(self) -> int:

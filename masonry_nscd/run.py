@@ -148,7 +148,9 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     log(f"case {case.name}: {len(scene.structure)} units, {s.npt} contact points, {s.ndof} "
         f"dofs, blocks {case.blocks.material}, sigma_N "
         f"{case.loading.vertical_stress.value_Pa:.4g} Pa, contact solver {scene.solver.method}"
-        + (" (auto)" if case.solver.method == "auto" else ""))
+        + (" (auto)" if case.solver.method == "auto" else "")
+        + (f", contact points at {scene.meta['contact_point_rule']} points"
+           if "contact_point_rule" in scene.meta else ""))
     if point is not None:
         try:
             restore_integrator(integ, point.state)

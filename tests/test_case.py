@@ -299,11 +299,29 @@ def test_auto_picks_the_solver_of_the_blocks_and_joints(overrides, solver):
     assert case.contact_solver == solver
 
 
+@pytest.mark.parametrize(("overrides", "rule"), [
+    ([], "gauss"),
+    (["joint.law=dry", "joint.K_n_Pa_m=1e11", "joint.K_t_Pa_m=4e10"], "gauss"),
+    (["joint.law=coulomb"], "lobatto"),
+    (["joint.law=coulomb", "blocks.material=rigid"], "lobatto"),
+    (["joint.law=coulomb", "wall.contact_points_per_face=1"], "gauss"),
+    (["joint.law=coulomb", "wall.contact_point_rule=gauss"], "gauss"),
+    (["wall.contact_point_rule=lobatto"], "lobatto"),
+])
+def test_auto_puts_rigid_contacts_at_lobatto_points(overrides, rule):
+    """``wall.contact_point_rule: auto`` (the default): Lobatto points (the face's nodes) for
+    rigid contacts, Gauss points for joints with a law and for one point per face; a rule named
+    in the case is kept."""
+    case = load_case(ROOT / "cases" / "wall_0.5MPa.yaml", overrides)
+    assert case.contact_point_rule == rule
+
+
 def test_shipped_cases_let_auto_pick_newton():
     for path in sorted((ROOT / "cases").glob("*.yaml")):
         case = load_case(path)
         assert case.solver.method == "auto", path.name
         assert case.contact_solver == "newton", path.name
+        assert case.contact_point_rule == "gauss", path.name
 
 
 @pytest.mark.parametrize("label", sorted(BAD_FILES))

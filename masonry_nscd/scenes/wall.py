@@ -128,7 +128,7 @@ def build_wall(case) -> Scene:
 
     detection = find_joints(bodies, max_gap=j)
     points = joint_points(bodies, detection.joints, classify, n_gauss=w.contact_points_per_face,
-                          rule=w.contact_point_rule)
+                          rule=case.contact_point_rule)
     params, rows, drawn = scatter_rows(
         case.joint, points, np.array([p.kind == laws.KIND_JOINT for p in points], dtype=bool))
     for p, row in zip(points, rows):
@@ -175,5 +175,6 @@ def build_wall(case) -> Scene:
                 Stage("horizontal", hz.start_s)],
         push_stage="horizontal", target_m=hz.target_m, expected_end_s=ld.end_time_s,
         time_limit_s=ld.end_time_s + 0.5 * hz.ramp_s, holds=holds,
-        meta={"joint_thickness_m": j, "wall_length_m": length, "wall_height_m": height},
+        meta={"joint_thickness_m": j, "wall_length_m": length, "wall_height_m": height,
+              "contact_point_rule": case.contact_point_rule},
     )
