@@ -67,6 +67,13 @@ def test_tabulated_history_follows_the_table_between_its_corners(tmp_path):
     assert h.cycles[0].end_s == h.end_s
 
 
+def test_a_table_that_first_goes_down_has_its_cycles_from_its_down_crossings():
+    h = table([0, 1, 3, 4, 5, 7, 8], [0, -1e-3, 1e-3, 0, -2e-3, 2e-3, 0], 0.5, 0.1)
+    assert [c.amplitude_m for c in h.cycles] == pytest.approx([1e-3, 2e-3])
+    assert h.cycles[0].start_s == 0.5 and h.cycles[1].end_s == h.end_s
+    assert h.cycles[1].start_s == pytest.approx(0.55 + 4.0)
+
+
 @pytest.mark.parametrize("text, what", [
     ("t,u\n0,0\n1,1\n", "header"),
     ("time_s,displacement_m\n0,0\n", "at least two rows"),

@@ -45,8 +45,9 @@ Tabulated (:func:`table`)
     rest; the path follows the table exactly except within ``r/2`` of a row, where it is
     rounded (a reversal falls short by ``0.1132 |w| r``, as above). The table must start at
     time 0 with displacement 0 (the beam's place when the stage starts). Its cycles are the
-    windows between the up-crossings of 0 by ``U*`` (from 0 or below to above 0), counted only
-    where the path also goes below 0; amplitude ``(max U* - min U*) / 2`` in the window.
+    windows between the crossings of 0 by ``U*`` in the direction of its first move (upwards,
+    from 0 or below to above 0, for a table that first goes up), counted only where the path
+    also goes past 0 the other way; amplitude ``(max U* - min U*) / 2`` in the window.
 
 Units: s, m, m/s throughout. A history gives what the summary needs to read a run
 (:meth:`DisplacementHistory.info`): its kind, its end, its cycles.
@@ -253,13 +254,16 @@ def table(time_s: Sequence[float], displacement_m: Sequence[float], start_s: flo
     keep = jumps != 0.0  # a row in the middle of a straight segment is no corner
     path = SmoothPath(corners[keep], jumps[keep], float(ramp_s))
     cycles = []
-    ups = [i for i in range(len(w)) if w[i] > 0.0 and uu[i] <= 0.0 < uu[i + 1]]
+    moving = np.flatnonzero(w != 0.0)
+    d = np.sign(w[moving[0]]) if moving.size else 1.0  # the direction of the first move
+    ud = d * uu  # in which cycles start upwards
+    ups = [i for i in range(len(w)) if d * w[i] > 0.0 and ud[i] <= 0.0 < ud[i + 1]]
     last = len(uu) - 1
     for a, b in zip(ups, [*ups[1:], last], strict=True):
-        # from the up-crossing of 0 in segment a to the one in segment b (or the table's end)
-        inside = uu[a + 1:b + 1]
+        # from the crossing of 0 in segment a to the next one, in segment b (or the table's end)
+        inside = ud[a + 1:b + 1]
         if not (inside.size and inside.min() < 0.0):
-            continue  # no way back below 0: not a cycle
+            continue  # no way back past 0: not a cycle
         t0 = float(start_s) if a == 0 and uu[0] == 0.0 else origin + tt[a] - uu[a] / w[a]
         t1 = path.end_s if b == last else origin + tt[b] - uu[b] / w[b]
         amp = 0.5 * (max(0.0, inside.max()) - min(0.0, inside.min()))
