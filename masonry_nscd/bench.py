@@ -21,6 +21,24 @@ the row at the target interpolated (:func:`clip_at_target`):
   ``sqrt(mean((F - F_ref)^2)) / sqrt(mean(F_ref^2))`` (:func:`curve_rms_error`);
 * ``err_max``: the largest of the four, the error of the setting on the chart.
 
+Cyclic cases (``loading.horizontal.history: cyclic``) have no target and a curve that turns
+back, so the errors are read on the cycles of each run (:func:`cyclic_errors`, the cycles and
+the envelope of :mod:`masonry_nscd.post.cycles` from the run folder's ``scene.json``):
+
+* ``err_peak_force``: the larger of the relative errors of the peak forces of the envelope in
+  the two directions;
+* ``err_initial_stiffness``: as above, on the first loading branch (the summary's definition);
+* ``err_envelope``: the relative RMS difference of the envelope forces, the points of both
+  directions matched by direction and amplitude,
+  ``sqrt(mean((F - F_ref)^2)) / sqrt(mean(F_ref^2))``;
+* ``err_energy``: the relative error of the work summed over the cycles (J);
+* ``err_max``: the largest of these four (``err_force_at_target`` and ``err_rms_curve`` stay
+  empty; for a monotonic case ``err_envelope`` and ``err_energy`` do).
+
+A tabulated history (``table``) is refused (exit code 2, naming
+``loading.horizontal.history``): a table need not have cycles nor a target, and no error
+measure fits every table.
+
 The reference has the case's mesh: the errors measure the time integration and the solver, not
 the mesh. The mesh rungs show how far a coarser or finer mesh per unit moves the curve (the mesh
 is part of the model: the study prescribes 2 x 2 x 1 hexahedra per unit).
@@ -172,6 +190,8 @@ def ladder(case, quick: bool = False) -> list[Setting]:
     out += [_scaled(f"time_step_x{f:g}", "time_step", "time step", "solver.time_step_s", h, f,
                     " s") for f in steps]
     rates = (2.0,) if quick else (0.5, 2.0, 5.0)
+    if hz.history == "cyclic":  # a faster rate must leave every reversal its ramp
+        rates = tuple(f for f in rates if min(hz.amplitudes_m) >= f * rate * hz.ramp_s)
     out += [_scaled(f"rate_x{f:g}", "rate", "loading rate", "loading.horizontal.rate_m_s",
                     rate, f, " m/s") for f in rates]
     tols = (100.0,) if quick else (10.0, 100.0, 1000.0)
@@ -284,6 +304,75 @@ def curve_rms_error(ux_mm: Sequence[float], fx_kN: Sequence[float], ux_ref_mm: S
 
 ERROR_COLUMNS = ("err_peak_force", "err_initial_stiffness", "err_force_at_target",
                  "err_rms_curve")
+#: The errors of a cyclic case (module docstring).
+CYCLIC_ERROR_COLUMNS = ("err_peak_force", "err_initial_stiffness", "err_envelope",
+                        "err_energy")
+
+
+def check_history(case) -> None:
+    """Refuse a tabulated history (ValueError naming the field; the CLI exits with 2)."""
+    hz = case.loading.horizontal
+    if hz.history == "table":
+        raise ValueError(
+            "loading.horizontal.history: got 'table'; masonry bench measures errors on a "
+            "monotonic push to its target or on the cycles of a cyclic history, and a table "
+            "need have neither: benchmark the case with a monotonic or cyclic history")
+
+
+def error_columns(rows: Sequence[BenchRow]) -> tuple[str, ...]:
+    """The error columns of the rows' case: cyclic when the rows say so."""
+    cyclic = any(math.isfinite(r.err_envelope) for r in rows)
+    return CYCLIC_ERROR_COLUMNS if cyclic else ERROR_COLUMNS
+
+
+def cyclic_metrics(curve: Mapping[str, Sequence[float]],
+                   scene: Mapping[str, Any]) -> dict[str, Any]:
+    """Peak forces of the envelope in both directions (kN), the first-branch stiffness
+    (kN/mm), the envelope rows and the work summed over the cycles (J) of a cyclic run, with
+    the number of cycles completed and planned."""
+    from masonry_nscd.report import curve_summary, push_stage_start, run_cycles, scene_history
+
+    rows, env = run_cycles(curve, scene)
+    s = curve_summary(curve, horizontal_start_s=push_stage_start(scene), first_branch=True)
+    pos = [e["fx_kN"] for e in env if e["direction"] == "positive"]
+    neg = [e["fx_kN"] for e in env if e["direction"] == "negative"]
+    return {"peak_pos_kN": max(pos) if pos else None, "peak_neg_kN": min(neg) if neg else None,
+            "initial_stiffness_kN_mm": s["initial_stiffness_kN_mm"], "envelope": env,
+            "energy_J": sum(r["dissipated_energy_J"] for r in rows) if rows else None,
+            "cycles": len(rows), "planned": len(scene_history(scene).get("cycles") or [])}
+
+
+def cyclic_errors(curve: Mapping[str, Sequence[float]], scene: Mapping[str, Any],
+                  ref: Mapping[str, Sequence[float]],
+                  ref_scene: Mapping[str, Any]) -> dict[str, float]:
+    """The four errors of a cyclic run against the reference and ``err_max`` (module
+    docstring); NaN where either run did not complete its cycles."""
+    m, r = cyclic_metrics(curve, scene), cyclic_metrics(ref, ref_scene)
+    nan = math.nan
+    if m["cycles"] != m["planned"] or r["cycles"] != r["planned"] or not m["cycles"]:
+        out = dict.fromkeys(CYCLIC_ERROR_COLUMNS, nan)
+        out["err_initial_stiffness"] = relative_error(m["initial_stiffness_kN_mm"],
+                                                      r["initial_stiffness_kN_mm"])
+        out["err_max"] = nan
+        return out
+    key = {(e["direction"], e["amplitude_mm"]): e["fx_kN"] for e in r["envelope"]}
+    pairs = [(e["fx_kN"], key.get((e["direction"], e["amplitude_mm"]))) for e in m["envelope"]]
+    env_err = nan
+    if pairs and all(b is not None for _, b in pairs):
+        f, f_ref = np.array(pairs, dtype=float).T
+        scale = math.sqrt(float(np.mean(f_ref ** 2)))
+        env_err = math.sqrt(float(np.mean((f - f_ref) ** 2))) / scale if scale else nan
+    out = {
+        "err_peak_force": max(relative_error(m["peak_pos_kN"], r["peak_pos_kN"]),
+                              relative_error(m["peak_neg_kN"], r["peak_neg_kN"])),
+        "err_initial_stiffness": relative_error(m["initial_stiffness_kN_mm"],
+                                                r["initial_stiffness_kN_mm"]),
+        "err_envelope": env_err,
+        "err_energy": relative_error(m["energy_J"], r["energy_J"]),
+    }
+    values = list(out.values())
+    out["err_max"] = nan if any(math.isnan(v) for v in values) else max(values)
+    return out
 
 
 def curve_metrics(curve: Mapping[str, Sequence[float]], target_mm: float,
@@ -500,6 +589,8 @@ class BenchRow:
     err_initial_stiffness: float = math.nan
     err_force_at_target: float = math.nan
     err_rms_curve: float = math.nan
+    err_envelope: float = math.nan  # cyclic cases
+    err_energy: float = math.nan  # cyclic cases
     err_max: float = math.nan
     pareto: int = 0
 
@@ -553,14 +644,24 @@ def fill_timing(row: BenchRow, runs: Sequence[Mapping[str, Any]]) -> None:
 
 def fill_curve(row: BenchRow, curve: Mapping[str, Sequence[float]] | None,
                ref: Mapping[str, Sequence[float]] | None, target_mm: float,
-               start_s: float) -> None:
-    """Iterations, summary values and errors of one setting from its curve and the reference's.
+               start_s: float, scene: Mapping[str, Any] | None = None,
+               ref_scene: Mapping[str, Any] | None = None) -> None:
+    """Iterations, summary values and errors of one setting from its curve and the reference's
+    (and, for a cyclic case, their ``scene.json``: ``scene`` and ``ref_scene``).
 
     Errors stay NaN unless the setting and the reference both finished (status ``ok``)."""
     if not curve or not len(curve.get("step", ())):
         return
     it = np.asarray(curve["iterations"], dtype=float)
     row.median_iterations, row.max_iterations = float(np.median(it)), float(it.max())
+    if scene is not None and (scene.get("history") or {}).get("kind") == "cyclic":
+        m = cyclic_metrics(curve, scene)
+        row.peak_force_kN = _num(m["peak_pos_kN"])
+        row.initial_stiffness_kN_mm = _num(m["initial_stiffness_kN_mm"])
+        if row.status == "ok" and ref is not None and ref_scene is not None:
+            for k, v in cyclic_errors(curve, scene, ref, ref_scene).items():
+                setattr(row, k, v)
+        return
     m = curve_metrics(curve, target_mm, start_s)
     row.peak_force_kN = _num(m["peak_force_kN"])
     row.initial_stiffness_kN_mm = _num(m["initial_stiffness_kN_mm"])
@@ -601,10 +702,14 @@ def warm_up_specs(case_path: Path, overrides: Sequence[str], case,
         combo = (c.contact_solver, c.blocks.material)
         if combo not in combos:
             combos.append(combo)
-    h = max(case.solver.time_step_s, case.loading.end_time_s / 150.0)
+    hz = case.loading.horizontal
+    end_s = hz.start_s + hz.ramp_s / 2.0 + hz.target_m / hz.rate_m_s  # a monotonic push
+    h = max(case.solver.time_step_s, end_s / 150.0)
     tiny = ["wall.courses=2", "wall.units_per_course=2", "wall.elements_per_unit=[1,1,1]",
             f"solver.time_step_s={h!r}", "solver.tolerance=1e-4", "solver.max_iterations=500",
             "output.vtu=true", "output.hdf5=true"]
+    if hz.history == "cyclic":  # the kernels are the same: warm them on a short push
+        tiny += ["loading.horizontal.history=monotonic", "loading.horizontal.amplitudes_m=null"]
     return [{"kind": "run", "case": str(case_path), "time_limit_s": 120.0,
              "overrides": [*overrides, f"solver.method={m}", f"blocks.material={mat}", *tiny]}
             for m, mat in combos]
@@ -617,11 +722,12 @@ def bench(case_path: Path | str, outdir: Path | str, *, overrides: Sequence[str]
     ``outdir/runs/<setting>/``; write ``outdir/bench.csv`` (after every setting) and
     ``outdir/bench.png``. See the module docstring."""
     from masonry_nscd.case import load_case
-    from masonry_nscd.report import read_curve_csv
+    from masonry_nscd.report import read_curve_csv, read_scene_info
 
     case_path, outdir = Path(case_path), Path(outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
     case = load_case(case_path, list(overrides))
+    check_history(case)
+    outdir.mkdir(parents=True, exist_ok=True)
     target_mm, start_s = 1e3 * case.loading.horizontal.target_m, case.loading.horizontal.start_s
     ref_setting = reference_setting(case)
     ref_limit_s = REFERENCE_TIME_FACTOR * time_limit_s
@@ -633,7 +739,7 @@ def bench(case_path: Path | str, outdir: Path | str, *, overrides: Sequence[str]
     echo(f"numba cache warmed in {time.perf_counter() - t0:.1f} s; reference: "
          f"{ref_setting.description}")
     rows: list[BenchRow] = []
-    ref_curve = None
+    ref_curve = ref_scene = None
     for s in settings:
         all_overrides = [*overrides, *s.overrides]
         row = new_row(load_case(case_path, all_overrides), s)
@@ -645,11 +751,13 @@ def bench(case_path: Path | str, outdir: Path | str, *, overrides: Sequence[str]
                and runs[0].get("run_s", math.inf) < cheap_s):
             runs.append(run_in_child(spec, timeout_s=limit_s + 600.0))
         fill_timing(row, runs)
-        csv_path = outdir / "runs" / s.name / "force_displacement.csv"
+        run_dir = outdir / "runs" / s.name
+        csv_path = run_dir / "force_displacement.csv"
         curve = read_curve_csv(csv_path) if csv_path.exists() else None
+        scene = read_scene_info(run_dir) if (run_dir / "scene.json").exists() else None
         if s is ref_setting and row.status == "ok":
-            ref_curve = curve
-        fill_curve(row, curve, ref_curve, target_mm, start_s)
+            ref_curve, ref_scene = curve, scene
+        fill_curve(row, curve, ref_curve, target_mm, start_s, scene, ref_scene)
         rows.append(row)
         write_rows(outdir / "bench.csv", rows, BENCH_COLUMNS)
         echo(progress_line(row))
@@ -682,9 +790,12 @@ def format_table(rows: Sequence[BenchRow]) -> str:
     head = (f"{'setting':18s} {'status':8s} {'run s':>8s} {'rep':>3s} {'steps':>6s} "
             f"{'unconv':>6s} {'ms/step':>8s} {'it/step':>7s} {'RSS MiB':>7s} {'peak %':>8s} "
             f"{'k %':>8s} {'F@tgt %':>8s} {'RMS %':>8s} {'front':>5s}")
+    columns = error_columns(rows)
+    if columns is CYCLIC_ERROR_COLUMNS:
+        head = head.replace(f"{'F@tgt %':>8s} {'RMS %':>8s}", f"{'env %':>8s} {'E %':>8s}")
     lines = [head]
     for r in rows:
-        errs = " ".join(f"{100 * getattr(r, c):8.3g}" for c in ERROR_COLUMNS)
+        errs = " ".join(f"{100 * getattr(r, c):8.3g}" for c in columns)
         lines.append(f"{r.setting:18s} {r.status:8s} {r.run_s:8.3g} {r.repeats:3d} "
                      f"{r.steps:6d} {r.unconverged_steps:6d} {r.step_ms_median:8.3g} "
                      f"{r.median_iterations:7.3g} {r.peak_rss_MiB:7.0f} {errs} "
@@ -699,7 +810,7 @@ def verdict(result: BenchResult) -> list[str]:
         why = "the reference or the default run did not finish"
         return [f"default settings: errors not measured ({why})"]
     errs = ", ".join(f"{c[4:].replace('_', ' ')} {100 * getattr(d, c):.3g} %"
-                     for c in ERROR_COLUMNS)
+                     for c in error_columns(result.rows))
     under = "yes" if d.err_max < DEFAULT_ERROR_LIMIT else "NO"
     lines = [(f"default settings: {d.run_s:.3g} s, {d.step_ms_median:.3g} ms per step "
               f"(solver), errors against the reference: {errs}; largest "
@@ -754,7 +865,7 @@ def plot_bench(rows: Sequence[BenchRow], path: Path, title: str) -> Path | None:
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("largest relative error against the reference (peak, stiffness, force at "
-                  "target, RMS of the curve)")
+                  "target, RMS of the curve; cyclic: peaks, stiffness, envelope, energy)")
     ax.set_ylabel("run time (s, median)")
     ax.set_title(title, fontsize=10)
     ax.grid(True, which="both", alpha=0.3)

@@ -30,6 +30,9 @@ Outputs (in the calibration folder)
 * ``<case name>_calibrated.yaml``: the case with the parameter set, every default filled in,
   named ``<case name>_calibrated`` (its runs do not overwrite those of the original case);
 * ``calibration.json``: target, bounds, force levels, every evaluation, the value found.
+
+Only the monotonic history is calibrated (:func:`check_history`): a case with a cyclic or
+tabulated one is refused with a message naming ``loading.horizontal.history``.
 """
 
 from __future__ import annotations
@@ -102,6 +105,22 @@ def default_force_range_kN(case) -> tuple[float, float]:
             f"{case.vertical_force_N / 1e3:g} kN = 0; give --force-range LOW:HIGH (kN)")
     lo, hi = FORCE_FRACTIONS_OF_MU_N
     return lo * mu_n_kN, hi * mu_n_kN
+
+
+def check_history(case) -> None:
+    """Refuse a case whose horizontal history is not the monotonic push
+    (:class:`CalibrationError`, exit code 2): a calibration run stops as soon as ``F_x``
+    passes a force level on its way up, which a cycle or a table need not do; the initial
+    stiffness is a property of the wall, the same on the first branch of any history, so the
+    value found with the monotonic push holds for the cyclic case."""
+    hz = case.loading.horizontal
+    if hz.history != "monotonic":
+        stray = {"cyclic": "amplitudes_m", "table": "file"}[hz.history]
+        raise CalibrationError(
+            f"loading.horizontal.history: got '{hz.history}'; calibrate measures the initial "
+            "stiffness on a monotonic push (its runs stop once F_x passes a force level): "
+            "calibrate with --set loading.horizontal.history=monotonic --set "
+            f"loading.horizontal.{stray}=null, then use the value in the {hz.history} case")
 
 
 def parameter_value(case, path: str) -> float:

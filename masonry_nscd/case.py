@@ -55,7 +55,9 @@ from pydantic import (
     BeforeValidator,
     ConfigDict,
     Field,
+    PrivateAttr,
     ValidationError,
+    ValidationInfo,
     field_validator,
     model_validator,
 )
@@ -781,22 +783,122 @@ class StressStage(_Section):
 
 
 class HorizontalStage(_Section):
-    """Imposed horizontal displacement U_x of the top beam.
+    """Imposed horizontal displacement U_x of the top beam, along one of three histories
+    (``history``; the equations are in :mod:`masonry_nscd.loading.histories`). The beam is
+    driven through its velocity, each change of velocity a tanh ramp of ``ramp_s``.
 
-    The beam's x velocity ramps smoothly (tanh form) from 0 to ``rate_m_s`` over ``ramp_s``
-    from ``start_s``, then stays at ``rate_m_s``; the displacement therefore lags the ideal
-    ``rate * (t - start)`` by about ``ramp_s / 2``. The run stops when U_x reaches ``target_m``,
-    at about ``start_s + ramp_s / 2 + target_m / rate_m_s`` (:attr:`Loading.end_time_s`).
+    ``monotonic`` (the default, the study): the velocity ramps from 0 to ``rate_m_s`` over
+    ``ramp_s`` from ``start_s``, then stays at ``rate_m_s``; the displacement therefore lags the
+    ideal ``rate * (t - start)`` by about ``ramp_s / 2``. The run stops when U_x reaches
+    ``target_m``, at about ``start_s + ramp_s / 2 + target_m / rate_m_s``
+    (:attr:`Loading.end_time_s`).
+
+    ``cyclic``: for each amplitude A of ``amplitudes_m`` in turn, ``cycles_per_amplitude``
+    cycles 0 -> +A -> -A -> 0 at the speed ``rate_m_s``, from ``start_s``; each reversal turns
+    the velocity from +rate to -rate (or back) over ``ramp_s`` and stops exactly at +-A; the
+    run ends when the beam is back at rest at 0 after the last cycle. Every amplitude must be
+    at least ``rate_m_s * ramp_s`` (so that two ramps do not overlap). ``target_m`` is not
+    used.
+
+    ``table``: the displacement of the CSV file ``file`` (header ``time_s,displacement_m``,
+    first row ``0,0``, times increasing; a relative path is relative to the case file's
+    folder, and is written back resolved), linear between the rows, each row a corner rounded
+    over ``ramp_s``; the table's time 0 is ``start_s + ramp_s / 2``; the run ends when the beam
+    is at rest after the last row. ``target_m`` and ``rate_m_s`` are not used.
     """
 
+    history: Literal["monotonic", "cyclic", "table"] = Field(
+        "monotonic", description="displacement history: monotonic (push to target_m), cyclic "
+        "(amplitudes_m, cycles_per_amplitude) or table (file)"
+    )
     target_m: Real = Field(
-        0.010, gt=0.0, le=10.0, description="horizontal displacement at which the run stops (m)"
+        0.010, gt=0.0, le=10.0,
+        description="horizontal displacement at which the run stops (m; monotonic only)"
     )
     rate_m_s: Real = Field(
-        0.002, gt=0.0, le=100.0, description="horizontal velocity after the ramp (m/s)"
+        0.002, gt=0.0, le=100.0,
+        description="horizontal velocity after the ramp (m/s; monotonic and cyclic)"
     )
     start_s: Real = Field(0.25, ge=0.0, le=1e6, description="time at which the ramp starts (s)")
-    ramp_s: Real = Field(0.05, gt=0.0, le=1e6, description="duration of the velocity ramp (s)")
+    ramp_s: Real = Field(
+        0.05, gt=0.0, le=1e6,
+        description="duration of each velocity ramp: start, reversals, corners (s)"
+    )
+    amplitudes_m: list[Annotated[Real, Field(gt=0.0, le=10.0)]] | None = Field(
+        None, min_length=1, max_length=1000,
+        description="cyclic: amplitudes of the cycles, in order (m; null otherwise)",
+    )
+    cycles_per_amplitude: Whole = Field(
+        1, ge=1, le=100, description="cyclic: cycles at each amplitude (count)"
+    )
+    file: str | None = Field(
+        None, min_length=1, max_length=4096,
+        description="table: CSV file of time_s,displacement_m (relative to the case file; "
+        "null otherwise)",
+    )
+
+    @field_validator("file")
+    @classmethod
+    def _resolve_file(cls, value: str | None, info: ValidationInfo) -> str | None:
+        """A relative path is made absolute from the case file's folder (validation context
+        ``case_dir``), so that the case written back in the run folder still finds it."""
+        base = (info.context or {}).get("case_dir")
+        if value is None or base is None or Path(value).is_absolute():
+            return value
+        return str((Path(base) / value).resolve())
+
+    @model_validator(mode="after")
+    def _check_history(self, info: ValidationInfo) -> HorizontalStage:
+        problems: list[tuple[str, str]] = []
+        kind = self.history
+        if kind != "cyclic" and self.amplitudes_m is not None:
+            problems.append(("amplitudes_m", (
+                f"given with history '{kind}'; amplitudes are for history 'cyclic' (set "
+                "history: cyclic, or leave amplitudes_m out)")))
+        if kind != "table" and self.file is not None:
+            problems.append(("file", (
+                f"given with history '{kind}'; a file is for history 'table' (set "
+                "history: table, or leave file out)")))
+        if kind == "cyclic":
+            if self.amplitudes_m is None:
+                problems.append(("amplitudes_m", (
+                    "missing; history 'cyclic' needs the list of amplitudes (m), e.g. "
+                    "[0.001, 0.002, 0.004]")))
+            elif min(self.amplitudes_m) < self.rate_m_s * self.ramp_s:
+                problems.append(("amplitudes_m", (
+                    f"got {min(self.amplitudes_m):.6g} m; every amplitude must be at least "
+                    f"rate_m_s x ramp_s = {self.rate_m_s * self.ramp_s:.6g} m (a reversal "
+                    "takes ramp_s): lower ramp_s or rate_m_s")))
+        if kind == "table":
+            if self.file is None:
+                problems.append(("file", (
+                    "missing; history 'table' needs a CSV file of time_s,displacement_m")))
+            elif (info.context or {}).get("check_files"):
+                from masonry_nscd.loading.histories import read_displacement_table
+
+                try:
+                    self._table = read_displacement_table(self.file)
+                except ValueError as exc:
+                    problems.append(("file", str(exc)))
+        _problems(problems)
+        return self
+
+    _table: Any = PrivateAttr(None)
+
+    def displacement_history(self):
+        """The history (:class:`masonry_nscd.loading.histories.DisplacementHistory`): the
+        beam's velocity, the end of the motion, the cycles. A table is read from ``file``
+        (ValueError naming the file and line if it cannot be)."""
+        from masonry_nscd.loading import histories as hs
+
+        if self.history == "cyclic":
+            return hs.cyclic(self.amplitudes_m, self.cycles_per_amplitude, self.rate_m_s,
+                             self.start_s, self.ramp_s)
+        if self.history == "table":
+            if self._table is None:
+                self._table = hs.read_displacement_table(self.file)
+            return hs.table(*self._table, self.start_s, self.ramp_s)
+        return hs.monotonic(self.rate_m_s, self.start_s, self.ramp_s)
 
 
 class Loading(_Section):
@@ -814,12 +916,15 @@ class Loading(_Section):
 
     @property
     def end_time_s(self) -> float:
-        """Expected end of the run (s): ``start + ramp / 2 + target / rate`` of the horizontal
-        stage. The velocity ramps to ``rate_m_s`` over ``ramp_s``, so the displacement lags by
-        about ``ramp_s / 2``; the solver itself stops when U_x reaches ``target_m``, so this is
-        an estimate (exact for a ramp symmetric about its middle, when ``target_m`` is reached
-        after the ramp)."""
+        """Expected end of the run (s). Monotonic: ``start + ramp / 2 + target / rate`` of the
+        horizontal stage. The velocity ramps to ``rate_m_s`` over ``ramp_s``, so the
+        displacement lags by about ``ramp_s / 2``; the solver itself stops when U_x reaches
+        ``target_m``, so this is an estimate (exact for a ramp symmetric about its middle, when
+        ``target_m`` is reached after the ramp). Cyclic and table: the end of the motion, when
+        the run stops."""
         h = self.horizontal
+        if h.history != "monotonic":
+            return float(h.displacement_history().end_s)
         return h.start_s + h.ramp_s / 2.0 + h.target_m / h.rate_m_s
 
 
@@ -1369,10 +1474,14 @@ def _messages(error: ValidationError, prefix: Sequence[Any] = ()) -> list[str]:
 # ---------------------------------------------------------------------------------------------
 
 
-def case_from_dict(data: Any) -> Case:
+def case_from_dict(data: Any, *, case_dir: str | Path | None = None,
+                   check_files: bool = False) -> Case:
     """Validate a mapping (as read from a case file) into a :class:`Case`.
 
-    Raises :class:`CaseError` with one message per problem.
+    ``case_dir``: the folder relative paths of the case (``loading.horizontal.file``) are
+    read from, and made absolute with (None: left as they are, i.e. relative to the working
+    folder). ``check_files``: read the files the case names and refuse one that cannot be
+    used. Raises :class:`CaseError` with one message per problem.
     """
     if not isinstance(data, Mapping):
         raise CaseError(
@@ -1380,7 +1489,8 @@ def case_from_dict(data: Any) -> Case:
             + ", ".join(Case.model_fields)
         )
     try:
-        return Case.model_validate(dict(data))
+        return Case.model_validate(dict(data), context={"case_dir": case_dir,
+                                                        "check_files": check_files})
     except ValidationError as exc:
         raise CaseError(_messages(exc)) from None
     except RecursionError:
@@ -1485,8 +1595,13 @@ def _apply_override(data: dict, override: str) -> None:
         target = child
 
 
-def load_case(path: str | Path, overrides: Sequence[str] = ()) -> Case:
+def load_case(path: str | Path, overrides: Sequence[str] = (), *,
+              check_files: bool = True) -> Case:
     """Read, override and validate a case file.
+
+    A relative path in the case (``loading.horizontal.file``) is relative to the case file's
+    folder and made absolute; with ``check_files`` (the default) the file is read and checked
+    (the summary and the plots of a run folder pass False: they do not need it).
 
     ``overrides`` are ``dotted.path=value`` strings (the CLI's ``--set``), applied in order; the
     value is parsed as YAML (``0.3e6`` is a float, ``[2,2,1]`` a list, ``true`` a boolean; a
@@ -1521,7 +1636,7 @@ def load_case(path: str | Path, overrides: Sequence[str] = ()) -> Case:
     for override in overrides:
         _apply_override(data, override)
     data.setdefault("name", path.stem)
-    return case_from_dict(data)
+    return case_from_dict(data, case_dir=path.parent, check_files=check_files)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -75,13 +75,23 @@ def validate(
         f"({w.bond} bond{openings}, {w.wall_length_m:.3f} x {w.wall_height_m:.3f} m), "
         f"blocks {case.blocks.material}, joints {case.joint.law}, "
         f"sigma_N = {loading.vertical_stress.value_Pa / 1e6:g} MPa "
-        f"({case.vertical_force_N / 1e3:g} kN), U_x to {loading.horizontal.target_m * 1e3:g} mm, "
+        f"({case.vertical_force_N / 1e3:g} kN), {_history_text(loading.horizontal)}, "
         f"about {case.step_count} steps of {case.solver.time_step_s:g} s"
     )
     if print_case:
         typer.echo(f"# {summary}\n{case_to_yaml(case)}", nl=False)
     else:
         typer.echo(f"ok {summary}")
+
+
+def _history_text(hz) -> str:
+    """``U_x to 10 mm``, ``U_x cycles of +-1, 2 mm (2 per amplitude)``, ``U_x from FILE``."""
+    if hz.history == "cyclic":
+        amps = ", ".join(f"{1e3 * a:g}" for a in hz.amplitudes_m)
+        return f"U_x cycles of +-{amps} mm ({hz.cycles_per_amplitude} per amplitude)"
+    if hz.history == "table":
+        return f"U_x from {hz.file}"
+    return f"U_x to {hz.target_m * 1e3:g} mm"
 
 
 SetOption = Annotated[
@@ -363,6 +373,7 @@ def calibrate_cmd(
             raise cal.CalibrationError(f"--bounds LOW:HIGH is needed to calibrate {param}")
         lo_hi = cal.parse_range(bounds, "--bounds") if bounds else cal.DEFAULT_BOUNDS[param]
         f_range = cal.parse_range(force_range, "--force-range") if force_range else None
+        cal.check_history(case)
         cal.parameter_value(case, param)
         if not (target > 0.0 and rtol > 0.0):
             raise cal.CalibrationError("--target-stiffness and --rtol must be > 0")
@@ -490,6 +501,13 @@ def bench_cmd(
     if repeats < 1 or not time_limit > 0.0:
         _fail("--repeats must be >= 1 and --time-limit > 0 s", 2)
     case = _load_case_or_exit(case_file, overrides) if case_file is not None else None
+    if case is not None:
+        from masonry_nscd.bench import check_history
+
+        try:
+            check_history(case)
+        except ValueError as exc:
+            _fail(str(exc), 2)
     outdir = _bench_outdir(output, Path("results") / "bench" / (case.name if case else "startup"),
                            overwrite)
     from masonry_nscd import bench as bm

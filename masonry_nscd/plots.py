@@ -12,6 +12,13 @@ Figures
     initial slope (71 kN/mm) as a dashed line from the origin. A second panel zooms on the
     start, where the slopes are compared. Labels: case name, sigma_N, block material and the
     initial stiffness of the run's summary (secant 10-40 % of the peak, :mod:`report`).
+``cycles_<run>.png`` (:func:`plot_cycles`, runs whose history has cycles)
+    Three panels: the hysteresis loops ``F_x`` against ``U_x``, each cycle of the history in
+    its colour (a colour scale over the cycle number), the envelope of each direction on top
+    (the peak-force points of the first cycle at each amplitude, :mod:`post.cycles`); the two
+    envelopes as ``|F_x|`` against ``|U_x|``, the negative one mirrored onto the positive, so
+    that an asymmetry shows; the work done over each cycle (J, bars in the cycle's colour) with
+    the equivalent viscous damping ratio (dots, right axis).
 ``damage_<run>_ux_<U>mm.png`` (:func:`plot_damage_map`)
     The wall's face (x-y plane) at the output step of ``results.h5`` nearest to ``U_x = U``,
     element by element (each unit is 1 or more elements; the joints are the gaps between the
@@ -91,7 +98,7 @@ def load_run(outdir: Path | str) -> RunData:
     if not csv_path.exists():
         raise PlotInputError(f"{outdir}: not a run folder (no force_displacement.csv)")
     try:
-        case = load_case(outdir / "case.yaml")
+        case = load_case(outdir / "case.yaml", check_files=False)
     except CaseError as exc:
         raise PlotInputError(f"{outdir}: cannot read its case.yaml: {exc.messages[0]}") from None
     try:
@@ -99,8 +106,9 @@ def load_run(outdir: Path | str) -> RunData:
         curve = read_curve_csv(csv_path)
     except (OSError, ValueError) as exc:
         raise PlotInputError(f"{exc}") from None
-    summary = compute_summary(curve, target_ux_mm=1e3 * scene["target_m"],
-                              horizontal_start_s=push_stage_start(scene))
+    target = scene.get("target_m")
+    summary = compute_summary(curve, target_ux_mm=None if target is None else 1e3 * target,
+                              horizontal_start_s=push_stage_start(scene), scene=scene)
     return RunData(outdir, case, scene, curve, summary)
 
 
@@ -151,7 +159,7 @@ def plot_curves(runs: Sequence[RunData], path: Path,
 
     fig = Figure(figsize=(13, 5.5), layout="constrained")
     ax_all, ax_zoom = fig.subplots(1, 2, gridspec_kw={"width_ratios": [3, 2]})
-    f_top, f_bottom, u_zoom = 1.0, 0.0, 0.0
+    f_top, f_bottom, u_zoom, u_left = 1.0, 0.0, 0.0, 0.0
     for n, run in enumerate(runs):
         ux, fx, ok = _stage(run)
         color = f"C{n % 10}"
@@ -167,6 +175,7 @@ def plot_curves(runs: Sequence[RunData], path: Path,
             f_bottom = min(f_bottom, float(fx[ok].min()))
             reach = np.flatnonzero(fx[ok] >= 0.6 * fx[ok].max())
             u_zoom = max(u_zoom, float(ux[ok][reach[0]]) if reach.size else 0.0)
+            u_left = min(u_left, float(ux[ok].min()))
     u_ref = 1.1 * f_top / reference_kN_mm
     for ax in (ax_all, ax_zoom):
         ax.plot([0.0, u_ref], [0.0, reference_kN_mm * u_ref], "k--", lw=1.2,
@@ -176,10 +185,74 @@ def plot_curves(runs: Sequence[RunData], path: Path,
         ax.grid(True, alpha=0.3)
         ax.set_ylim(f_bottom - 0.05 * (f_top - f_bottom), 1.1 * f_top)
     ax_zoom.set_xlim(0.0, max(u_zoom, u_ref, 1e-6) * 1.2)
-    ax_all.set_xlim(left=0.0)
+    ax_all.set_xlim(left=u_left * 1.05)
     ax_all.set_title("Force-displacement, horizontal stage (dots: peaks; x: steps not converged)")
     ax_zoom.set_title("Start of the horizontal stage: initial slopes")
     ax_all.legend(fontsize=8, loc="best")
+    return _save(fig, path)
+
+
+# ---------------------------------------------------------------------------------------------
+# Cycles
+# ---------------------------------------------------------------------------------------------
+
+
+def plot_cycles(run: RunData, path: Path) -> Path | None:
+    """Loops, envelopes and energy per cycle of ``run`` (module docstring); None if the run
+    has no completed cycle."""
+    from matplotlib import colormaps
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+    from matplotlib.figure import Figure
+
+    from masonry_nscd.post.cycles import cut, envelope_arrays
+    from masonry_nscd.report import run_cycles
+
+    rows, env = run_cycles(run.curve, run.scene)
+    if not rows:
+        return None
+    c = run.curve
+    ok = c["converged"] != 0 if "converged" in c else np.ones(len(c["time_s"]), bool)
+    t, u, f = c["time_s"][ok], c["ux_mm"][ok], c["fx_kN"][ok]
+    n = len(rows)
+    cmap, norm = colormaps["viridis"], Normalize(1, max(n, 2))
+    fig = Figure(figsize=(16, 5.2), layout="constrained")
+    ax_loops, ax_env, ax_energy = fig.subplots(1, 3, gridspec_kw={"width_ratios": [5, 3, 3]})
+    for r in rows:
+        uu, ff = cut(t, u, f, r["start_s"], r["end_s"])
+        ax_loops.plot(uu, ff, color=cmap(norm(r["cycle"])), lw=1.1)
+    for direction, color, sign in (("positive", "k", 1.0), ("negative", "C3", -1.0)):
+        eu, ef = envelope_arrays(env, direction)
+        ax_loops.plot(eu, ef, "o-", color=color, ms=4, lw=1.2, label=f"envelope, {direction}")
+        ax_env.plot(sign * eu, sign * ef, "o-", color=color, ms=4, lw=1.4,
+                    label=f"{direction} direction" + (" (mirrored)" if sign < 0 else ""))
+    bar = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax_loops, label="cycle")
+    bar.set_ticks(np.unique(np.linspace(1, n, min(n, 10)).round().astype(int)))
+    ax_loops.set_title(f"{run.label}: hysteresis loops ({n} cycles)")
+    ax_loops.set_xlabel("$U_x$, horizontal displacement of the top beam (mm)")
+    ax_loops.set_ylabel("$F_x$, horizontal force on the wall (kN)")
+    ax_env.set_title("Envelopes (first cycle at each amplitude)")
+    ax_env.set_xlabel("$|U_x|$ at the peak force (mm)")
+    ax_env.set_ylabel("$|F_x|$, peak force (kN)")
+    ax_env.set_xlim(left=0.0)
+    ax_env.set_ylim(bottom=0.0)
+    idx = np.array([r["cycle"] for r in rows])
+    energy = np.array([r["dissipated_energy_J"] for r in rows])
+    ax_energy.bar(idx, energy, color=[cmap(norm(i)) for i in idx])
+    ax_energy.set_xlabel("cycle")
+    ax_energy.set_xticks(np.unique(np.linspace(1, n, min(n, 12)).round().astype(int)))
+    ax_energy.set_ylabel("work over the cycle, $\\oint F\\,dU$ (J)")
+    ax_energy.set_title("Energy dissipated per cycle, damping ratio")
+    ax_xi = ax_energy.twinx()
+    xi = np.array([np.nan if r["damping_ratio_eq"] is None else r["damping_ratio_eq"]
+                   for r in rows])
+    ax_xi.plot(idx, xi, "o", color="C1", ms=5)
+    ax_xi.set_ylabel("equivalent viscous damping ratio (dimensionless)", color="C1")
+    ax_xi.set_ylim(bottom=0.0)
+    for ax in (ax_loops, ax_env):
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8, loc="best")
+    ax_energy.grid(True, alpha=0.3, axis="y")
     return _save(fig, path)
 
 
@@ -346,6 +419,12 @@ def plot_runs(outdirs: Sequence[Path | str], plot_dir: Path, at_mm: Sequence[flo
     written = [plot_curves(runs, plot_dir / "force_displacement.png", reference_kN_mm)]
     notes = []
     for run in runs:
+        if run.summary.get("history", "monotonic") != "monotonic":
+            png = plot_cycles(run, plot_dir / f"cycles_{_slug(run.label)}.png")
+            if png is None:
+                notes.append(f"{run.outdir}: no completed cycle, no cycles figure")
+            else:
+                written.append(png)
         if not run.has_fields:
             notes.append(f"{run.outdir}: no results.h5, no damage map")
             continue

@@ -30,7 +30,17 @@ Initial stiffness (kN/mm)
     :mod:`masonry_nscd.calibrate`).
 Force at the target
     ``fx`` interpolated linearly in ``ux`` at the case's target displacement
-    (``loading.horizontal.target_m``, 10 mm for the study), ``None`` if the run stopped before.
+    (``loading.horizontal.target_m``, 10 mm for the study), ``None`` if the run stopped before
+    (and for cyclic and tabulated histories, which have no target).
+Cyclic and tabulated histories (``history`` of ``scene.json``)
+    The initial stiffness is read on the first loading branch only (the rows of the horizontal
+    stage up to the first decrease of ``ux``), between 10 % and 40 % of the largest force of
+    that branch: later branches reload a wall already cycled. The peaks in both directions,
+    ``peak_force_pos_kN`` (the largest ``fx``, also ``peak_force_kN``) and
+    ``peak_force_neg_kN`` (the smallest, signed), with their ``ux``; per cycle of the history
+    the rows of ``cycles.csv`` and the envelope ``envelope.csv``
+    (:mod:`masonry_nscd.post.cycles`, on the converged rows); ``cycles_completed`` and the
+    sum of their ``dissipated_energy_J``.
 Failure mode
     Named from the joint and block damage at the output step nearest the peak
     (``failure_mode_at_peak``) and at the last one (``failure_mode``): base sliding, rocking,
@@ -129,14 +139,24 @@ def value_at(x: Sequence[float], y: Sequence[float], x_target: float) -> float |
     return float(y[i - 1] + (x_target - x[i - 1]) * (y[i] - y[i - 1]) / (x[i] - x[i - 1]))
 
 
+def first_branch_rows(ux: Sequence[float]) -> int:
+    """How many rows of ``ux`` (in order) come before its first decrease: the first loading
+    branch of a cyclic history (all the rows of a monotonic one)."""
+    ux = np.asarray(ux, dtype=float)
+    down = np.flatnonzero(np.diff(ux) < 0.0)
+    return int(down[0]) + 1 if down.size else len(ux)
+
+
 def curve_summary(curve: Mapping[str, Sequence[float]], *, target_ux_mm: float | None = None,
                   horizontal_start_s: float | None = None,
-                  fractions: tuple[float, float] = STIFFNESS_FRACTIONS) -> dict[str, Any]:
+                  fractions: tuple[float, float] = STIFFNESS_FRACTIONS,
+                  first_branch: bool = False) -> dict[str, Any]:
     """The part of the summary that comes from the curve alone (see the module docstring).
 
     ``curve``: columns of ``force_displacement.csv`` (at least ``step``, ``time_s``, ``ux_mm``,
     ``fx_kN``; ``residual``, ``converged``, ``iterations`` when present). ``target_ux_mm``: the
-    displacement at which the force is reported (mm).
+    displacement at which the force is reported (mm). ``first_branch``: the stiffness of the
+    first loading branch, with the fractions of its own largest force (cyclic histories).
     """
     c = {k: np.asarray(v, dtype=float) for k, v in curve.items()}
     n = len(c["time_s"])
@@ -154,6 +174,12 @@ def curve_summary(curve: Mapping[str, Sequence[float]], *, target_ux_mm: float |
     stage = {k: v[ok] for k, v in stage.items()}
     ux, fx = stage["ux_mm"], stage["fx_kN"]
     out.update(_peak_and_stiffness(stage, fractions))
+    if first_branch:
+        n = first_branch_rows(ux)
+        branch = _peak_and_stiffness({k: v[:n] for k, v in stage.items()}, fractions)
+        out.update({k: v for k, v in branch.items() if k.startswith("stiffness_")
+                    or k == "initial_stiffness_kN_mm"})
+        out["stiffness_branch_peak_kN"] = branch["peak_force_kN"]
     out["target_ux_mm"] = _num(target_ux_mm)
     at = value_at(ux, fx, target_ux_mm) if target_ux_mm is not None and len(ux) else None
     out["force_at_target_kN"] = _num(at)
@@ -366,17 +392,70 @@ def push_stage_start(scene: Mapping[str, Any]) -> float:
     return next(st["start_s"] for st in scene["stages"] if st["name"] == scene["push_stage"])
 
 
+def scene_history(scene: Mapping[str, Any] | None) -> dict[str, Any]:
+    """The history of ``scene.json`` (a monotonic push for run folders written before it was
+    kept)."""
+    return dict((scene or {}).get("history") or {"kind": "monotonic", "cycles": []})
+
+
+def run_cycles(curve: Mapping[str, Sequence[float]],
+               scene: Mapping[str, Any]) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """The rows of ``cycles.csv`` and of ``envelope.csv`` of a run (empty when its history has
+    no cycles): the cycles of the history completed by the last row, on the converged rows
+    of the horizontal stage and the row before it (:mod:`masonry_nscd.post.cycles`)."""
+    from masonry_nscd.post.cycles import cycle_rows, envelope_rows
+
+    cycles = scene_history(scene).get("cycles") or []
+    t = np.asarray(curve["time_s"], dtype=float)
+    if not cycles or not len(t):
+        return [], []
+    i0 = max(0, horizontal_stage_start(curve, push_stage_start(scene)) - 1)
+    ok = np.asarray(curve["converged"], dtype=float)[i0:] != 0 if "converged" in curve \
+        else np.ones(len(t) - i0, dtype=bool)
+    ux, fx = (np.asarray(curve[k], dtype=float)[i0:][ok] for k in ("ux_mm", "fx_kN"))
+    rows = cycle_rows(t[i0:][ok], ux, fx, cycles, last_time_s=float(t[-1]))
+    return rows, envelope_rows(rows)
+
+
+def _both_directions(curve: Mapping[str, Sequence[float]], start_s: float | None,
+                     rows: Sequence[Mapping[str, Any]], planned: int) -> dict[str, Any]:
+    """The peaks in both directions (converged rows of the horizontal stage) and the cycles."""
+    c = {k: np.asarray(v, dtype=float) for k, v in curve.items()}
+    i0 = horizontal_stage_start(c, start_s)
+    ok = c["converged"][i0:] != 0 if "converged" in c else np.ones(len(c["ux_mm"]) - i0, bool)
+    ux, fx = c["ux_mm"][i0:][ok], c["fx_kN"][i0:][ok]
+    out: dict[str, Any] = dict.fromkeys(("peak_force_pos_kN", "ux_at_peak_pos_mm",
+                                         "peak_force_neg_kN", "ux_at_peak_neg_mm"))
+    if len(fx):
+        ip, ineg = int(np.argmax(fx)), int(np.argmin(fx))
+        out.update(peak_force_pos_kN=_num(fx[ip]), ux_at_peak_pos_mm=_num(ux[ip]),
+                   peak_force_neg_kN=_num(fx[ineg]), ux_at_peak_neg_mm=_num(ux[ineg]))
+    out["cycles_planned"] = planned
+    out["cycles_completed"] = len(rows)
+    out["dissipated_energy_J"] = _num(sum(r["dissipated_energy_J"] for r in rows)) \
+        if rows else None
+    return out
+
+
 def compute_summary(curve: Mapping[str, Sequence[float]], *, target_ux_mm: float | None = None,
                     horizontal_start_s: float | None = None, fields: RunFields | None = None,
                     scene: Mapping[str, Any] | None = None,
                     fractions: tuple[float, float] = STIFFNESS_FRACTIONS) -> dict[str, Any]:
     """The run summary from the curve and, if given, the fields of the last output step (with
-    the scene's ``scene.json``, which says where things are).
+    the scene's ``scene.json``, which says where things are, and the history: a cyclic or
+    tabulated one adds the peaks in both directions and the cycles).
 
     A pure function: see the module docstring for the definitions. Keys carry their units.
     """
+    history = scene_history(scene)
+    cyclic = history["kind"] != "monotonic"
     out = curve_summary(curve, target_ux_mm=target_ux_mm, horizontal_start_s=horizontal_start_s,
-                        fractions=fractions)
+                        fractions=fractions, first_branch=cyclic)
+    out["history"] = history["kind"]
+    if cyclic:
+        rows, _ = run_cycles(curve, scene)
+        out.update(_both_directions(curve, horizontal_start_s, rows,
+                                    len(history.get("cycles") or [])))
     last = {k: list(v)[-1] for k, v in curve.items() if len(v)}
     out["curve_last_max_joint_damage"] = _num(last.get("max_joint_damage"))
     out["curve_last_max_block_damage"] = _num(last.get("max_block_damage"))
@@ -404,14 +483,15 @@ def summarize_run(outdir: Path | str,
     from masonry_nscd.io import runfolder as rf
 
     outdir = Path(outdir)
-    case = load_case(outdir / rf.CASE)
+    case = load_case(outdir / rf.CASE, check_files=False)
     scene = read_scene_info(outdir)
     if curve is None:
         curve = read_curve_csv(outdir / rf.CSV)
     h5 = outdir / rf.RESULTS
     fields = read_fields(h5) if h5.exists() else None
     start = push_stage_start(scene)
-    summary = compute_summary(curve, target_ux_mm=1e3 * scene["target_m"],
+    target = scene.get("target_m")
+    summary = compute_summary(curve, target_ux_mm=None if target is None else 1e3 * target,
                               horizontal_start_s=start, fields=fields, scene=scene)
     if fields is not None and summary.get("step_at_peak") is not None:
         steps = [k for k, _ in output_steps(h5)]
@@ -427,8 +507,37 @@ def summarize_run(outdir: Path | str,
             "vertical_force_kN": case.vertical_force_N / 1e3,
             "horizontal_start_s": start, "stiffness_definition": (
                 "secant between the first crossings of 10 % and 40 % of the peak force in the "
-                "horizontal stage, displacements interpolated linearly")}
+                "horizontal stage, displacements interpolated linearly"
+                + ("" if summary["history"] == "monotonic" else
+                   "; on the first loading branch (up to the first reversal), of its own "
+                   "largest force"))}
     return {**head, **summary}
+
+
+def write_cycle_tables(outdir: Path | str, rows: Sequence[Mapping[str, Any]],
+                       envelope: Sequence[Mapping[str, Any]]) -> list[Path]:
+    """Write ``cycles.csv`` and ``envelope.csv`` in ``outdir`` atomically (floats in full
+    precision, an undefined value as an empty field); returns their paths."""
+    import csv
+    import io
+
+    from masonry_nscd.io import runfolder as rf
+    from masonry_nscd.io.atomic import atomic_write
+    from masonry_nscd.post.cycles import CYCLE_COLUMNS, ENVELOPE_COLUMNS
+
+    paths = []
+    for name, columns, data in ((rf.CYCLES, CYCLE_COLUMNS, rows),
+                                (rf.ENVELOPE, ENVELOPE_COLUMNS, envelope)):
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(columns)
+        for r in data:
+            w.writerow(["" if r[c] is None else repr(r[c]) if isinstance(r[c], float) else r[c]
+                        for c in columns])
+        path, text = Path(outdir) / name, buf.getvalue()
+        atomic_write(path, lambda p, text=text: Path(p).write_text(text))
+        paths.append(path)
+    return paths
 
 
 def write_summary(outdir: Path | str, summary: Mapping[str, Any]) -> Path:
@@ -448,15 +557,26 @@ def _fmt(x: float | None, spec: str, unit: str = "") -> str:
 
 def format_summary(s: Mapping[str, Any]) -> list[str]:
     """A short human report of a summary, a few lines."""
+    cyclic = s.get("history", "monotonic") != "monotonic"
+    if cyclic:
+        peak = (f"peak forces {_fmt(s['peak_force_pos_kN'], '.4g', ' kN')} at Ux "
+                f"{_fmt(s['ux_at_peak_pos_mm'], '.4g', ' mm')} and "
+                f"{_fmt(s['peak_force_neg_kN'], '.4g', ' kN')} at Ux "
+                f"{_fmt(s['ux_at_peak_neg_mm'], '.4g', ' mm')}; {s['cycles_completed']} of "
+                f"{s['cycles_planned']} cycles, {_fmt(s['dissipated_energy_J'], '.4g', ' J')} "
+                "dissipated (cycles.csv, envelope.csv)")
+    else:
+        peak = (f"peak force {_fmt(s['peak_force_kN'], '.4g', ' kN')} at Ux "
+                f"{_fmt(s['ux_at_peak_mm'], '.4g', ' mm')}; force at Ux = "
+                f"{_fmt(s['target_ux_mm'], '.4g', ' mm')}: "
+                + (_fmt(s["force_at_target_kN"], ".4g", " kN") if s["target_reached"]
+                   else f"not reached (last Ux {_fmt(s['last_ux_mm'], '.4g', ' mm')})"))
     lines = [
         (f"initial stiffness {_fmt(s['initial_stiffness_kN_mm'], '.4g', ' kN/mm')} (secant "
          f"between {_fmt(s['stiffness_force_low_kN'], '.4g')} and "
-         f"{_fmt(s['stiffness_force_high_kN'], '.4g')} kN, 10 % and 40 % of the peak)"),
-        f"peak force {_fmt(s['peak_force_kN'], '.4g', ' kN')} at Ux "
-        f"{_fmt(s['ux_at_peak_mm'], '.4g', ' mm')}; force at Ux = "
-        f"{_fmt(s['target_ux_mm'], '.4g', ' mm')}: "
-        + (_fmt(s["force_at_target_kN"], ".4g", " kN") if s["target_reached"]
-           else f"not reached (last Ux {_fmt(s['last_ux_mm'], '.4g', ' mm')})"),
+         f"{_fmt(s['stiffness_force_high_kN'], '.4g')} kN, 10 % and 40 % of the "
+         + ("first branch's largest force)" if cyclic else "peak)")),
+        peak,
         f"steps not converged {s['unconverged_steps']} (worst residual "
         f"{_fmt(s['worst_residual'], '.2e')}"
         + (f"; {s['steps_with_failed_gauss_points']} with failed ENDO3D Gauss points"
@@ -490,6 +610,13 @@ def report_run(outdir: Path | str, log: Callable[[str], None],
     try:
         summary = summarize_run(outdir, curve)
         path = write_summary(outdir, summary)
+        if summary["history"] != "monotonic":
+            from masonry_nscd.io.runfolder import CSV
+
+            rows, envelope = run_cycles(curve if curve is not None else
+                                        read_curve_csv(Path(outdir) / CSV),
+                                        read_scene_info(outdir))
+            write_cycle_tables(outdir, rows, envelope)
     except Exception as exc:  # noqa: BLE001 (a bad report must not fail a finished run)
         log(f"summary not written: {type(exc).__name__}: {exc}")
         return None

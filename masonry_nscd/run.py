@@ -242,7 +242,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
                 rec.add_row(row)
             except RunFailure as exc:
                 raise failure(rep.step, rep.time, str(exc)) from exc
-            done = ux >= scene.target_m or rep.time >= scene.time_limit_s
+            done = scene.finished(ux, rep.time)
             stopped = not done and stop_when is not None and bool(stop_when(curve))
             done = done or stopped
             if rep.step % case.output.every_steps == 0 or done:

@@ -66,7 +66,8 @@ from masonry_nscd.sweep import (
 
 METHODS = ("morris", "sobol")
 #: Outputs of a run that can be analysed (keys of the run summary, unit in the name).
-OUTPUTS = ("peak_force_kN", "initial_stiffness_kN_mm", "force_at_target_kN", "ux_at_peak_mm")
+OUTPUTS = ("peak_force_kN", "initial_stiffness_kN_mm", "force_at_target_kN", "ux_at_peak_mm",
+           "peak_force_neg_kN", "dissipated_energy_J")  # the last two: cyclic histories
 MORRIS_LEVELS = 4
 INDEX_COLUMNS = {"morris": ("mu", "mu_star", "sigma", "mu_star_conf"),
                  "sobol": ("S1", "S1_conf", "ST", "ST_conf")}
@@ -232,7 +233,7 @@ def format_indices(method: str, rows: Sequence[dict[str, Any]]) -> list[str]:
 
 def output_unit(output: str) -> str:
     """``peak_force_kN`` -> ``kN``, ``initial_stiffness_kN_mm`` -> ``kN/mm``."""
-    for suffix, unit in (("_kN_mm", "kN/mm"), ("_kN", "kN"), ("_mm", "mm")):
+    for suffix, unit in (("_kN_mm", "kN/mm"), ("_kN", "kN"), ("_mm", "mm"), ("_J", "J")):
         if output.endswith(suffix):
             return unit
     return ""

@@ -10,6 +10,7 @@
       wall.pvd, vtu/              ParaView time series: blocks_NNNNNN.vtu, joints_NNNNNN.vtu
       checkpoint.npz              the state at the last output step (``masonry run --resume``)
       summary.json                stiffness, peak, damages (written at the end)
+      cycles.csv, envelope.csv    per cycle, and the envelope (cyclic and tabulated histories)
       run.log
 """
 
@@ -31,6 +32,8 @@ PVD = "wall.pvd"
 VTU_DIR = "vtu"
 CHECKPOINT = "checkpoint.npz"
 SUMMARY = "summary.json"
+CYCLES = "cycles.csv"
+ENVELOPE = "envelope.csv"
 LOG = "run.log"
 
 #: Columns of the CSV (units in the names; see the README).

@@ -12,7 +12,10 @@ the recorders, the summary and the plots need, so that none of them knows what w
   ``F_x,bottom``, ``F_y,bottom`` (``bottom``);
 * the load stages (name, start time) and the stage whose force-displacement curve the summary
   reads; dofs held from a time on (``Hold``: the top beam held in y once the vertical load is
-  on); the stop rule: the driven displacement reaching ``target_m``, or ``time_limit_s``;
+  on); the stop rule (:meth:`Scene.finished`): the driven displacement reaching ``target_m``
+  (a monotonic push), or the time reaching ``time_limit_s`` (the end of a cyclic or tabulated
+  history, where ``target_m`` is None; a guard for a push); the driven history (kind, end,
+  cycles: what the summary needs to cut the curve into cycles);
 * the solver settings, and per-point data to write out (the drawn joint properties of
   ``joint.scatter``).
 
@@ -88,10 +91,11 @@ class Scene:
     reactions: dict[str, int]  # "top", "bottom" -> body whose force on the others is reported
     stages: list[Stage]
     push_stage: str  # the stage whose F_x - U_x curve is summarised
-    target_m: float  # the run stops when U_x reaches it (m)
+    target_m: float | None  # the run stops when U_x reaches it (m; None: on time only)
     expected_end_s: float  # when the target should be reached (s; progress and step count)
     time_limit_s: float  # the run stops at this time in any case (s)
     holds: list[Hold] = field(default_factory=list)
+    history: dict[str, Any] = field(default_factory=lambda: {"kind": "monotonic"})
     builder: str = ""
     point_fields: dict[str, np.ndarray] = field(default_factory=dict)  # per point, written out
     meta: dict[str, Any] = field(default_factory=dict)  # builder's values for the summary
@@ -104,6 +108,14 @@ class Scene:
             if t >= st.start_s:
                 name = st.name
         return name
+
+    def finished(self, ux: float, t: float) -> bool:
+        """The stop rule after a step ending at ``t`` (s) with the driven displacement ``ux``
+        (m): ``ux >= target_m`` when there is a target, or ``t >= time_limit_s`` (within a
+        millionth of a step, for the time summed step by step)."""
+        if self.target_m is not None and ux >= self.target_m:
+            return True
+        return t >= self.time_limit_s - 1e-6 * self.solver.h
 
     def holds_at(self, t: float) -> tuple[Hold, ...]:
         """The holds active in a step that starts at ``t`` (s) (it ends after ``from_s``)."""
@@ -164,6 +176,7 @@ class Scene:
             "stages": [{"name": s.name, "start_s": s.start_s} for s in self.stages],
             "push_stage": self.push_stage, "target_m": self.target_m,
             "expected_end_s": self.expected_end_s, "time_limit_s": self.time_limit_s,
+            "history": self.history,
             "contact_solver": self.solver.method,
             "driven": {"body": name(self.driven),
                        "reference_m": [float(v) for v in self.bodies[self.driven].reference]},

@@ -8,9 +8,10 @@ running, stack or pattern bond, openings, lintels), each a block meshed with
 
 The rig: two rigid steel beams 0.2 m tall, as long as the wall. The lower one is fixed. The
 upper one has the mass ``supports.top_beam_mass_kg`` (centre 0.1 m above the wall), an in-plane
-rotational inertia of a 0.2 m tall beam as long as the wall; its x velocity follows the ramp
-of the horizontal stage at its reference point, ``supports.load_height_m`` above the wall
-(``U_x`` is that point's displacement), its z and out-of-plane rotations are held, its in-plane
+rotational inertia of a 0.2 m tall beam as long as the wall; its x velocity follows the
+history of the horizontal stage (monotonic, cyclic or tabulated,
+:mod:`masonry_nscd.loading.histories`) at its reference point, ``supports.load_height_m`` above
+the wall (``U_x`` is that point's displacement), its z and out-of-plane rotations are held, its in-plane
 rotation is held or free (``supports.top_rotation``), and in y it carries the vertical stress
 times the wall's plan area (``load``), is held (``fixed``), or carries it and is then held from
 the start of the horizontal stage (``load_then_fixed``). Gravity acts on the units only.
@@ -92,8 +93,8 @@ def build_wall(case) -> Scene:
     lower = RigidBody.fixed(center=(length / 2, -BEAM_HEIGHT_M / 2, t / 2), name="lower beam",
                             X=Xl, conn=cl)
     hz = ld.horizontal
-    imposed = {X: Ramp(hz.rate_m_s, hz.start_s, hz.ramp_s), Z: at_rest, 3: at_rest, 4: at_rest,
-               ROT_Z: at_rest}
+    history = hz.displacement_history()  # monotonic: Ramp(rate, start, ramp), as before
+    imposed = {X: history.velocity, Z: at_rest, 3: at_rest, 4: at_rest, ROT_Z: at_rest}
     if sup.top_vertical == "fixed":
         imposed[Y] = at_rest
     if sup.top_rotation == "free":
@@ -159,6 +160,10 @@ def build_wall(case) -> Scene:
         from masonry_nscd.materials.point_driver import params_from_case
 
         endo = params_from_case(case)
+    if history.end_s is None:  # monotonic: stop on the displacement (the time as a guard)
+        target, end, limit = hz.target_m, ld.end_time_s, ld.end_time_s + 0.5 * hz.ramp_s
+    else:  # cyclic, table: stop when the motion is over
+        target, end, limit = None, history.end_s, history.end_s
     solver = SolverSettings(
         h=sol.time_step_s, theta=sol.theta, tolerance=sol.tolerance,
         max_iterations=sol.max_iterations, check_every=sol.check_every,
@@ -173,8 +178,8 @@ def build_wall(case) -> Scene:
         reactions={"top": i_up, "bottom": i_low},
         stages=[Stage("gravity", 0.0), Stage("vertical", ld.vertical_stress.start_s),
                 Stage("horizontal", hz.start_s)],
-        push_stage="horizontal", target_m=hz.target_m, expected_end_s=ld.end_time_s,
-        time_limit_s=ld.end_time_s + 0.5 * hz.ramp_s, holds=holds,
+        push_stage="horizontal", target_m=target, expected_end_s=end, time_limit_s=limit,
+        holds=holds, history=history.info(),
         meta={"joint_thickness_m": j, "wall_length_m": length, "wall_height_m": height,
               "contact_point_rule": case.contact_point_rule},
     )
