@@ -53,6 +53,27 @@ class Ramp:
         return self.value * smooth_step(t, self.start, self.duration)
 
 
+def step_velocity(history: History, t0: float, t1: float, theta: float, v0: float) -> float:
+    r"""The imposed velocity at the end of a step from ``t0`` to ``t1`` (s), given ``v0`` (m/s)
+    at its start.
+
+    A history that knows its displacement ``U(t)`` (a ``displacement`` method, m: the cyclic
+    and tabulated paths) gets the velocity that moves the dof by exactly ``U(t1) - U(t0)``
+    under the theta scheme ``u1 = u0 + h (theta v1 + (1 - theta) v0)``:
+
+        v1 = ((U(t1) - U(t0)) / h - (1 - theta) v0) / theta,     h = t1 - t0,
+
+    so the driven point stays on its path however the steps are subdivided (sampling the
+    velocity at ``t1`` integrates the reversals' ramps with an error that grows with each
+    subdivided step). Any other history is sampled, ``v1 = history(t1)``: the monotonic push
+    as the study made it."""
+    displacement = getattr(history, "displacement", None)
+    if displacement is None:
+        return history(t1)
+    mean = (displacement(t1) - displacement(t0)) / (t1 - t0)
+    return (mean - (1.0 - theta) * v0) / theta
+
+
 @dataclass
 class Loads:
     """External loads: ``F(t) = sum_k history_k(t) * pattern_k`` (N)."""

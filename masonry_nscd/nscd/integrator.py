@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from masonry_nscd.contact import laws
-from masonry_nscd.loading import Loads
+from masonry_nscd.loading import Loads, step_velocity
 from masonry_nscd.model import DOF_IMPOSED, ContactPoint, RigidBody
 from masonry_nscd.nscd import kernels
 from masonry_nscd.nscd.system import build_system
@@ -287,7 +287,7 @@ class Integrator:
         kernels.free_velocity(s.body_dof0, s.minv_off, s.minv, s.k_off, s.k, fint, self.v,
                               self._F0, F1, h, theta, v_free)
         for d, hist in self.imposed:
-            v_free[d] = hist(t1)
+            v_free[d] = step_velocity(hist, self.t, t1, theta, self.v[d])
         for free, imposed, C in self._coupled:
             v_free[free] += C @ (v_free[imposed] - self.v[imposed])
         U_free = np.empty((s.npt, 3))
