@@ -978,6 +978,12 @@ class Solver(_Section):
         description="a step that does not converge is made again as two of h/2, nested at most "
         "this many times (count; 0: never, the step is kept as it is)",
     )
+    halved_steps_after_failure: Whole = Field(
+        0, ge=0, le=64,
+        description="after a step made again as halves, the next this many steps are made as "
+        "halves at once, without the attempt at h, twice as many each time the attempt after "
+        "them fails again (count; 0: every step tries h first)",
+    )
 
     @model_validator(mode="after")
     def _check_iterations(self) -> Solver:

@@ -187,6 +187,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
                 holds = scene.holds_at(integ.t)
                 new = scene.integrator(integ.t)
                 restore_integrator(new, integrator_state(integ))
+                new._halve_next, new._halve_run = integ._halve_next, integ._halve_run
                 integ = new
                 fields = StepFields(scene, mesh, integ)
                 log(f"from t = {integ.t:.6g} s: " + ", ".join(
@@ -206,8 +207,10 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
             worst = max(worst, rep.residual)
             if rep.substeps > 1:
                 subdivided += 1
-                log(f"step {rep.step} (t = {rep.time:.4f} s): not converged with h = {h:g} s, "
-                    f"made again as {rep.substeps} smaller steps ("
+                why = (f"not converged with h = {h:g} s, made again" if rep.tried_h else
+                       "made at once")
+                log(f"step {rep.step} (t = {rep.time:.4f} s): {why} as {rep.substeps} smaller "
+                    f"steps ("
                     f"{'converged' if rep.converged else 'still not converged'})",
                     show=subdivided <= 5)
             if not rep.converged:

@@ -540,12 +540,15 @@ def test_solver_exception_is_a_clean_failure(tmp_path, monkeypatch):
     assert "Traceback" in (out / "run.log").read_text()
 
 
-def test_resumed_run_with_halved_steps_matches(tmp_path, monkeypatch):
+@pytest.mark.parametrize("after", [0, 2])
+def test_resumed_run_with_halved_steps_matches(tmp_path, monkeypatch, after):
     """The smoke wall with no vertical stress halves steps (tests/test_substeps.py); the
     half-step integrator is not checkpointed but built again on the first failure after the
-    resume, and the resumed run must reach the uninterrupted curve, its halved steps included."""
+    resume, and the resumed run must reach the uninterrupted curve, its halved steps included
+    (with ``halved_steps_after_failure``, the step control's memory is in the checkpoint)."""
     ref, out = _reference_and_interrupted(
-        tmp_path, monkeypatch, ["loading.vertical_stress.value_Pa=0", "output.vtu=false"], 75)
+        tmp_path, monkeypatch, ["loading.vertical_stress.value_Pa=0", "output.vtu=false",
+                                f"solver.halved_steps_after_failure={after}"], 75)
     assert read_resume_point(out).step == 70
     run_case(load_case(out / "case.yaml"), out, resume=True, **quiet)
     a, b = _curve(out), _curve(ref)

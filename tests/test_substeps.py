@@ -106,6 +106,37 @@ def test_a_step_that_diverges_is_halved_and_named_if_it_still_diverges(monkeypat
     assert sizes == [2e-3, 1e-3, 5e-4]  # each size once: the first half diverges at every one
 
 
+def test_after_a_failure_the_next_steps_are_halved_at_once(monkeypatch):
+    """``solver.halved_steps_after_failure: 2``: a step that fails at h (here steps 5 to 9,
+    forced) is made as halves; the next two steps are made as halves at once, without the
+    attempt at h; the attempt after them fails again, so the next run of halves is twice as
+    long; the first attempt at h that converges ends the memory."""
+    from masonry_nscd.nscd import integrator as integ_mod
+
+    orig = integ_mod.Integrator._step
+    tried: list[int] = []
+
+    def step(self):
+        if self.sys.h > 1.5e-3:
+            tried.append(self.step_index + 1)
+            if 5 <= self.step_index + 1 <= 9:
+                self.step_index += 1
+                raise integ_mod.DivergenceError(self.step_index, self.t + self.sys.h, "forced")
+        return orig(self)
+
+    monkeypatch.setattr(integ_mod.Integrator, "_step", step)
+    a = build_scene(load_case(SMOKE, ["solver.halved_steps_after_failure=2"])).integrator()
+    reps = [a.step() for _ in range(16)]
+    # h tried at 1-5, fails at 5 -> 6, 7 halved; tried at 8, fails -> 9 to 12 halved; tried
+    # at 13, converges; 14 to 16 at h again
+    assert tried == [1, 2, 3, 4, 5, 8, 13, 14, 15, 16]
+    assert [r.substeps for r in reps] == [1] * 4 + [2] * 8 + [1] * 4
+    assert [r.tried_h for r in reps] == [True] * 5 + [False] * 2 + [True] + [False] * 4 \
+        + [True] * 4
+    assert all(r.converged for r in reps) and a.step_index == 16
+    assert abs(a.t - 16 * 2e-3) < 1e-15
+
+
 def test_the_stiffest_springs_of_the_stress_test_converge_by_halving(tmp_path):
     """The stress test's 1e13 Pa/m springs left 9 of 100 steps above the tolerance at h (and 19
     at h/2 throughout); with the halving the variant must end ``ok`` (finite, converged, in

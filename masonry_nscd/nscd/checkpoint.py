@@ -6,6 +6,9 @@ What a checkpoint holds (SI units, as in the integrator):
 * ``t`` (s), ``step_index``: time and number of steps done;
 * ``F0`` (N): external forces at ``t`` (the start of the next step);
 * ``dv`` (m/s): the last impulse velocity correction, the warm start of the next contact solve;
+* ``halve_next``, ``halve_run``: how many of the next steps are to be made as halves at once,
+  and how many after the next failure at h (the step control's memory of recent failures,
+  ``Integrator.halve_after_failure``; absent in older checkpoints: no memory);
 * ``joint_u``, ``joint_U``, ``joint_uc``, ``joint_beta``, ``joint_T``, ``joint_status``: the
   :class:`~masonry_nscd.nscd.integrator.JointState` of every contact point (m, m/s, m, -, Pa,
   status code);
@@ -107,6 +110,9 @@ def restore_integrator(integ, state: Mapping[str, ArrayLike]) -> None:
     integ._dv = arr["dv"].astype(float, copy=True)
     integ.t = float(arr["t"])
     integ.step_index = int(arr["step_index"])
+    if "halve_next" in state:
+        integ._halve_next = int(np.asarray(state["halve_next"]))
+        integ._halve_run = int(np.asarray(state["halve_run"]))
 
 
 def save_checkpoint(path: str | os.PathLike[str], integ,
@@ -118,7 +124,8 @@ def save_checkpoint(path: str | os.PathLike[str], integ,
     """
     arrays: dict[str, NDArray] = {
         "format": np.array(FORMAT), "format_version": np.int64(FORMAT_VERSION),
-        **integrator_state(integ),
+        **integrator_state(integ), "halve_next": np.int64(integ._halve_next),
+        "halve_run": np.int64(integ._halve_run),
     }
     for k, v in (extra or {}).items():
         a = np.asarray(v)

@@ -28,12 +28,17 @@ wall (stress test): with no vertical stress 12 of 100 steps ended above the tole
 h, none at h/2 throughout; with 1e13 Pa/m springs 9 steps at h, 19 at h/2, none at h/4. A step
 still unconverged at the smallest size is reported (``StepReport.converged`` False) and the
 caller decides; NaN or infinity anywhere in the new state raises ``DivergenceError`` naming the
-step and what diverged.
+step and what diverged. After a step of h that had to be subdivided, the next
+``halve_after_failure`` steps of h skip the attempt at h and are made as halves at once (each
+half still halved again if it fails, without that memory); if the attempt at h after them fails
+again, the run of halved steps doubles (up to ``MAX_HALVE_RUN``), and it falls back to
+``halve_after_failure`` when an attempt at h converges. Failures come in runs while a mechanism
+forms, and each failed attempt at h costs a full Newton budget.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -55,6 +60,10 @@ class DivergenceError(RuntimeError):
         self.step, self.time, self.what = step, time, what
 
 
+#: the longest run of steps made as halves at once before h is tried again (count)
+MAX_HALVE_RUN = 64
+
+
 @dataclass(frozen=True)
 class StepReport:
     step: int
@@ -69,6 +78,8 @@ class StepReport:
     material_failure_at: tuple[float, float, float] | None = None
     # steps of h/2^k it was made of (1: not subdivided; see Integrator.max_halvings)
     substeps: int = 1
+    # False: made as halves at once, after an earlier step that did not converge at h
+    tried_h: bool = True
 
 
 @dataclass
@@ -103,6 +114,7 @@ class Integrator:
         endo3d_params: np.ndarray | None = None,
         endo3d_tau: float = 0.0,
         max_halvings: int = 0,
+        halve_after_failure: int = 0,
     ):
         if max_halvings < 0:
             raise ValueError(f"max_halvings must be >= 0, got {max_halvings}")
@@ -114,6 +126,14 @@ class Integrator:
                            "endo3d_tau": endo3d_tau,
                            "max_halvings": max_halvings - 1}
         self._half: Integrator | None = None
+        # after a step of h that did not converge, the next ``halve_after_failure`` steps are
+        # made straight away as two halves: the failed attempt costs a full Newton budget, and
+        # failures come in runs (a mechanism forming); ``_halve_next`` counts them down
+        if halve_after_failure < 0:
+            raise ValueError(f"halve_after_failure must be >= 0, got {halve_after_failure}")
+        self.halve_after_failure = int(halve_after_failure)
+        self._halve_next = 0
+        self._halve_run = self.halve_after_failure  # doubles while the failures go on
         self.bodies = bodies
         self.points = points
         self.params = np.ascontiguousarray(np.atleast_2d(params), dtype=float)
@@ -237,11 +257,19 @@ class Integrator:
         from masonry_nscd.nscd.checkpoint import integrator_state
 
         start = integrator_state(self)
+        if self._halve_next > 0:
+            self._halve_next -= 1
+            return replace(self._subdivide(start, None), tried_h=False)
         try:
             rep = self._step()
         except DivergenceError:  # a smaller step may not diverge
             rep = None
-        return rep if rep is not None and rep.converged else self._subdivide(start, rep)
+        if rep is not None and rep.converged:
+            self._halve_run = self.halve_after_failure
+            return rep
+        self._halve_next = self._halve_run
+        self._halve_run = min(2 * self._halve_run, MAX_HALVE_RUN)
+        return self._subdivide(start, rep)
 
     def _subdivide(self, start: dict, failed: StepReport | None) -> StepReport:
         """Make the step that began in state ``start`` again as two steps of h/2 (each of which

@@ -70,6 +70,7 @@ class SolverSettings:
     check_every: int = 5
     method: str = "newton"
     max_halvings: int = 0
+    halve_after_failure: int = 0
     endo3d_params: np.ndarray | None = None
     endo3d_tau: float = 0.0  # s
 
@@ -143,7 +144,8 @@ class Scene:
                           tolerance=s.tolerance, max_iterations=s.max_iterations,
                           check_every=s.check_every, method=s.method,
                           endo3d_params=s.endo3d_params, endo3d_tau=s.endo3d_tau,
-                          max_halvings=s.max_halvings)
+                          max_halvings=s.max_halvings,
+                          halve_after_failure=s.halve_after_failure)
 
     # --- read-outs ------------------------------------------------------------------------
     def driven_dofs(self, body_dof0: np.ndarray) -> tuple[int, int]:

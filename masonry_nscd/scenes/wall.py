@@ -168,7 +168,8 @@ def build_wall(case) -> Scene:
         h=sol.time_step_s, theta=sol.theta, tolerance=sol.tolerance,
         max_iterations=sol.max_iterations, check_every=sol.check_every,
         method=case.contact_solver,
-        max_halvings=sol.max_step_halvings, endo3d_params=endo,
+        max_halvings=sol.max_step_halvings, halve_after_failure=sol.halved_steps_after_failure,
+        endo3d_params=endo,
         endo3d_tau=blk.endo3d.relaxation_time_s)
     return Scene(
         name=case.name, builder="wall", bodies=bodies, points=points, groups=GROUPS,
