@@ -108,3 +108,126 @@ def test_free_rocking_impact_keeps_housners_fraction_of_angular_velocity():
     inertia = m * (width ** 2 + height ** 2) / 3.0  # about a corner (kg m^2)
     lost = impacts[k + 1] - impacts[k - 1]
     assert lost == pytest.approx(0.5 * inertia * (w1 ** 2 - w2 ** 2), rel=0.05)
+
+
+# --- the smoke wall on a moving base ------------------------------------------------------
+
+SMOKE = "cases/smoke.yaml"
+PGA = 3.0  # m/s^2
+
+
+@pytest.fixture(scope="module")
+def record(tmp_path_factory):
+    """One cycle of a 5 Hz sine of acceleration, 0.2 s, then 0.1 s of rest."""
+    t = np.round(np.arange(0.0, 0.3001, 0.005), 6)
+    a = np.where(t <= 0.2, PGA * np.sin(2 * np.pi * 5.0 * t), 0.0)
+    path = tmp_path_factory.mktemp("rec") / "pulse.csv"
+    path.write_text("time_s,acceleration_m_s2\n"
+                    + "".join(f"{x:g},{y:.9g}\n" for x, y in zip(t, a)))
+    return path
+
+
+def _run_wall(out, record, sets=()):
+    from typer.testing import CliRunner
+
+    from masonry_nscd.cli import app
+
+    args = ["run", SMOKE, "-o", str(out), "--set", "loading.horizontal.history=none",
+            "--set", f"loading.ground_motion={{file: {record}, start_s: 0.1}}",
+            "--set", "output.vtu=false"]
+    for s in sets:
+        args += ["--set", s]
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 0, res.output
+    import json
+
+    return json.loads((out / "summary.json").read_text())
+
+
+@pytest.mark.parametrize("top_beam", ["present", "absent"])
+def test_wall_on_a_moving_base_reports_drift_base_shear_and_energy(tmp_path, record, top_beam):
+    # the smoke wall (81 kg of units) glued to its base, with the 500 kg top beam or without it; far
+    # below sliding (mu N = 48 kN), and stiff (its period ~ 0.01 s against the 0.2 s pulse):
+    # it moves with the base, so the base shear is the mass times the base's acceleration
+    # and the drift (top relative to base) is a small fraction of the base's motion
+    sets = [] if top_beam == "present" else ["supports.top_beam=absent",
+                                             "loading.vertical_stress.value_Pa=0"]
+    s = _run_wall(tmp_path / "run", record, sets)
+    from masonry_nscd.io.runfolder import read_curve_csv
+
+    curve = read_curve_csv(tmp_path / "run" / "force_displacement.csv")
+    assert s["history"] == "ground_motion" and s["peak_force_kN"] is None
+    assert s["last_time_s"] == pytest.approx(0.1 + 0.3)
+    # courses of 3 x 0.3 m, 2 x 0.3 + 2 x 0.145 m, 3 x 0.3 m; units 0.1 x 0.15 m, 2000 kg/m^3
+    mass = (0.9 + 0.89 + 0.9) * 0.1 * 0.15 * 2000.0 + (500.0 if top_beam == "present" else 0.0)
+    assert abs(s["peak_base_shear_kN"]) == pytest.approx(1e-3 * mass * PGA, rel=0.02)
+    base = GroundMotion(*read_acceleration_record(record), start_s=0.1)
+    travel = max(abs(base.displacement(x)) for x in np.linspace(0.1, 0.4, 301))
+    assert travel > 2e-3  # the base moves by millimetres
+    assert abs(s["peak_drift_mm"]) < 0.02 * 1e3 * travel
+    if top_beam == "absent":
+        assert not np.any(curve["fx_kN"])  # no top beam, no force from it
+        assert "top course" in s["measured"]
+    assert s["energy_worst_relative_imbalance"] < 1e-6
+    assert s["energy"]["work_of_imposed_motions_J"] > 0.0
+
+
+def test_ground_motion_figure(tmp_path, record):
+    from masonry_nscd.plots import plot_runs
+
+    _run_wall(tmp_path / "run", record, ["output.hdf5=false"])
+    written, _ = plot_runs([tmp_path / "run"], tmp_path / "plots")
+    assert [p.name for p in written] == ["ground_motion_smoke.png"]
+
+
+@pytest.mark.parametrize(("data", "field"), [
+    ({"loading": {"ground_motion": {"file": "r.csv"}}}, "loading.horizontal.history"),
+    ({"loading": {"horizontal": {"history": "none"}}}, "loading.horizontal.history"),
+    ({"supports": {"top_beam": "absent"}, "loading": {"vertical_stress": {"value_Pa": 0}}},
+     "supports.top_beam"),
+    ({"supports": {"top_beam": "absent"}, "loading": {
+        "horizontal": {"history": "none"}, "ground_motion": {"file": "r.csv"}}},
+     "loading.vertical_stress.value_Pa"),
+    ({"supports": {"top_vertical": "load_then_fixed"}, "loading": {
+        "horizontal": {"history": "none"}, "ground_motion": {"file": "r.csv"}}},
+     "supports.top_vertical"),
+    ({"loading": {"horizontal": {"history": "none"},
+                  "ground_motion": {"file": "r.csv", "scale": 0}}},
+     "loading.ground_motion.scale"),
+    ({"loading": {"horizontal": {"history": "none"},
+                  "ground_motion": {"file": "r.csv", "direction": "z"}}},
+     "loading.ground_motion.direction"),
+])
+def test_ground_motion_case_errors_name_the_field(data, field):
+    from masonry_nscd.case import CaseError, case_from_dict
+
+    with pytest.raises(CaseError) as err:
+        case_from_dict(data)
+    assert any(m.startswith(field) for m in err.value.messages), err.value.messages
+
+
+def test_ground_motion_record_is_read_relative_to_the_case(tmp_path):
+    from masonry_nscd.case import CaseError, load_case
+
+    (tmp_path / "r.csv").write_text("time_s,acceleration_m_s2\n0,0\n0.1,1\n0.2,0\n")
+    (tmp_path / "c.yaml").write_text(
+        "loading:\n  horizontal: {history: none}\n  ground_motion: {file: r.csv, scale: 2}\n")
+    case = load_case(tmp_path / "c.yaml")
+    gm = case.loading.ground_motion
+    assert gm.file == str(tmp_path / "r.csv")
+    assert gm.history().peak_acceleration_m_s2 == 2.0
+    assert case.loading.end_time_s == pytest.approx(0.25 + 0.2)
+    (tmp_path / "r.csv").write_text("time_s,acceleration_m_s2\n0,0\n0.1,a\n")
+    with pytest.raises(CaseError, match="loading.ground_motion.file: .*line 3"):
+        load_case(tmp_path / "c.yaml")
+
+
+def test_bench_and_calibrate_refuse_a_ground_motion():
+    from masonry_nscd import bench, calibrate
+    from masonry_nscd.case import case_from_dict
+
+    case = case_from_dict({"loading": {"horizontal": {"history": "none"},
+                                       "ground_motion": {"file": "r.csv"}}})
+    for check in (bench.check_history, calibrate.check_history):
+        with pytest.raises(ValueError, match="loading.horizontal.history: got 'none'"):
+            check(case)

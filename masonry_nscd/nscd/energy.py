@@ -54,11 +54,14 @@ The terms, each from its own quantities:
   - numerical: the implicit (end-of-step) traction on the spring and the cohesion,
     ``T1 . (c T1 - c T0) - d(1/2 T . c T)`` and ``1/2 beta1 b |K^1/2 (u_c1 - u_c0)|^2``, both
     >= 0 (convex potentials), and the glue's work (its compliance of 1e-9, no physics);
-  - impacts: what the joint's work ``S T . du_m`` leaves after those, which is the impulses'
-    work on the jumps of relative velocity within a step: ``-(theta - 1/2) h S T . (U1 - U0)``
-    plus the solver's tolerance. For rigid contacts (``coulomb``) this is the whole
-    inelastic impact (normal and, for a sticking point, tangential); with a spring in series
-    it is the part of a joint's closure that the step does not resolve.
+  - what the joint's work ``S T . du_m`` leaves after those is the impulses' work on the
+    change of relative velocity within the step, ``-(theta - 1/2) h S T . (U1 - U0)`` (plus
+    the solver's tolerance). At a rigid contact (``coulomb``, no spring) the tractions are
+    impulsive and this is the inelastic impact, normal and, for a sticking point,
+    tangential: **impacts**. At a joint with a spring in series the traction is a function
+    of the displacement, its change over a step is smooth, and this term belongs with the
+    scheme's: **numerical** (with the bodies' term it makes ``(theta - 1/2) |dv|_M^2`` of the
+    smooth motion whole).
 
 Summed over the steps, (2) gives ``W_ext = KE + E_stored + D_joints + D_blocks + D_num`` up to
 the solvers' tolerance: the imbalance is a check of the state (``u, v, T`` consistent with
@@ -91,6 +94,12 @@ ENERGY_COLUMNS = [
     "dissipated_cohesion_J", "dissipated_impacts_J", "dissipated_blocks_J", "numerical_J",
     "imbalance_J", "relative_imbalance",
 ]
+
+
+def energy_row(step: int, time: float, balance: dict[str, float]) -> list:
+    """A row of ``energy.csv`` from :meth:`EnergyAccount.balance`."""
+    return [step, time] + [balance[c.removesuffix("_J")]
+                           for c in ENERGY_COLUMNS[2:]]
 
 
 class EnergyAccount:
@@ -136,6 +145,9 @@ class EnergyAccount:
         self.cn_t, self.cn_c, self.ct = P[:, P_CN_T], P[:, P_CN_C], P[:, P_CT]
         self.kI, self.kII = P[:, P_KI], P[:, P_KII]
         self.b = np.where(joint, P[:, P_B], 0.0)
+        # rigid contacts (no spring in series, law coulomb) and joints with a spring
+        self.rigid = joint & (self.cn_t == 0.0) & (self.cn_c == 0.0) & (self.ct == 0.0)
+        self.sprung = joint & ~self.rigid
 
     # --- pieces ---------------------------------------------------------------------------
     def mass_times(self, v: np.ndarray) -> np.ndarray:
@@ -205,9 +217,10 @@ class EnergyAccount:
         jt = self.joint
         acc[_I["cohesion"]] += float(S[jt] @ cohesion[jt])
         acc[_I["friction"]] += float(S[jt] @ friction[jt])
-        acc[_I["impact"]] += float(work[jt].sum() - S[jt] @ (dpsi + cohesion + num
-                                                               + friction)[jt])
-        acc[_I["numerical_joints"]] += float(S[jt] @ num[jt]) + float(work[self.glue].sum())
+        rest = work - S * (dpsi + cohesion + num + friction)
+        acc[_I["impact"]] += float(rest[self.rigid].sum())
+        acc[_I["numerical_joints"]] += (float(S[jt] @ num[jt]) + float(rest[self.sprung].sum())
+                                        + float(work[self.glue].sum()))
 
     # --- stored energies and the balance --------------------------------------------------
     def stored(self, integ) -> dict[str, float]:
