@@ -957,23 +957,20 @@ class GroundMotionStage(_Section):
         if (info.context or {}).get("check_files"):
             from masonry_nscd.loading.ground_motion import read_acceleration_record
 
-            try:
-                self._record = read_acceleration_record(self.file)
+            try:  # read to check it only: nothing kept, so the case compares equal to a
+                # copy read without its files
+                read_acceleration_record(self.file)
             except ValueError as exc:
                 _problems([("file", str(exc))])
         return self
 
-    _record: Any = PrivateAttr(None)
-
     def history(self):
         """The base's motion (:class:`masonry_nscd.loading.ground_motion.GroundMotion`),
-        scaled; the record read from ``file`` (ValueError naming the file and line if it
-        cannot be)."""
+        scaled; the record read from ``file`` at each call (ValueError naming the file and
+        line if it cannot be)."""
         from masonry_nscd.loading.ground_motion import GroundMotion, read_acceleration_record
 
-        if self._record is None:
-            self._record = read_acceleration_record(self.file)
-        t, a = self._record
+        t, a = read_acceleration_record(self.file)
         return GroundMotion(t, self.scale * a, self.start_s)
 
 
