@@ -310,13 +310,19 @@ CYCLIC_ERROR_COLUMNS = ("err_peak_force", "err_initial_stiffness", "err_envelope
 
 
 def check_history(case) -> None:
-    """Refuse a tabulated history (ValueError naming the field; the CLI exits with 2)."""
+    """Refuse a tabulated history and a ground motion (ValueError naming the field; the CLI
+    exits with 2)."""
     hz = case.loading.horizontal
     if hz.history == "table":
         raise ValueError(
             "loading.horizontal.history: got 'table'; masonry bench measures errors on a "
             "monotonic push to its target or on the cycles of a cyclic history, and a table "
             "need have neither: benchmark the case with a monotonic or cyclic history")
+    if hz.history == "none":
+        raise ValueError(
+            "loading.horizontal.history: got 'none' (a ground motion); masonry bench measures "
+            "errors on a monotonic push or on cycles: benchmark the wall with a monotonic or "
+            "cyclic history")
 
 
 def error_columns(rows: Sequence[BenchRow]) -> tuple[str, ...]:

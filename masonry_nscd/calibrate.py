@@ -114,6 +114,11 @@ def check_history(case) -> None:
     stiffness is a property of the wall, the same on the first branch of any history, so the
     value found with the monotonic push holds for the cyclic case."""
     hz = case.loading.horizontal
+    if hz.history == "none":
+        raise CalibrationError(
+            "loading.horizontal.history: got 'none' (a ground motion); calibrate measures the "
+            "initial stiffness on a monotonic push: calibrate the wall on its rig with a "
+            "monotonic case, then use the value in the ground-motion case")
     if hz.history != "monotonic":
         stray = {"cyclic": "amplitudes_m", "table": "file"}[hz.history]
         raise CalibrationError(

@@ -732,6 +732,11 @@ class Supports(_Section):
     steel beams (0: none, the wall glued to the beams as in the study; 1: the outer course at
     each end). A clamped course moves with its beam (its weight is the beam's), and the bed
     joint between it and the wall is a mortar joint of the joint law.
+
+    ``top_beam``: ``present`` (the rig), or ``absent``: no top beam, the wall stands free on
+    its base, for ``loading.ground_motion`` only (no vertical stress then, and no clamped
+    courses). Under ground motion a present top beam is free in x, carries the vertical stress
+    in y (``top_vertical: load``) and its mass, and rotates as ``top_rotation`` says.
     """
 
     top_vertical: Literal["load", "fixed", "load_then_fixed"] = Field(
@@ -752,6 +757,10 @@ class Supports(_Section):
     clamped_courses: Whole = Field(
         0, ge=0, le=10,
         description="courses embedded in each steel beam, bottom and top (count; 0: glued)",
+    )
+    top_beam: Literal["present", "absent"] = Field(
+        "present", description="the top steel beam: present (the rig), or absent (a "
+        "free-standing wall under loading.ground_motion)"
     )
 
 
@@ -805,11 +814,15 @@ class HorizontalStage(_Section):
     folder, and is written back resolved), linear between the rows, each row a corner rounded
     over ``ramp_s``; the table's time 0 is ``start_s + ramp_s / 2``; the run ends when the beam
     is at rest after the last row. ``target_m`` and ``rate_m_s`` are not used.
+
+    ``none``: no horizontal push (the top beam is free in x); required with, and only with,
+    ``loading.ground_motion``. The other fields are not used.
     """
 
-    history: Literal["monotonic", "cyclic", "table"] = Field(
+    history: Literal["monotonic", "cyclic", "table", "none"] = Field(
         "monotonic", description="displacement history: monotonic (push to target_m), cyclic "
-        "(amplitudes_m, cycles_per_amplitude) or table (file)"
+        "(amplitudes_m, cycles_per_amplitude), table (file), or none (no push: "
+        "loading.ground_motion moves the base)"
     )
     target_m: Real = Field(
         0.010, gt=0.0, le=10.0,
@@ -888,7 +901,7 @@ class HorizontalStage(_Section):
     def displacement_history(self):
         """The history (:class:`masonry_nscd.loading.histories.DisplacementHistory`): the
         beam's velocity, the end of the motion, the cycles. A table is read from ``file``
-        (ValueError naming the file and line if it cannot be)."""
+        (ValueError naming the file and line if it cannot be). None for ``none``."""
         from masonry_nscd.loading import histories as hs
 
         if self.history == "cyclic":
@@ -898,7 +911,67 @@ class HorizontalStage(_Section):
             if self._table is None:
                 self._table = hs.read_displacement_table(self.file)
             return hs.table(*self._table, self.start_s, self.ramp_s)
+        if self.history == "none":
+            return None
         return hs.monotonic(self.rate_m_s, self.start_s, self.ramp_s)
+
+
+class GroundMotionStage(_Section):
+    """An acceleration record applied to the base (:mod:`masonry_nscd.loading.ground_motion`):
+    the lower beam moves along ``direction`` with the record times ``scale`` integrated to its
+    velocity and displacement (piecewise-linear acceleration between the rows), the record's
+    time 0 at ``start_s``. ``file``: a CSV file with the header ``time_s,acceleration_m_s2``
+    (s, m/s^2), first time 0, times increasing; a relative path is relative to the case file's
+    folder and is written back resolved. The run ends at the record's last row (give the
+    record a quiet tail for the wall to come to rest: the residual drift is read at the end).
+    With a ground motion, ``loading.horizontal.history`` must be ``none``.
+    """
+
+    file: str = Field(
+        min_length=1, max_length=4096,
+        description="CSV file of time_s,acceleration_m_s2 (relative to the case file)",
+    )
+    scale: Real = Field(
+        1.0, gt=0.0, le=100.0, description="factor on the record's accelerations (dimensionless)"
+    )
+    direction: Literal["x", "y"] = Field(
+        "x", description="direction of the base motion: x (horizontal, in the wall's plane) or "
+        "y (vertical)"
+    )
+    start_s: Real = Field(
+        0.25, ge=0.0, le=1e6, description="run time of the record's time 0 (s)"
+    )
+
+    @field_validator("file")
+    @classmethod
+    def _resolve_file(cls, value: str, info: ValidationInfo) -> str:
+        """A relative path is made absolute from the case file's folder (validation context
+        ``case_dir``), as ``loading.horizontal.file``."""
+        base = (info.context or {}).get("case_dir")
+        if base is None or Path(value).is_absolute():
+            return value
+        return str((Path(base) / value).resolve())
+
+    @model_validator(mode="after")
+    def _check_file(self, info: ValidationInfo) -> GroundMotionStage:
+        if (info.context or {}).get("check_files"):
+            from masonry_nscd.loading.ground_motion import read_acceleration_record
+
+            try:  # read to check it only: nothing kept, so the case compares equal to a
+                # copy read without its files
+                read_acceleration_record(self.file)
+            except ValueError as exc:
+                _problems([("file", str(exc))])
+        return self
+
+    def history(self):
+        """The base's motion (:class:`masonry_nscd.loading.ground_motion.GroundMotion`),
+        scaled; the record read from ``file`` at each call (ValueError naming the file and
+        line if it cannot be)."""
+        from masonry_nscd.loading.ground_motion import GroundMotion, read_acceleration_record
+
+        t, a = read_acceleration_record(self.file)
+        return GroundMotion(t, self.scale * a, self.start_s)
 
 
 class Loading(_Section):
@@ -913,6 +986,9 @@ class Loading(_Section):
     horizontal: HorizontalStage = Field(
         default_factory=HorizontalStage, description="imposed horizontal displacement"
     )
+    ground_motion: GroundMotionStage | None = Field(
+        None, description="acceleration record applied to the base (null: none)"
+    )
 
     @property
     def end_time_s(self) -> float:
@@ -921,8 +997,12 @@ class Loading(_Section):
         displacement lags by about ``ramp_s / 2``; the solver itself stops when U_x reaches
         ``target_m``, so this is an estimate (exact for a ramp symmetric about its middle, when
         ``target_m`` is reached after the ramp). Cyclic and table: the end of the motion, when
-        the run stops."""
+        the run stops. Ground motion: the end of the record."""
+        if self.ground_motion is not None:
+            return float(self.ground_motion.history().end_s)
         h = self.horizontal
+        if h.history == "none":
+            return h.start_s
         if h.history != "monotonic":
             return float(h.displacement_history().end_s)
         return h.start_s + h.ramp_s / 2.0 + h.target_m / h.rate_m_s
@@ -1010,6 +1090,9 @@ class Output(_Section):
     )
     vtu: bool = Field(True, description="write VTU/PVD fields for ParaView (true/false)")
     hdf5: bool = Field(True, description="write results.h5 (true/false)")
+    energy: bool = Field(
+        True, description="compute the energy balance and write energy.csv (true/false)"
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1122,6 +1205,7 @@ class Case(_Section):
                     problems.append((f"wall.openings[{i}]", (
                         f"reaches into a clamped course (the wall between the beams spans y = "
                         f"{free[0]:.6g} to {free[1]:.6g} m)")))
+        problems += self._ground_motion_problems()
         if self.supports.top_vertical == "fixed" and stress != 0.0:
             problems.append(
                 (
@@ -1135,6 +1219,40 @@ class Case(_Section):
             )
         _problems(problems)
         return self
+
+
+    def _ground_motion_problems(self) -> list[tuple[str, str]]:
+        """The ground motion against the push, the top beam and the supports."""
+        problems: list[tuple[str, str]] = []
+        gm, hz, sup = self.loading.ground_motion, self.loading.horizontal, self.supports
+        if gm is not None and hz.history != "none":
+            problems.append(("loading.horizontal.history", (
+                f"got '{hz.history}' with loading.ground_motion; under ground motion the base "
+                "moves and the top beam is free in x, there is no horizontal push: set "
+                "history: none")))
+        if gm is None and hz.history == "none":
+            problems.append(("loading.horizontal.history", (
+                "got 'none' without loading.ground_motion; 'none' (no push) is for a ground "
+                "motion: give loading.ground_motion, or a history monotonic, cyclic or table")))
+        if sup.top_beam == "absent":
+            if gm is None:
+                problems.append(("supports.top_beam", (
+                    "got 'absent' without loading.ground_motion; the push needs the top beam: "
+                    "a wall without it is for a ground motion")))
+            if self.loading.vertical_stress.value_Pa != 0.0:
+                problems.append(("loading.vertical_stress.value_Pa", (
+                    f"got {self.loading.vertical_stress.value_Pa:.6g} Pa with "
+                    "supports.top_beam = 'absent'; no beam carries it: set 0")))
+            if sup.clamped_courses:
+                problems.append(("supports.clamped_courses", (
+                    f"got {sup.clamped_courses} with supports.top_beam = 'absent'; must be 0 "
+                    "(the wall stands glued on its base)")))
+        elif gm is not None and sup.top_vertical != "load":
+            problems.append(("supports.top_vertical", (
+                f"got '{sup.top_vertical}' with loading.ground_motion; under ground motion the "
+                "top beam carries the vertical stress and is otherwise free: use 'load' (or "
+                "supports.top_beam: absent)")))
+        return problems
 
 
 # ---------------------------------------------------------------------------------------------

@@ -75,7 +75,7 @@ def validate(
         f"({w.bond} bond{openings}, {w.wall_length_m:.3f} x {w.wall_height_m:.3f} m), "
         f"blocks {case.blocks.material}, joints {case.joint.law}, "
         f"sigma_N = {loading.vertical_stress.value_Pa / 1e6:g} MPa "
-        f"({case.vertical_force_N / 1e3:g} kN), {_history_text(loading.horizontal)}, "
+        f"({case.vertical_force_N / 1e3:g} kN), {_history_text(loading.horizontal, loading.ground_motion)}, "
         f"about {case.step_count} steps of {case.solver.time_step_s:g} s"
     )
     if print_case:
@@ -84,8 +84,11 @@ def validate(
         typer.echo(f"ok {summary}")
 
 
-def _history_text(hz) -> str:
-    """``U_x to 10 mm``, ``U_x cycles of +-1, 2 mm (2 per amplitude)``, ``U_x from FILE``."""
+def _history_text(hz, gm=None) -> str:
+    """``U_x to 10 mm``, ``U_x cycles of +-1, 2 mm (2 per amplitude)``, ``U_x from FILE``,
+    ``base motion x from FILE (x 1.5)``."""
+    if gm is not None:
+        return f"base motion {gm.direction} from {gm.file} (x {gm.scale:g})"
     if hz.history == "cyclic":
         amps = ", ".join(f"{1e3 * a:g}" for a in hz.amplitudes_m)
         return f"U_x cycles of +-{amps} mm ({hz.cycles_per_amplitude} per amplitude)"

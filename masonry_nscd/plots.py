@@ -19,6 +19,13 @@ Figures
     envelopes as ``|F_x|`` against ``|U_x|``, the negative one mirrored onto the positive, so
     that an asymmetry shows; the work done over each cycle (J, bars in the cycle's colour) with
     the equivalent viscous damping ratio (dots, right axis).
+``ground_motion_<run>.png`` (:func:`plot_ground_motion`, ground-motion runs)
+    Against time: the base acceleration (the record, scaled, when its file can be read), the
+    drift (``U_x``: the top relative to the base, peak and residual marked), the base shear
+    (``F_x,bottom``), and the energy terms of ``energy.csv`` (external work, kinetic, elastic,
+    dissipated by friction, cohesion, impacts and the blocks, numerical, and the imbalance);
+    beside them the base shear against the drift. A ground-motion run is left out of
+    ``force_displacement.png`` (it has no push).
 ``damage_<run>_ux_<U>mm.png`` (:func:`plot_damage_map`)
     The wall's face (x-y plane) at the output step of ``results.h5`` nearest to ``U_x = U``,
     element by element (each unit is 1 or more elements; the joints are the gaps between the
@@ -257,6 +264,80 @@ def plot_cycles(run: RunData, path: Path) -> Path | None:
 
 
 # ---------------------------------------------------------------------------------------------
+# Ground motion
+# ---------------------------------------------------------------------------------------------
+
+#: The energy terms drawn (columns of energy.csv) and their labels.
+ENERGY_CURVES = (("external_work_J", "external work"), ("kinetic_J", "kinetic"),
+                 ("elastic_blocks_J", "elastic, blocks"), ("elastic_joints_J", "elastic, joints"),
+                 ("dissipated_friction_J", "friction"), ("dissipated_cohesion_J", "cohesion"),
+                 ("dissipated_impacts_J", "impacts"), ("dissipated_blocks_J", "blocks (ENDO3D)"),
+                 ("numerical_J", "numerical (scheme)"))
+
+
+def is_ground_motion(run: RunData) -> bool:
+    return run.summary.get("history") == "ground_motion"
+
+
+def plot_ground_motion(run: RunData, path: Path) -> Path:
+    """Time histories of a ground-motion run (module docstring)."""
+    from matplotlib.figure import Figure
+
+    from masonry_nscd.io.runfolder import ENERGY
+
+    c, s = run.curve, run.summary
+    ok = c["converged"] != 0 if "converged" in c else np.ones(len(c["time_s"]), bool)
+    t = c["time_s"]
+    fig = Figure(figsize=(15, 10), layout="constrained")
+    grid = fig.add_gridspec(4, 2, width_ratios=[3, 2])
+    ax_a = fig.add_subplot(grid[0, 0])
+    ax_u, ax_f, ax_e = (fig.add_subplot(grid[i, 0], sharex=ax_a) for i in (1, 2, 3))
+    ax_h = fig.add_subplot(grid[:2, 1])
+    gm = run.case.loading.ground_motion
+    try:
+        g = gm.history()
+        tt = np.linspace(0.0, float(t[-1]) if len(t) else g.end_s, 4000)
+        ax_a.plot(tt, [g.acceleration(x) for x in tt], color="0.3", lw=0.8)
+        ax_a.set_title(f"{run.label}: base acceleration along {gm.direction} (record x "
+                       f"{gm.scale:g}, peak {g.peak_acceleration_m_s2:.3g} m/s$^2$)")
+    except (ValueError, AttributeError) as exc:
+        ax_a.set_title(f"{run.label}: base acceleration not drawn ({exc})")
+    ax_a.set_ylabel("base acceleration (m/s$^2$)")
+    ax_u.plot(t[ok], c["ux_mm"][ok], color="C0", lw=1.0)
+    if s.get("peak_drift_mm") is not None:
+        ax_u.plot(s["time_at_peak_drift_s"], s["peak_drift_mm"], "o", color="C3",
+                  label=f"peak {s['peak_drift_mm']:.3g} mm")
+        ax_u.axhline(s["residual_drift_mm"], color="C2", ls="--", lw=1,
+                     label=f"residual {s['residual_drift_mm']:.3g} mm")
+        ax_u.legend(fontsize=8, loc="best")
+    ax_u.set_ylabel("drift (mm)")
+    ax_u.set_title(f"drift: {s.get('measured') or 'U_x'}", fontsize=9)
+    ax_f.plot(t[ok], c["fx_bottom_kN"][ok], color="C1", lw=1.0)
+    ax_f.set_ylabel("base shear $F_{x,bottom}$ (kN)")
+    epath = run.outdir / ENERGY
+    if epath.exists():
+        e = read_curve_csv(epath)
+        for key, label in ENERGY_CURVES:
+            if key in e and np.abs(e[key]).max() > 0.0:
+                ax_e.plot(e["time_s"], e[key], lw=1.3 if key == "external_work_J" else 1.0,
+                          color="k" if key == "external_work_J" else None, label=label)
+        if "imbalance_J" in e:
+            ax_e.plot(e["time_s"], e["imbalance_J"], "k:", lw=1.0, label="imbalance")
+        ax_e.legend(fontsize=7, ncol=2, loc="upper left")
+        ax_e.set_title("energy balance (energy.csv): external work = the sum of the others",
+                       fontsize=9)
+    ax_e.set_ylabel("energy (J)")
+    ax_e.set_xlabel("time (s)")
+    ax_h.plot(c["ux_mm"][ok], c["fx_bottom_kN"][ok], color="C1", lw=0.8)
+    ax_h.set_xlabel("drift (mm)")
+    ax_h.set_ylabel("base shear (kN)")
+    ax_h.set_title("base shear against drift")
+    for ax in (ax_a, ax_u, ax_f, ax_e, ax_h):
+        ax.grid(True, alpha=0.3)
+    return _save(fig, path)
+
+
+# ---------------------------------------------------------------------------------------------
 # Damage maps
 # ---------------------------------------------------------------------------------------------
 
@@ -416,10 +497,15 @@ def plot_runs(outdirs: Sequence[Path | str], plot_dir: Path, at_mm: Sequence[flo
     """
     runs = [load_run(d) for d in outdirs]
     label_runs(runs)
-    written = [plot_curves(runs, plot_dir / "force_displacement.png", reference_kN_mm)]
+    pushed = [r for r in runs if not is_ground_motion(r)]
+    written = [plot_curves(pushed, plot_dir / "force_displacement.png", reference_kN_mm)] \
+        if pushed else []
     notes = []
     for run in runs:
-        if run.summary.get("history", "monotonic") != "monotonic":
+        if is_ground_motion(run):
+            written.append(plot_ground_motion(run, plot_dir / f"ground_motion_{_slug(run.label)}"
+                                                              ".png"))
+        elif run.summary.get("history", "monotonic") != "monotonic":
             png = plot_cycles(run, plot_dir / f"cycles_{_slug(run.label)}.png")
             if png is None:
                 notes.append(f"{run.outdir}: no completed cycle, no cycles figure")

@@ -41,6 +41,20 @@ Cyclic and tabulated histories (``history`` of ``scene.json``)
     the rows of ``cycles.csv`` and the envelope ``envelope.csv``
     (:mod:`masonry_nscd.post.cycles`, on the converged rows); ``cycles_completed`` and the
     sum of their ``dissipated_energy_J``.
+Ground motion (``history`` of kind ``ground_motion``)
+    ``ux_mm`` is the drift, the displacement of what the scene measures (the top beam's
+    reference point, or the centre of mass of the top course without a top beam) relative to
+    the moving base, and ``fx_bottom_kN`` the base shear (the force of the base on the wall).
+    The push's keys (peak force, stiffness, force at a target) are ``None``; instead, over the
+    converged rows of the ground-motion stage: ``peak_drift_mm`` (signed, the largest
+    ``|ux|``) and its time, ``peak_drift_ratio_percent`` (of the wall's height),
+    ``residual_drift_mm`` (the drift at the last row, the end of the record) and its ratio,
+    ``peak_base_shear_kN`` (signed, the largest ``|fx_bottom|``) and its time;
+    ``step_at_peak`` is the step of the peak drift (the failure mode "at the peak" is read
+    there).
+Energy balance (``energy.csv``, :mod:`masonry_nscd.nscd.energy`)
+    ``energy``: the terms at the last output step (J); ``energy_relative_imbalance`` there and
+    ``energy_worst_relative_imbalance`` over the output steps.
 Failure mode
     Named from the joint and block damage at the output step nearest the peak
     (``failure_mode_at_peak``) and at the last one (``failure_mode``): base sliding, rocking,
@@ -437,6 +451,62 @@ def _both_directions(curve: Mapping[str, Sequence[float]], start_s: float | None
     return out
 
 
+#: Keys of a push's summary that mean nothing under ground motion (``None`` there).
+PUSH_KEYS = ("peak_force_kN", "ux_at_peak_mm", "stiffness_force_low_kN",
+             "stiffness_force_high_kN", "stiffness_ux_low_mm", "stiffness_ux_high_mm",
+             "initial_stiffness_kN_mm", "force_at_target_kN", "target_ux_mm",
+             "peak_force_unconverged_kN")
+
+
+def ground_motion_summary(curve: Mapping[str, Sequence[float]], start_s: float | None,
+                          scene: Mapping[str, Any] | None) -> dict[str, Any]:
+    """Peak and residual drift and peak base shear of a ground-motion run (module
+    docstring), the push's keys set to ``None``."""
+    c = {k: np.asarray(v, dtype=float) for k, v in curve.items()}
+    i0 = horizontal_stage_start(c, start_s)
+    ok = c["converged"][i0:] != 0 if "converged" in c else np.ones(len(c["ux_mm"]) - i0, bool)
+    t, ux, fb = (c[k][i0:][ok] for k in ("time_s", "ux_mm", "fx_bottom_kN"))
+    steps = c["step"][i0:][ok]
+    height = float((scene or {}).get("wall_height_m") or 0.0)
+    history = scene_history(scene)
+    out: dict[str, Any] = dict.fromkeys(PUSH_KEYS)
+    out.update({"target_reached": False, "measured": (scene or {}).get("measured"),
+                "base_motion_direction": history.get("direction"),
+                "peak_base_acceleration_m_s2": history.get("peak_acceleration_m_s2"),
+                "record_scale": history.get("scale")})
+    keys = ("peak_drift_mm", "time_at_peak_drift_s", "peak_drift_ratio_percent",
+            "residual_drift_mm", "residual_drift_ratio_percent", "peak_base_shear_kN",
+            "time_at_peak_base_shear_s", "step_at_peak")
+    out.update(dict.fromkeys(keys))
+    if not len(ux):
+        return out
+    i, j = int(np.argmax(np.abs(ux))), int(np.argmax(np.abs(fb)))
+    ratio = (lambda mm: _num(100.0 * abs(mm) / (1e3 * height))) if height > 0 else \
+        (lambda mm: None)
+    out.update(peak_drift_mm=_num(ux[i]), time_at_peak_drift_s=_num(t[i]),
+               peak_drift_ratio_percent=ratio(ux[i]), residual_drift_mm=_num(ux[-1]),
+               residual_drift_ratio_percent=ratio(ux[-1]), peak_base_shear_kN=_num(fb[j]),
+               time_at_peak_base_shear_s=_num(t[j]), step_at_peak=int(steps[i]))
+    return out
+
+
+def read_energy(outdir: Path | str) -> dict[str, Any]:
+    """The energy balance of a run folder's ``energy.csv``: the terms of its last row (J),
+    its relative imbalance and the worst over the rows; ``{}`` without the file or rows."""
+    from masonry_nscd.io.runfolder import ENERGY
+
+    path = Path(outdir) / ENERGY
+    if not path.exists():
+        return {}
+    rows = read_curve_csv(path)
+    if not len(rows.get("step", [])):
+        return {}
+    last = {k: _num(v[-1]) for k, v in rows.items() if k not in ("step", "relative_imbalance")}
+    return {"energy": last,
+            "energy_relative_imbalance": _num(rows["relative_imbalance"][-1]),
+            "energy_worst_relative_imbalance": _num(rows["relative_imbalance"].max())}
+
+
 def compute_summary(curve: Mapping[str, Sequence[float]], *, target_ux_mm: float | None = None,
                     horizontal_start_s: float | None = None, fields: RunFields | None = None,
                     scene: Mapping[str, Any] | None = None,
@@ -448,10 +518,13 @@ def compute_summary(curve: Mapping[str, Sequence[float]], *, target_ux_mm: float
     A pure function: see the module docstring for the definitions. Keys carry their units.
     """
     history = scene_history(scene)
-    cyclic = history["kind"] != "monotonic"
+    ground = history["kind"] == "ground_motion"
+    cyclic = history["kind"] not in ("monotonic", "ground_motion")
     out = curve_summary(curve, target_ux_mm=target_ux_mm, horizontal_start_s=horizontal_start_s,
                         fractions=fractions, first_branch=cyclic)
     out["history"] = history["kind"]
+    if ground:
+        out.update(ground_motion_summary(curve, horizontal_start_s, scene))
     if cyclic:
         rows, _ = run_cycles(curve, scene)
         out.update(_both_directions(curve, horizontal_start_s, rows,
@@ -505,7 +578,7 @@ def summarize_run(outdir: Path | str,
     head = {"case_name": case.name, "block_material": case.blocks.material,
             "vertical_stress_MPa": case.loading.vertical_stress.value_Pa / 1e6,
             "vertical_force_kN": case.vertical_force_N / 1e3,
-            "horizontal_start_s": start, "stiffness_definition": (
+            "horizontal_start_s": start, **read_energy(outdir), "stiffness_definition": (
                 "secant between the first crossings of 10 % and 40 % of the peak force in the "
                 "horizontal stage, displacements interpolated linearly"
                 + ("" if summary["history"] == "monotonic" else
@@ -557,8 +630,15 @@ def _fmt(x: float | None, spec: str, unit: str = "") -> str:
 
 def format_summary(s: Mapping[str, Any]) -> list[str]:
     """A short human report of a summary, a few lines."""
-    cyclic = s.get("history", "monotonic") != "monotonic"
-    if cyclic:
+    cyclic = s.get("history", "monotonic") not in ("monotonic", "ground_motion")
+    if s.get("history") == "ground_motion":
+        peak = (f"peak drift {_fmt(s['peak_drift_mm'], '.4g', ' mm')} "
+                f"({_fmt(s['peak_drift_ratio_percent'], '.3g', ' %')} of the height) at t = "
+                f"{_fmt(s['time_at_peak_drift_s'], '.4g', ' s')}; residual drift "
+                f"{_fmt(s['residual_drift_mm'], '.4g', ' mm')}; peak base shear "
+                f"{_fmt(s['peak_base_shear_kN'], '.4g', ' kN')} at t = "
+                f"{_fmt(s['time_at_peak_base_shear_s'], '.4g', ' s')}")
+    elif cyclic:
         peak = (f"peak forces {_fmt(s['peak_force_pos_kN'], '.4g', ' kN')} at Ux "
                 f"{_fmt(s['ux_at_peak_pos_mm'], '.4g', ' mm')} and "
                 f"{_fmt(s['peak_force_neg_kN'], '.4g', ' kN')} at Ux "
@@ -571,11 +651,12 @@ def format_summary(s: Mapping[str, Any]) -> list[str]:
                 f"{_fmt(s['target_ux_mm'], '.4g', ' mm')}: "
                 + (_fmt(s["force_at_target_kN"], ".4g", " kN") if s["target_reached"]
                    else f"not reached (last Ux {_fmt(s['last_ux_mm'], '.4g', ' mm')})"))
-    lines = [
+    lines = [] if s.get("history") == "ground_motion" else [
         (f"initial stiffness {_fmt(s['initial_stiffness_kN_mm'], '.4g', ' kN/mm')} (secant "
          f"between {_fmt(s['stiffness_force_low_kN'], '.4g')} and "
          f"{_fmt(s['stiffness_force_high_kN'], '.4g')} kN, 10 % and 40 % of the "
-         + ("first branch's largest force)" if cyclic else "peak)")),
+         + ("first branch's largest force)" if cyclic else "peak)"))]
+    lines += [
         peak,
         f"steps not converged {s['unconverged_steps']} (worst residual "
         f"{_fmt(s['worst_residual'], '.2e')}"
@@ -586,6 +667,13 @@ def format_summary(s: Mapping[str, Any]) -> list[str]:
         + (f"; their largest force, left out of the peak: {s['peak_force_unconverged_kN']:.4g} kN"
            if s.get("peak_force_unconverged_kN") is not None else ""),
     ]
+    if s.get("energy"):
+        e = s["energy"]
+        lines.append(f"energy: external work {_fmt(e['external_work_J'], '.4g', ' J')}, "
+                     f"dissipated {_fmt(sum(e[k] for k in e if k.startswith('dissipated')), '.4g', ' J')}"
+                     f", numerical {_fmt(e['numerical_J'], '.4g', ' J')}; relative imbalance "
+                     f"{_fmt(s['energy_relative_imbalance'], '.2e')} (worst "
+                     f"{_fmt(s['energy_worst_relative_imbalance'], '.2e')}; energy.csv)")
     for name, e in (s.get("largest_damage") or {}).items():
         if e.get("where"):
             where = f" at {e['where']} (x {e['x_m']:.3f}, y {e['y_m']:.3f} m)"
@@ -610,7 +698,7 @@ def report_run(outdir: Path | str, log: Callable[[str], None],
     try:
         summary = summarize_run(outdir, curve)
         path = write_summary(outdir, summary)
-        if summary["history"] != "monotonic":
+        if summary["history"] not in ("monotonic", "ground_motion"):
             from masonry_nscd.io.runfolder import CSV
 
             rows, envelope = run_cycles(curve if curve is not None else

@@ -108,9 +108,12 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     of the CSV columns), ends the run early when it returns True (e.g. once a stiffness is
     measured, :mod:`masonry_nscd.calibrate`).
     """
+    import numpy as np
+
     from masonry_nscd.case import case_to_yaml
     from masonry_nscd.io.recorder import Recorder, StepOutput, read_resume_point
     from masonry_nscd.nscd.checkpoint import CheckpointError, integrator_state, restore_integrator
+    from masonry_nscd.nscd.energy import energy_row
     from masonry_nscd.nscd.integrator import DivergenceError
     from masonry_nscd.post.fields import OutputMesh, StepFields, von_mises
     from masonry_nscd.report import report_run
@@ -163,7 +166,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     out = case.output
     if point is None:
         rec = Recorder.start(outdir, case_yaml, scene.info(), arrays, vtu=out.vtu,
-                             hdf5=out.hdf5)
+                             hdf5=out.hdf5, energy=out.energy)
     else:
         rec = Recorder.resume(outdir, point, arrays, vtu=out.vtu, hdf5=out.hdf5)
     curve = rec.curve
@@ -172,7 +175,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     every = progress_every or max(1, n_est // 40)
     unconverged, worst = (point.unconverged, point.worst_residual) if point else (0, 0.0)
     subdivided = 0  # steps made again as smaller ones (the log shows the first five)
-    ux_dof, uy_dof = scene.driven_dofs(s.body_dof0)
+    (mx, wx), (my, wy) = scene.measured_dofs(s.body_dof0)
     weights = scene.reaction_weights(s.side_body)
     holds = scene.holds_at(integ.t)
 
@@ -234,8 +237,9 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
                         f"{rep.residual:.3g} (relative) per iteration, over {LOST_RESIDUAL:g}: no "
                         "solution worth recording (results kept up to the last output step)"))
             f = integ.point_forces()
-            top, bot = weights["top"] @ f, weights["bottom"] @ f
-            ux, uy = integ.u[ux_dof], integ.u[uy_dof]
+            top = weights["top"] @ f if "top" in weights else np.zeros(3)
+            bot = weights["bottom"] @ f
+            ux, uy = float(wx @ integ.u[mx]), float(wy @ integ.u[my])
             damage = fields.block_damage()
             dj, db, dcpp = fields.largest(damage)
             row = [rep.step, rep.time, 1e3 * ux, 1e-3 * top[0], 1e3 * uy, 1e-3 * top[1],
@@ -261,9 +265,13 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
                         **{f"element_{k}": v for k, v in damage.items()},
                         "joint_u_m": j.u, "joint_uc_m": j.uc, "joint_beta": j.beta,
                         "joint_T_Pa": j.T, "joint_status": j.status})
+                acct = integ.energy_account
+                energy = None if acct is None else acct.balance(integ)
                 try:  # the writers refuse NaN/inf (ValueError naming the field)
                     rec.write_output(rep.step, rep.time, step_out, integ, done=done,
-                                     unconverged=unconverged, worst_residual=worst)
+                                     unconverged=unconverged, worst_residual=worst,
+                                     energy_row=None if energy is None else
+                                     energy_row(rep.step, rep.time, energy))
                 except ValueError as exc:
                     raise failure(rep.step, rep.time, f"{exc} (not written)") from exc
             if rep.step % every == 0 or done:
@@ -291,6 +299,14 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     log(f"done: {integ.step_index} steps in {secs:.1f} s, Ux {1e3 * ux:.4f} mm, "
         f"Fx {1e-3 * top[0]:.3f} kN; {unconverged} steps not converged "
         f"(worst residual {worst:.2e})")
+    if integ.energy_account is not None:
+        e = integ.energy_account.balance(integ)
+        log(f"energy: external work {e['external_work']:.6g} J = kinetic {e['kinetic']:.4g} "
+            f"+ elastic {e['elastic_blocks'] + e['elastic_joints']:.4g} + dissipated "
+            f"(friction {e['dissipated_friction']:.4g}, cohesion {e['dissipated_cohesion']:.4g}, "
+            f"impacts {e['dissipated_impacts']:.4g}, blocks {e['dissipated_blocks']:.4g}) + "
+            f"numerical {e['numerical']:.4g} J; imbalance {e['imbalance']:.3g} J "
+            f"(relative {e['relative_imbalance']:.2e})")
     report_run(outdir, log)
     log.close()
     return RunResult(integ.step_index, 1e3 * ux, 1e-3 * top[0], secs, unconverged, outdir,

@@ -173,9 +173,18 @@ def test_resume_drops_what_was_written_after_the_checkpoint(tmp_path, monkeypatc
     assert (out / "vtu" / "blocks_000030.vtu").exists()
     monkeypatch.setattr(ck, "save_checkpoint", orig)
 
+    energy = (out / "energy.csv").read_text().splitlines()
+    assert [int(r.split(",")[0]) for r in energy[1:]] == [10, 20, 30]
     run_case(load_case(out / "case.yaml"), out, resume=True, **quiet)
     _assert_same_curve(_curve(out), _curve(reference))
     assert [s.step for s in read_results(out / "results.h5")["steps"]] == list(range(10, 101, 10))
+    # the energy rows after the checkpoint dropped and made again; the balance carried on
+    mine = (out / "energy.csv").read_text().splitlines()
+    ref = (reference / "energy.csv").read_text().splitlines()
+    assert [int(r.split(",")[0]) for r in mine[1:]] == list(range(10, 101, 10))
+    a = np.array([[float(x) for x in r.split(",")] for r in mine[1:]])
+    b = np.array([[float(x) for x in r.split(",")] for r in ref[1:]])
+    assert np.allclose(a[:, 2:-2], b[:, 2:-2], rtol=1e-5, atol=1e-9)
 
 
 def test_resumed_endo3d_run_matches_within_the_solver_tolerance(tmp_path, monkeypatch):

@@ -3,6 +3,8 @@ r"""The recorder: everything a run writes into its folder, behind one interface.
 * ``case.yaml`` and ``scene.json`` at the start (:mod:`masonry_nscd.io.runfolder`);
 * ``force_displacement.csv``: a row per step (:meth:`Recorder.add_row`), written to the file
   (and fsynced) at output steps, whole rows only: after a failed write the file is cut back;
+* ``energy.csv``: a row per output step (the energy balance, ``nscd/energy.py``), appended
+  and fsynced before the checkpoint;
 * at output steps (:meth:`Recorder.write_output`): the VTU files of the blocks and of the joint
   points and the PVD collection, the HDF5 step and curve, then ``checkpoint.npz``: the
   integrator's state plus what the run needs to continue its outputs (the step, whether the run
@@ -16,7 +18,8 @@ file ever holds one.
 Resuming (``masonry run --resume OUTDIR``): :func:`read_resume_point` reads the checkpoint;
 :meth:`Recorder.resume` puts the folder back to it before the run steps on: the CSV cut back to
 the rows of steps ``1..step`` (rewritten atomically) and read back as the curve so far,
-``results.h5`` reopened without the output steps written after the checkpoint, ``wall.pvd``
+``energy.csv`` cut back to the rows of steps up to it, ``results.h5`` reopened without the
+output steps written after the checkpoint, ``wall.pvd``
 rewritten from the checkpoint's entries and the VTU files of later steps deleted. Whatever was
 written between the checkpoint and the interruption is discarded, and written again.
 """
@@ -118,6 +121,24 @@ def truncate_csv(path: str | os.PathLike[str], step: int, columns: list[str]) ->
     return curve
 
 
+def truncate_energy_csv(path: str | os.PathLike[str], step: int) -> None:
+    """Cut ``energy.csv`` back to its rows of steps up to ``step`` (rewritten atomically); a
+    missing file (a run folder written before it existed) is left missing."""
+    path = Path(path)
+    try:
+        lines = path.read_text().splitlines(keepends=True)
+    except FileNotFoundError:
+        return
+    kept = lines[:1]
+    for line in lines[1:]:
+        head = line.split(",", 1)[0]
+        if not line.endswith("\n") or not head.isdigit() or int(head) > step:
+            break
+        kept.append(line)
+    if len(kept) != len(lines):
+        atomic_write(path, lambda p: Path(p).write_text("".join(kept)))
+
+
 def prune_vtu(vtu_dir: str | os.PathLike[str], step: int) -> int:
     """Delete the VTU files of output steps after ``step``; return how many were deleted."""
     removed = 0
@@ -155,6 +176,7 @@ class Recorder:
         self.h5_path = self.outdir / rf.RESULTS
         self.pvd_path = self.outdir / rf.PVD
         self.ckpt_path = self.outdir / rf.CHECKPOINT
+        self.energy_path = self.outdir / rf.ENERGY
         self.h5 = None
         self.pvd: list[tuple[float, str, int]] = []
         self.curve: dict[str, list] = {c: [] for c in rf.CSV_COLUMNS}
@@ -165,7 +187,8 @@ class Recorder:
     # --- opening ----------------------------------------------------------------------------
     @classmethod
     def start(cls, outdir: Path, case_yaml: str, scene_info: dict[str, Any],
-              mesh: dict[str, np.ndarray], *, vtu: bool, hdf5: bool) -> Recorder:
+              mesh: dict[str, np.ndarray], *, vtu: bool, hdf5: bool,
+              energy: bool = True) -> Recorder:
         """A new run in ``outdir`` (already prepared, :func:`runfolder.prepare_outdir`):
         ``case.yaml``, ``scene.json``, ``results.h5`` with ``mesh`` (``nodes_m``, ``hexes``,
         ``contact_points_m``...), the CSV header."""
@@ -184,6 +207,12 @@ class Recorder:
                 self.h5 = ResultsFile(self.h5_path, case_yaml, mesh)
         self._open_csv(append=False)
         self._writer.writerow(rf.CSV_COLUMNS)
+        from masonry_nscd.nscd.energy import ENERGY_COLUMNS
+
+        with writing(self.energy_path):
+            self.energy_path.unlink(missing_ok=True)
+            if energy:
+                self.energy_path.write_text(",".join(ENERGY_COLUMNS) + "\n")
         return self
 
     @classmethod
@@ -204,6 +233,10 @@ class Recorder:
         except (CheckpointError, ValueError) as exc:
             raise RunInputError(f"cannot resume the outputs in {outdir}: {exc}") from exc
         except OSError as exc:  # unreadable, flagged as open for write, or disk full
+            raise RunOutputError(f"cannot resume the outputs in {outdir}: {exc}") from exc
+        try:
+            truncate_energy_csv(self.energy_path, point.step)
+        except OSError as exc:
             raise RunOutputError(f"cannot resume the outputs in {outdir}: {exc}") from exc
         self.pvd = list(point.pvd)
         if vtu:
@@ -248,12 +281,23 @@ class Recorder:
         self._pending.truncate()
 
     def write_output(self, step: int, time: float, out: StepOutput, integ, *, done: bool,
-                     unconverged: int, worst_residual: float) -> None:
-        """An output step: the CSV rows so far, VTU + PVD, HDF5 step and curve, checkpoint.
-        A NaN or infinity in a field raises ValueError naming it (nothing of it written)."""
+                     unconverged: int, worst_residual: float,
+                     energy_row: list | None = None) -> None:
+        """An output step: the CSV rows so far, the energy row, VTU + PVD, HDF5 step and
+        curve, checkpoint. A NaN or infinity in a field raises ValueError naming it (nothing of
+        it written)."""
         from masonry_nscd.io.vtu import write_blocks_vtu, write_points_vtu, write_pvd
 
         self.flush_rows()
+        if energy_row is not None:
+            if not all(math.isfinite(v) for v in energy_row):
+                raise ValueError("energy balance not finite")
+            line = ",".join(f"{v:.9g}" if isinstance(v, float) else str(v)
+                            for v in energy_row) + "\n"
+            with writing(self.energy_path), open(self.energy_path, "a") as f:
+                f.write(line)
+                f.flush()
+                os.fsync(f.fileno())
         if self.vtu:
             files = (rf.vtu_file("blocks", step), rf.vtu_file("joints", step))
             with writing(self.outdir / files[0]):

@@ -6,6 +6,7 @@
       case.yaml                   the case as run, every default filled in
       scene.json                  what the scene builder declared (groups, stages, bodies...)
       force_displacement.csv      one row per step
+      energy.csv                  the energy balance, one row per output step
       results.h5                  mesh, per output step the states, the curve
       wall.pvd, vtu/              ParaView time series: blocks_NNNNNN.vtu, joints_NNNNNN.vtu
       checkpoint.npz              the state at the last output step (``masonry run --resume``)
@@ -27,6 +28,7 @@ from masonry_nscd.errors import RunInputError
 CASE = "case.yaml"
 SCENE = "scene.json"
 CSV = "force_displacement.csv"
+ENERGY = "energy.csv"
 RESULTS = "results.h5"
 PVD = "wall.pvd"
 VTU_DIR = "vtu"

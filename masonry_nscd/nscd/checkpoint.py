@@ -12,6 +12,8 @@ What a checkpoint holds (SI units, as in the integrator):
 * ``joint_u``, ``joint_U``, ``joint_uc``, ``joint_beta``, ``joint_T``, ``joint_status``: the
   :class:`~masonry_nscd.nscd.integrator.JointState` of every contact point (m, m/s, m, -, Pa,
   status code);
+* ``energy`` (J): the accumulated terms of the energy balance (``nscd/energy.py``,
+  ``ACCUMULATED``); a checkpoint written before it was kept resumes with them at zero;
 * ``material_state``, ``material_sigma``, ``material_eps``: the committed ENDO3D Gauss-point
   states, apparent stresses (Pa) and strains of the ENDO3D blocks, when the scene has any (the
   strains are where the viscous regularisation relaxes from).
@@ -54,6 +56,7 @@ def integrator_state(integ) -> dict[str, NDArray]:
     out: dict[str, NDArray] = {
         "u": integ.u, "v": integ.v, "t": np.float64(integ.t),
         "step_index": np.int64(integ.step_index), "F0": integ._F0, "dv": integ._dv,
+        "energy": integ.energy,
     }
     j = integ.joints
     for name in _JOINT_FIELDS:
@@ -108,6 +111,10 @@ def restore_integrator(integ, state: Mapping[str, ArrayLike]) -> None:
     integ.v = arr["v"].astype(float, copy=True)
     integ._F0 = arr["F0"].astype(float, copy=True)
     integ._dv = arr["dv"].astype(float, copy=True)
+    if "energy" in state:
+        _put("energy", integ.energy, np.asarray(state["energy"]))
+    else:
+        integ.energy[...] = 0.0
     integ.t = float(arr["t"])
     integ.step_index = int(arr["step_index"])
     if "halve_next" in state:

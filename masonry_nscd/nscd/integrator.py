@@ -115,6 +115,7 @@ class Integrator:
         endo3d_tau: float = 0.0,
         max_halvings: int = 0,
         halve_after_failure: int = 0,
+        energy: bool = True,
     ):
         if max_halvings < 0:
             raise ValueError(f"max_halvings must be >= 0, got {max_halvings}")
@@ -124,7 +125,7 @@ class Integrator:
                            "max_iterations": max_iterations, "check_every": check_every,
                            "method": method, "endo3d_params": endo3d_params,
                            "endo3d_tau": endo3d_tau,
-                           "max_halvings": max_halvings - 1}
+                           "max_halvings": max_halvings - 1, "energy": energy}
         self._half: Integrator | None = None
         # after a step of h that did not converge, the next ``halve_after_failure`` steps are
         # made straight away as two halves: the failed attempt costs a full Newton budget, and
@@ -162,6 +163,7 @@ class Integrator:
         self.u = np.zeros(n)
         self.v = np.zeros(n)
         self.fint = np.zeros(n)
+        self._fint_u = None  # the displacement array self.fint was computed at (identity)
         self.joints = JointState(
             u=np.zeros((npt, 3)), U=np.zeros((npt, 3)), uc=np.zeros((npt, 3)),
             beta=np.broadcast_to(np.asarray(beta0, dtype=float), (npt,)).copy(),
@@ -194,6 +196,11 @@ class Integrator:
             self.newton = NewtonSolver(s, s.minv_off, s.mhat, tolerance,
                                        min(max_iterations, NEWTON_MAX_ITERATIONS), self.params)
             self.newton.on_slow = self._on_slow
+        # the energy balance (nscd/energy.py): its accumulated terms are part of the state
+        from masonry_nscd.nscd.energy import ACCUMULATED, EnergyAccount
+
+        self.energy = np.zeros(len(ACCUMULATED))
+        self.energy_account = EnergyAccount(self) if energy else None
 
     # --- one step -----------------------------------------------------------------------
     def internal_forces(self) -> np.ndarray:
@@ -202,6 +209,16 @@ class Integrator:
         kernels.elastic_forces(s.body_dof0, s.k_off, s.k, self.u, self.fint)
         if self.material is not None:
             self.material.internal_forces(self.u, self.fint, trial=False)
+        self._fint_u = self.u
+        return self.fint
+
+    def current_internal_forces(self) -> np.ndarray:
+        """The internal forces at the current displacements (N), computed once per state: the
+        end of a step computes them for the energy balance, and the next step starts from
+        them. A state put in by ``restore_integrator`` (a new ``u`` array) computes them
+        again."""
+        if self._fint_u is not self.u:
+            self.internal_forces()
         return self.fint
 
     def _update_tangent(self) -> None:
@@ -310,7 +327,9 @@ class Integrator:
         h, theta = s.h, s.theta
         t1 = self.t + h
         F1 = self.loads.at(t1, s.ndof)
-        fint = self.internal_forces()
+        fint = self.current_internal_forces()
+        if self.energy_account is not None:
+            fint = fint.copy()  # the end of the step computes those at u1 into self.fint
         v_free = np.empty(s.ndof)
         kernels.free_velocity(s.body_dof0, s.minv_off, s.minv, s.k_off, s.k, fint, self.v,
                               self._F0, F1, h, theta, v_free)
@@ -357,6 +376,7 @@ class Integrator:
         if not (np.isfinite(u1).all() and np.isfinite(v1).all() and np.isfinite(T).all()):
             what = "body velocities" if not np.isfinite(v1).all() else "contact tractions"
             raise DivergenceError(self.step_index, t1, what)
+        u0, v0, F0, j0 = self.u, self.v, self._F0, self.joints
         self.u, self.v, self.t, self._F0 = u1, v1, t1, F1
         failures, failure_at = 0, None
         if self.material is not None:
@@ -367,6 +387,10 @@ class Integrator:
                     failure_at = tuple(float(x) for x in self.material.point_centre(bad[0]))
             self.material.commit()
         self.joints = JointState(u=ul1, U=U1, uc=uc, beta=beta, T=T, status=status)
+        if self.energy_account is not None:
+            self.energy_account.step(self.energy, u0=u0, v0=v0, u1=u1, v1=v1, F0=F0, F1=F1,
+                                     fint0=fint, fint1=self.internal_forces(), j0=j0,
+                                     j1=self.joints)
         return StepReport(self.step_index, t1, int(sweeps), float(residual),
                           bool(residual <= self.tolerance and failures == 0), int(amb),
                           failures, failure_at)

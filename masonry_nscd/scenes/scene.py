@@ -7,9 +7,12 @@ the recorders, the summary and the plots need, so that none of them knows what w
   ``glue_bottom``...);
 * the structure: the bodies drawn and reported (the units), each with a name and the builder's
   place keys (``course``, ``position_in_course``, ...);
-* the driven body, whose reference point's displacement is the curve's ``U_x``, ``U_y``, and the
-  two bodies whose forces on the structure are reported as ``F_x``, ``F_y`` (``top``) and
-  ``F_x,bottom``, ``F_y,bottom`` (``bottom``);
+* the driven body, whose reference point's displacement is the curve's ``U_x``, ``U_y`` unless
+  the builder says what else is measured (``measured``: weighted sums of dofs, e.g. under
+  ground motion the drift, the top beam's point or the top course's centre of mass relative
+  to the moving base), and the bodies whose forces on the structure are reported as ``F_x``,
+  ``F_y`` (``top``; none when there is no top beam: zero) and ``F_x,bottom``, ``F_y,bottom``
+  (``bottom``);
 * the load stages (name, start time) and the stage whose force-displacement curve the summary
   reads; dofs held from a time on (``Hold``: the top beam held in y once the vertical load is
   on); the stop rule (:meth:`Scene.finished`): the driven displacement reaching ``target_m``
@@ -73,6 +76,7 @@ class SolverSettings:
     halve_after_failure: int = 0
     endo3d_params: np.ndarray | None = None
     endo3d_tau: float = 0.0  # s
+    energy: bool = True  # keep the energy balance (nscd/energy.py)
 
 
 @dataclass
@@ -100,6 +104,8 @@ class Scene:
     builder: str = ""
     point_fields: dict[str, np.ndarray] = field(default_factory=dict)  # per point, written out
     meta: dict[str, Any] = field(default_factory=dict)  # builder's values for the summary
+    # (dofs, weights) of U_x and of U_y, global dofs (None: the driven body's reference point)
+    measured: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None
 
     # --- what changes with time -----------------------------------------------------------
     def stage_at(self, t: float) -> str:
@@ -145,13 +151,22 @@ class Scene:
                           check_every=s.check_every, method=s.method,
                           endo3d_params=s.endo3d_params, endo3d_tau=s.endo3d_tau,
                           max_halvings=s.max_halvings,
-                          halve_after_failure=s.halve_after_failure)
+                          halve_after_failure=s.halve_after_failure, energy=s.energy)
 
     # --- read-outs ------------------------------------------------------------------------
     def driven_dofs(self, body_dof0: np.ndarray) -> tuple[int, int]:
-        """Global dofs of U_x and U_y (the driven body's reference point)."""
+        """Global dofs of the driven body's reference point, x and y."""
         d0 = int(body_dof0[self.driven])
         return d0, d0 + 1
+
+    def measured_dofs(self, body_dof0: np.ndarray):
+        """``((dofs, weights), (dofs, weights))``: ``U_x = weights . u[dofs]`` and ``U_y``
+        (``measured``, or the driven body's reference point)."""
+        if self.measured is not None:
+            return self.measured
+        ux, uy = self.driven_dofs(body_dof0)
+        one = np.ones(1)
+        return (np.array([ux]), one), (np.array([uy]), one)
 
     def reaction_weights(self, side_body: np.ndarray) -> dict[str, np.ndarray]:
         """Per reaction, the weight (+1, -1, 0) of each point's force on its candidate body in

@@ -11,7 +11,7 @@ import numpy as np
 
 from masonry_nscd.contact.laws import KIND_GLUED, KIND_JOINT, fczm
 from masonry_nscd.fe import hex8
-from masonry_nscd.loading import Loads, Ramp, at_rest
+from masonry_nscd.loading import Loads, Ramp, at_rest, smooth_step
 from masonry_nscd.model import Block, RigidBody, dof_offsets
 from masonry_nscd.model.detection import contact_points
 from masonry_nscd.model.faces import boundary_quads, quad_frame
@@ -229,3 +229,104 @@ def slender_block_pushed(*, width=0.1, height=0.4, depth=0.15, normal_force=2e3,
     integ = Integrator(bodies, pts, P, loads, h=h, theta=1.0, tolerance=tolerance,
                        max_iterations=20000, check_every=1, method=method)
     return integ, {"weight": W, "rotation_dof": 5}
+
+
+def block_launched(*, size=(0.3, 0.1, 0.15), divisions=(2, 2, 1), E=1e8, nu=0.2,
+                   density=2000.0, mu=0.3, lift=2.5, push=1.0, pulse=(0.0, 0.04),
+                   ramp=0.01, gravity=9.81, h=5e-4, tolerance=1e-8, theta=1.0,
+                   method: str = "nlgs", rigid: bool = False, max_halvings: int = 0):
+    """A block on a fixed support (rigid contact, law ``coulomb``, friction ``mu``) under its
+    weight from the start, launched by a force pulse: ``lift`` times its weight upwards and
+    ``push`` times its weight along +x, spread with its mass, from ``pulse[0]`` to
+    ``pulse[1]`` s with tanh ramps of ``ramp`` s at both ends. It flies, lands on the support
+    (an impact), bounces on its elastic modes and slides until friction stops it: every term
+    of the energy balance is exercised (``nscd/energy.py``). A soft block (``E``) so that its
+    strain energy and vibrations are resolved by the step."""
+    P = fczm.joint_params(law="coulomb", mu=mu)
+    support = _fixed_plate((size[0] / 2, -0.05, size[2] / 2), (4 * size[0], 0.1, size[2]))
+    if rigid:
+        body = RigidBody.box((0, 0, 0), size, density, divisions,
+                             imposed_velocity={d: at_rest for d in (2, 3, 4)}, name="block")
+    else:
+        body = Block.box((0, 0, 0), size, divisions, E=E, nu=nu, density=density, name="block")
+    bodies = [body, support]
+    n = int(dof_offsets(bodies)[-1])
+    pts = contact_points(bodies, _all_joints(), max_gap=0.0,
+                         rule="lobatto" if rigid else "gauss")
+    if rigid:
+        m = np.zeros(n)
+        m[:3] = body.mass
+        mass = body.mass
+    else:
+        m = np.zeros(n)
+        m[:body.ndof] = body.lumped_mass()
+        mass = float(m[0::3].sum())
+    loads = Loads()
+    G = np.zeros(n)
+    G[Y:body.ndof:3] = -gravity * m[Y:body.ndof:3]
+    loads.add(G, lambda t: 1.0)
+    Fp = np.zeros(n)
+    Fp[Y:body.ndof:3] = lift * gravity * m[Y:body.ndof:3]
+    Fp[X:body.ndof:3] = push * gravity * m[X:body.ndof:3]
+    if rigid:
+        Fp[3:6] = 0.0
+    t0, t1 = pulse
+    loads.add(Fp, lambda t: smooth_step(t, t0, ramp) - smooth_step(t, t1 - ramp, ramp))
+    integ = Integrator(bodies, pts, P, loads, h=h, theta=theta, tolerance=tolerance,
+                       max_iterations=20000, check_every=1, method=method,
+                       max_halvings=max_halvings)
+    return integ, {"mass": mass, "weight": mass * gravity}
+
+
+def rocking_block(*, width=0.2, height=0.8, depth=0.15, mu=0.8, record=None, tilt=0.0,
+                  gravity=9.81, h=1e-3, tolerance=1e-10, divisions=(1, 1, 1),
+                  method: str = "nlgs", theta: float = 1.0):
+    """A rigid block (2000 kg/m^3; ``width`` along x, ``height`` along y) standing on a rigid
+    base, rigid contact (law ``coulomb``, friction ``mu``) at the Gauss-Lobatto points of its
+    bottom face (its corners), under its weight from the start. The block is free in x, y and
+    the in-plane rotation (small rotations about its centre, ``info["rotation_dof"]``), its
+    other dofs held.
+
+    ``record``: an acceleration record ``(time_s, acceleration_m_s2)`` of the base along x
+    (:class:`masonry_nscd.loading.ground_motion.GroundMotion`, time 0 at t = 0): the base moves
+    with it. ``tilt`` (rad): the block starts rotated by ``tilt`` about its left bottom corner
+    (``tilt > 0`` lifts the right one), at rest, the relative displacements of the contact
+    points set to match. Housner's block: it rocks when the base acceleration exceeds
+    ``g b / h`` (``b``, ``h`` its half width and half height), and each impact multiplies the
+    angular velocity by ``1 - 1.5 sin^2(alpha)``, ``tan(alpha) = b / h``.
+    """
+    from masonry_nscd.loading.ground_motion import GroundMotion
+    from masonry_nscd.nscd import kernels
+
+    P = fczm.joint_params(law="coulomb", mu=mu)
+    base_geom = (6 * width, 0.1, depth)
+    c = np.array([width / 2, -0.05, depth / 2])
+    Xb, cb = hex8.box_mesh(c - 0.5 * np.asarray(base_geom), np.asarray(base_geom), (1, 1, 1))
+    motion = dict.fromkeys(range(6), at_rest)
+    ground = None
+    if record is not None:
+        ground = GroundMotion(*record)
+        motion[X] = ground
+    base = RigidBody(center=c, mass=1.0, inertia=np.ones(3), imposed_velocity=motion,
+                     X=Xb, conn=cb, support=True, name="base")
+    block = RigidBody.box((0, 0, 0), (width, height, depth), 2000.0, divisions,
+                          imposed_velocity={d: at_rest for d in (2, 3, 4)}, name="block")
+    bodies = [block, base]
+    n = int(dof_offsets(bodies)[-1])
+    pts = contact_points(bodies, _all_joints(), max_gap=0.0, rule="lobatto")
+    loads = Loads()
+    G = np.zeros(n)
+    G[:6] = block.weight_load(np.array([0.0, -gravity, 0.0]))
+    loads.add(G, lambda t: 1.0)
+    integ = Integrator(bodies, pts, P, loads, h=h, theta=theta, tolerance=tolerance,
+                       max_iterations=20000, check_every=1, method=method)
+    if tilt:
+        # rotation about the left bottom corner A: q_xy = -tilt z x (A - c)
+        hb, hh = width / 2, height / 2
+        integ.u[0], integ.u[1], integ.u[5] = -tilt * hh, tilt * hb, tilt
+        kernels.local_velocities(integ.sys.side_dofs, integ.sys.side_coef, integ.u,
+                                 integ.joints.u)
+    b, hh = width / 2, height / 2
+    return integ, {"mass": block.mass, "rotation_dof": 5, "ground": ground,
+                   "threshold_m_s2": gravity * b / hh,
+                   "housner_factor": 1.0 - 1.5 * b * b / (b * b + hh * hh)}

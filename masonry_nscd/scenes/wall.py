@@ -34,6 +34,7 @@ from masonry_nscd.contact.scatter import scatter_rows
 from masonry_nscd.fe import hex8
 from masonry_nscd.loading import Loads, Ramp, at_rest
 from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody, dof_offsets
+from masonry_nscd.model.bodies import body_mass
 from masonry_nscd.model.detection import find_joints, joint_points
 from masonry_nscd.scenes.layout import course_levels, unit_boxes, unit_divisions, wall_size
 from masonry_nscd.scenes.scene import Hold, Scene, SolverSettings, Stage
@@ -90,11 +91,22 @@ def build_wall(case) -> Scene:
     y_up = levels[last + 1][0] if last + 1 < w.courses else height  # bottom of the upper one
     Xl, cl = hex8.box_mesh(np.array([0.0, -BEAM_HEIGHT_M, 0.0]),
                            np.array([length, y_low + BEAM_HEIGHT_M, t]), (1, 1, 1))
-    lower = RigidBody.fixed(center=(length / 2, -BEAM_HEIGHT_M / 2, t / 2), name="lower beam",
-                            X=Xl, conn=cl)
+    gm = ld.ground_motion
     hz = ld.horizontal
-    history = hz.displacement_history()  # monotonic: Ramp(rate, start, ramp), as before
-    imposed = {X: history.velocity, Z: at_rest, 3: at_rest, 4: at_rest, ROT_Z: at_rest}
+    ground = gm.history() if gm is not None else None
+    if ground is None:
+        lower = RigidBody.fixed(center=(length / 2, -BEAM_HEIGHT_M / 2, t / 2),
+                                name="lower beam", X=Xl, conn=cl)
+        history = hz.displacement_history()  # monotonic: Ramp(rate, start, ramp), as before
+        imposed = {X: history.velocity, Z: at_rest, 3: at_rest, 4: at_rest, ROT_Z: at_rest}
+    else:  # the base moves with the record; the top beam is free in x
+        motion = dict.fromkeys(range(6), at_rest)
+        motion[X if gm.direction == "x" else Y] = ground
+        lower = RigidBody(center=(length / 2, -BEAM_HEIGHT_M / 2, t / 2), mass=1.0,
+                          inertia=np.ones(3), imposed_velocity=motion, name="lower beam",
+                          X=Xl, conn=cl, support=True)
+        history = None
+        imposed = {Z: at_rest, 3: at_rest, 4: at_rest, ROT_Z: at_rest}
     if sup.top_vertical == "fixed":
         imposed[Y] = at_rest
     if sup.top_rotation == "free":
@@ -109,13 +121,16 @@ def build_wall(case) -> Scene:
                       inertia=inertia, imposed_velocity=imposed, name="upper beam", X=Xu,
                       conn=cu, reference=(length / 2, height + sup.load_height_m, t / 2),
                       support=True)
-    bodies += [lower, upper]
-    i_low, i_up = n_units, n_units + 1
+    top_beam = sup.top_beam == "present"
+    bodies += [lower, upper] if top_beam else [lower]
+    i_low = n_units
+    i_up = n_units + 1 if top_beam else None
 
     # --- joints -------------------------------------------------------------------------------
     glued = k == 0
-    beam_group = {i_low: "glue_bottom" if glued else "bed_bottom",
-                  i_up: "glue_top" if glued else "bed_top"}
+    beam_group = {i_low: "glue_bottom" if glued else "bed_bottom"}
+    if top_beam:
+        beam_group[i_up] = "glue_top" if glued else "bed_top"
 
     def classify(joint, antagonist):
         pair = (joint.candidate.body, antagonist.body)
@@ -148,7 +163,7 @@ def build_wall(case) -> Scene:
     g = ld.gravity
     loads.add(G, Ramp(g.value_m_s2, g.start_s, g.ramp_s))
     holds = []
-    if sup.top_vertical in ("load", "load_then_fixed"):
+    if top_beam and sup.top_vertical in ("load", "load_then_fixed"):
         vs = ld.vertical_stress
         Fv = np.zeros(ndof)
         Fv[dof0[i_up] + Y] = -vs.value_Pa * length * t
@@ -160,27 +175,78 @@ def build_wall(case) -> Scene:
         from masonry_nscd.materials.point_driver import params_from_case
 
         endo = params_from_case(case)
-    if history.end_s is None:  # monotonic: stop on the displacement (the time as a guard)
-        target, end, limit = hz.target_m, ld.end_time_s, ld.end_time_s + 0.5 * hz.ramp_s
-    else:  # cyclic, table: stop when the motion is over
-        target, end, limit = None, history.end_s, history.end_s
+    stages = [Stage("gravity", 0.0), Stage("vertical", ld.vertical_stress.start_s)]
+    meta = {"joint_thickness_m": j, "wall_length_m": length, "wall_height_m": height,
+            "contact_point_rule": case.contact_point_rule}
+    if ground is not None:  # run to the end of the record; drift relative to the base
+        target, end, limit = None, ground.end_s, ground.end_s
+        stages.append(Stage("ground_motion", gm.start_s))
+        push, driven = "ground_motion", i_low
+        info_history = {"kind": "ground_motion", "end_s": ground.end_s, "cycles": [],
+                        "record": gm.file, "scale": gm.scale, "direction": gm.direction,
+                        "start_s": gm.start_s,
+                        "peak_acceleration_m_s2": ground.peak_acceleration_m_s2}
+        if top_beam:
+            points_x = [(int(dof0[i_up] + X), 1.0)]
+            points_y = [(int(dof0[i_up] + Y), 1.0)]
+            meta["measured"] = ("the top beam's reference point (supports.load_height_m above "
+                                "the wall) relative to the base")
+        else:
+            top = [i for i, (b, _) in enumerate(boxes) if b.course == last]
+            points_x, points_y = _centre_of_mass_dofs(bodies, dof0, top)
+            meta["measured"] = "the centre of mass of the top course relative to the base"
+        measured = (_relative(points_x, int(dof0[i_low] + X)),
+                    _relative(points_y, int(dof0[i_low] + Y)))
+    else:
+        if history.end_s is None:  # monotonic: stop on the displacement (time as a guard)
+            target, end, limit = hz.target_m, ld.end_time_s, ld.end_time_s + 0.5 * hz.ramp_s
+        else:  # cyclic, table: stop when the motion is over
+            target, end, limit = None, history.end_s, history.end_s
+        stages.append(Stage("horizontal", hz.start_s))
+        push, driven, info_history, measured = "horizontal", i_up, history.info(), None
     solver = SolverSettings(
         h=sol.time_step_s, theta=sol.theta, tolerance=sol.tolerance,
         max_iterations=sol.max_iterations, check_every=sol.check_every,
         method=case.contact_solver,
         max_halvings=sol.max_step_halvings, halve_after_failure=sol.halved_steps_after_failure,
         endo3d_params=endo,
-        endo3d_tau=blk.endo3d.relaxation_time_s)
+        endo3d_tau=blk.endo3d.relaxation_time_s, energy=case.output.energy)
+    reactions = {"top": i_up, "bottom": i_low} if top_beam else {"bottom": i_low}
     return Scene(
         name=case.name, builder="wall", bodies=bodies, points=points, groups=GROUPS,
         params=params, loads=loads, solver=solver,
         point_fields={f"joint_{k}": v for k, v in drawn.items()},
-        structure=list(range(n_units)), body_info=info, driven=i_up,
-        reactions={"top": i_up, "bottom": i_low},
-        stages=[Stage("gravity", 0.0), Stage("vertical", ld.vertical_stress.start_s),
-                Stage("horizontal", hz.start_s)],
-        push_stage="horizontal", target_m=target, expected_end_s=end, time_limit_s=limit,
-        holds=holds, history=history.info(),
-        meta={"joint_thickness_m": j, "wall_length_m": length, "wall_height_m": height,
-              "contact_point_rule": case.contact_point_rule},
+        structure=list(range(n_units)), body_info=info, driven=driven,
+        reactions=reactions, stages=stages, push_stage=push, target_m=target,
+        expected_end_s=end, time_limit_s=limit, holds=holds, history=info_history,
+        measured=measured, meta=meta,
     )
+
+
+def _relative(points: list[tuple[int, float]], base: int) -> tuple[np.ndarray, np.ndarray]:
+    """Dofs and weights of a weighted displacement minus the base's (``base`` dof)."""
+    dofs = np.array([d for d, _ in points] + [base], dtype=np.int64)
+    weights = np.array([wt for _, wt in points] + [-1.0])
+    return dofs, weights
+
+
+def _centre_of_mass_dofs(bodies: list, dof0: np.ndarray, which: list[int]):
+    """``(dof, weight)`` pairs whose sums are the x and the y displacement of the centre of
+    mass of the bodies ``which`` (small rotations of rigid bodies about their reference
+    point: ``u_c = q + omega x (c - reference)``)."""
+    xs, ys = [], []
+    masses = [body_mass(bodies[i]) for i in which]
+    total = sum(masses)
+    for i, m in zip(which, masses):
+        b, d0 = bodies[i], int(dof0[i])
+        if isinstance(b, RigidBody):
+            dx, dy, dz = b.center - b.reference
+            f = m / total
+            # (omega x d)_x = omega_y d_z - omega_z d_y; (omega x d)_y = omega_z d_x - omega_x d_z
+            xs += [(d0 + X, f), (d0 + 4, f * dz), (d0 + ROT_Z, -f * dy)]
+            ys += [(d0 + Y, f), (d0 + ROT_Z, f * dx), (d0 + 3, -f * dz)]
+        else:
+            lm = b.lumped_mass()
+            xs += [(d0 + k, float(lm[k]) / total) for k in range(X, b.ndof, 3)]
+            ys += [(d0 + k, float(lm[k]) / total) for k in range(Y, b.ndof, 3)]
+    return xs, ys
