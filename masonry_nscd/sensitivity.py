@@ -67,7 +67,8 @@ from masonry_nscd.sweep import (
 METHODS = ("morris", "sobol")
 #: Outputs of a run that can be analysed (keys of the run summary, unit in the name).
 OUTPUTS = ("peak_force_kN", "initial_stiffness_kN_mm", "force_at_target_kN", "ux_at_peak_mm",
-           "peak_force_neg_kN", "dissipated_energy_J")  # the last two: cyclic histories
+           "peak_force_neg_kN", "dissipated_energy_J",  # cyclic histories
+           "peak_drift_mm", "residual_drift_mm", "peak_base_shear_kN")  # ground motion
 MORRIS_LEVELS = 4
 INDEX_COLUMNS = {"morris": ("mu", "mu_star", "sigma", "mu_star_conf"),
                  "sobol": ("S1", "S1_conf", "ST", "ST_conf")}

@@ -42,8 +42,9 @@ Resuming
 ``sweep.csv``, one row per run in the order of the product (rewritten as runs end): the swept
 fields (named by their path, values as validated, SI units), then ``initial_stiffness_kN_mm``,
 ``peak_force_kN``, ``ux_at_peak_mm``, ``force_at_target_kN``, ``target_ux_mm``, and for cyclic
-and tabulated histories ``peak_force_neg_kN``, ``ux_at_peak_neg_mm``, ``dissipated_energy_J``
-(empty otherwise; definitions in :mod:`masonry_nscd.report`), ``unconverged_steps``,
+and tabulated histories ``peak_force_neg_kN``, ``ux_at_peak_neg_mm``, ``dissipated_energy_J``,
+for ground motion ``peak_drift_mm``, ``residual_drift_mm``, ``peak_base_shear_kN`` (empty
+otherwise; definitions in :mod:`masonry_nscd.report`), ``unconverged_steps``,
 ``run_time_s`` (wall-clock time of the run on its worker, s), ``status``, ``message`` and
 ``run`` (the folder name). A run that was skipped keeps the numbers and the run time of the
 sweep that made it. ``force_displacement.png``: the
@@ -74,7 +75,7 @@ from typing import Any
 #: Summary values (masonry_nscd.report) kept per run, in the order of the table.
 OUTPUT_KEYS = ("initial_stiffness_kN_mm", "peak_force_kN", "ux_at_peak_mm", "force_at_target_kN",
                "target_ux_mm", "peak_force_neg_kN", "ux_at_peak_neg_mm", "dissipated_energy_J",
-               "unconverged_steps", "failure_mode_at_peak", "failure_mode")
+               "peak_drift_mm", "residual_drift_mm", "peak_base_shear_kN", "unconverged_steps", "failure_mode_at_peak", "failure_mode")
 #: Columns of the table after the swept fields.
 TAIL_COLUMNS = (*OUTPUT_KEYS, "run_time_s", "status", "message", "run")
 STATUSES = ("ok", "failed", "invalid", "error")
