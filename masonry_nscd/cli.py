@@ -70,14 +70,19 @@ def validate(
     w, loading = case.wall, case.loading
     openings = f", {len(w.openings)} opening{'s' if len(w.openings) > 1 else ''}" \
         if w.openings else ""
-    summary = (
-        f"{case.name}: {len(unit_boxes(w))} units in {w.courses} courses "
-        f"({w.bond} bond{openings}, {w.wall_length_m:.3f} x {w.wall_height_m:.3f} m), "
-        f"blocks {case.blocks.material}, joints {case.joint.law}, "
-        f"sigma_N = {loading.vertical_stress.value_Pa / 1e6:g} MPa "
-        f"({case.vertical_force_N / 1e3:g} kN), {_history_text(loading.horizontal)}, "
-        f"about {case.step_count} steps of {case.solver.time_step_s:g} s"
-    )
+    if case.arch is not None:
+        from masonry_nscd.scenes.arch import describe
+
+        summary = describe(case)
+    else:
+        summary = (
+            f"{case.name}: {len(unit_boxes(w))} units in {w.courses} courses "
+            f"({w.bond} bond{openings}, {w.wall_length_m:.3f} x {w.wall_height_m:.3f} m), "
+            f"blocks {case.blocks.material}, joints {case.joint.law}, "
+            f"sigma_N = {loading.vertical_stress.value_Pa / 1e6:g} MPa "
+            f"({case.vertical_force_N / 1e3:g} kN), {_history_text(loading.horizontal)}, "
+            f"about {case.step_count} steps of {case.solver.time_step_s:g} s"
+        )
     if print_case:
         typer.echo(f"# {summary}\n{case_to_yaml(case)}", nl=False)
     else:
