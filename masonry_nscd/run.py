@@ -287,7 +287,8 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
         with contextlib.suppress(RunOutputError):
             log(f"failed: {exc}", show=False)
         if monitor is not None:
-            monitor.finish("failed", str(exc))
+            with contextlib.suppress(OSError):
+                monitor.finish("failed", str(exc))
         if not isinstance(exc, RunOutputError):  # the summary of what was computed
             report_run(outdir, log, curve)  # never raises
         raise
@@ -296,7 +297,8 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
             log(f"interrupted at step {integ.step_index}: results kept up to the last output "
                 f"step (resume with: masonry run --resume {outdir})")
         if monitor is not None:
-            monitor.finish("interrupted")
+            with contextlib.suppress(OSError):
+                monitor.finish("interrupted")
         report_run(outdir, log, curve)
         raise
     finally:

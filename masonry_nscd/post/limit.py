@@ -171,8 +171,10 @@ def limit_summary(outdir: Path | str, scene: Mapping[str, Any], fields) -> dict[
     """The limit-state part of ``summary.json``: ``status`` (``collapse``, ``standing``,
     ``failed``, ``interrupted``, or ``running`` when no status was written), ``collapse``
     (loads and time at the onset and at the detection, the blocks that moved most; None if
-    it stands), ``hinges`` (the hinges and sliding joints at the last output step), and
-    ``mechanism``."""
+    it stands), ``hinges`` (the hinges and sliding joints at the last output step),
+    ``mechanism``, and ``moving_at_end`` (standing, but a block point faster than
+    ``collapse.onset_velocity_m_s`` at the end: a mechanism too slow to pass the displacement
+    bound in the time of the run)."""
     record = read_limit(outdir) or {}
     rule = scene.get("collapse") or {}
     opening = float(rule.get("hinge_opening_m", 1e-4))
@@ -189,6 +191,10 @@ def limit_summary(outdir: Path | str, scene: Mapping[str, Any], fields) -> dict[
         "load_factors": rule.get("load_factors", []),
         "last_loads": (record.get("last") or {}).get("loads"),
     }
+    last_speed = (record.get("last") or {}).get("max_speed_m_s")
+    # standing by the rule, but still in motion at the end: a slow mechanism may be forming
+    out["moving_at_end"] = bool(out["status"] == "standing" and last_speed is not None
+                                and last_speed > float(rule.get("onset_velocity_m_s", 0.0)))
     if record.get("message"):
         out["status_message"] = record["message"]
     return out
@@ -213,6 +219,9 @@ def format_limit(s: Mapping[str, Any]) -> list[str]:
     elif s.get("last_loads"):
         lines.append("standing at " + ", ".join(f"{k} = {v:.5g}"
                                                 for k, v in s["last_loads"].items()))
+    if s.get("moving_at_end"):
+        lines.append("standing, but still moving at the end: a slow mechanism may be forming "
+                     "(a later collapse.end_time_s tells)")
     if s.get("mechanism") is not None:
         hinges = s.get("hinges") or []
         where = "; ".join(
