@@ -113,11 +113,11 @@ def point_map(bodies, structure, body_dof0, ndof):
 class CollapseMonitor:
     """Watches a run step by step for the collapse of the structure (module docstring)."""
 
-    def __init__(self, scene, integ, outdir: Path | str, log: Callable[..., None], *,
+    def __init__(self, scene, integ, outdir: Path | str | None, log: Callable[..., None], *,
                  resume_step: int | None = None):
         self.rule: CollapseRule = scene.collapse
         self.log = log
-        self.outdir = Path(outdir)
+        self.outdir = None if outdir is None else Path(outdir)
         s = integ.sys
         self.names = [scene.bodies[i].name or f"body {i}" for i in scene.structure]
         self.B, self.owner = point_map(scene.bodies, scene.structure, s.body_dof0, s.ndof)
@@ -128,6 +128,9 @@ class CollapseMonitor:
         self.last: dict[str, Any] = {}
         self.columns = ["step", "time_s", *(f.name for f in self.rule.factors),
                         "max_displacement_m", "max_speed_m_s", "kinetic_energy_J"]
+        self.file = None
+        if self.outdir is None:  # no files (:func:`watch`)
+            return
         path = self.outdir / LIMIT_CSV
         kept: list[str] = []
         if resume_step is not None and path.exists():
@@ -169,10 +172,11 @@ class CollapseMonitor:
         loads = self.loads(t)
         self.last = {"step": step, "time_s": t, "loads": loads, "max_displacement_m": d_max,
                      "max_speed_m_s": v_max}
-        values = [step, t, *loads.values(), d_max, v_max, kinetic]
-        self.file.write(",".join(repr(float(v)) if not isinstance(v, int) else str(v)
-                                 for v in values) + "\n")
-        self.file.flush()
+        if self.file is not None:
+            values = [step, t, *loads.values(), d_max, v_max, kinetic]
+            self.file.write(",".join(repr(float(v)) if not isinstance(v, int) else str(v)
+                                     for v in values) + "\n")
+            self.file.flush()
         self._judge(step, t, d_max, v_max, disp)
         return self.detected is not None and t >= self.stop_at - 1e-9
 
@@ -243,7 +247,27 @@ class CollapseMonitor:
         atomic_write(self.outdir / LIMIT_JSON, lambda p: Path(p).write_text(text))
 
     def close(self) -> None:
-        self.file.close()
+        if self.file is not None:
+            self.file.close()
+
+
+def watch(scene, end_s: float, log: Callable[..., None] = lambda *_a, **_k: None
+          ) -> dict[str, Any]:
+    """Step a limit-state ``scene`` from rest until it collapses (and ``after_s`` has passed)
+    or until ``end_s`` (s), without writing anything; returns :meth:`CollapseMonitor.record`
+    with the rigid bodies' dofs at the end (``"u"``, by scene body index). For tests and
+    studies that need no run folder."""
+    integ = scene.integrator()
+    mon = CollapseMonitor(scene, integ, None, log)
+    h = scene.solver.h
+    while integ.t < end_s - 1e-6 * h:
+        rep = integ.step()
+        if mon.observe(integ, rep.step, rep.time):
+            break
+    out = mon.record("collapse" if mon.detected is not None else "standing")
+    d0 = integ.sys.body_dof0
+    out["u"] = {i: integ.u[d0[i]:d0[i + 1]].copy() for i in range(len(scene.bodies))}
+    return out
 
 
 def _finite(obj):

@@ -416,8 +416,16 @@ def plot_runs(outdirs: Sequence[Path | str], plot_dir: Path, at_mm: Sequence[flo
     """
     runs = [load_run(d) for d in outdirs]
     label_runs(runs)
-    written = [plot_curves(runs, plot_dir / "force_displacement.png", reference_kN_mm)]
-    notes = []
+    written, notes = [], []
+    limit = [r for r in runs if r.scene.get("limit_state")]  # arches: their mechanisms
+    if limit:
+        from masonry_nscd.plots_limit import plot_limit_runs
+
+        written, notes = plot_limit_runs(limit, plot_dir, magnify)
+        runs = [r for r in runs if not r.scene.get("limit_state")]
+        if not runs:
+            return written, notes
+    written.append(plot_curves(runs, plot_dir / "force_displacement.png", reference_kN_mm))
     for run in runs:
         if run.summary.get("history", "monotonic") != "monotonic":
             png = plot_cycles(run, plot_dir / f"cycles_{_slug(run.label)}.png")

@@ -334,6 +334,9 @@ def build_arch(case) -> Scene:
               "arch": {"shape": a.shape, "radius_m": R, "span_m": L, "thickness_m": t,
                        "depth_m": depth, "voussoirs": n, "abutments": a.abutments,
                        "crown_voussoir": geo.keystone + 1,
+                       "supports_xy_m": [[*bodies[i].X[:, :2].min(axis=0).tolist(),
+                                          *bodies[i].X[:, :2].max(axis=0).tolist()]
+                                         for i in supports.values()],
                        "joint_centres_m": centres,
                        "joints_intrados_m": geo.joints_in.tolist(),
                        "joints_extrados_m": geo.joints_out.tolist()}},
