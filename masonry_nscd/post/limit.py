@@ -209,8 +209,8 @@ def format_limit(s: Mapping[str, Any]) -> list[str]:
         loads = c.get("loads_at_onset") or c.get("loads_at_detection") or {}
         when = c.get("onset_time_s")
         lines.append("collapse: " + (", ".join(f"{k} = {v:.5g}" for k, v in loads.items())
-                                     or "no growing load")
-                     + (f" at the onset, t = {when:.4f} s" if when is not None else "")
+                                     + " at the onset" if loads else "the mechanism started")
+                     + (f", t = {when:.4f} s" if when is not None else "")
                      + f" (detected by its {c['detected_by']} at t = "
                      f"{c['detected_time_s']:.4f} s)")
         if c.get("moved_most"):
