@@ -15,6 +15,13 @@ cohesive joints, 0.5 MPa of vertical stress, 10 mm of imposed horizontal displac
     loading:  gravity, vertical stress, horizontal displacement stages     -> Loading
     solver:   time step, theta, NLGS tolerance                             -> Solver
     output:   what is written and how often                                -> Output
+    arch:     an arch of voussoirs instead of the wall (issue 18)          -> Arch
+    collapse: when an arch run has collapsed                               -> Collapse
+
+An arch case has ``arch:`` and its loads (``loading.body_force``, ``point_load``,
+``settlement``); the wall's sections (``wall``, ``supports``, ``loading.vertical_stress``,
+``loading.horizontal``) are then refused, and the arch's in a wall case (:data:`WALL_ONLY`,
+:data:`ARCH_ONLY`); the case written back has the sections of its builder only.
 
 Units are in the field names (``_m``, ``_Pa``, ``_Pa_m`` = Pa/m, ``_J_m2`` = J/m^2, ``_kg_m3``,
 ``_kg``, ``_s``, ``_m_s`` = m/s, ``_m_s2`` = m/s^2) or, for dimensionless numbers and counts, in
