@@ -15,6 +15,7 @@ Where the thrust line touches the intrados or the extrados at the limit, the hin
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +38,11 @@ R = 1.0  # its centreline radius (m)
 # --- limit analysis of the voussoirs, independent of the package ---------------------------------
 
 
+def _cross(a, b):
+    a, b = np.asarray(a), np.asarray(b)
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
 def _voussoirs(n: int, r: float, t: float):
     """Joint ends (intrados I, extrados E), joint normals towards higher voussoirs, and each
     voussoir's area and centroid (m^2, m) of a semicircular arch of n trapezoidal voussoirs."""
@@ -56,32 +62,45 @@ def _voussoirs(n: int, r: float, t: float):
     return inner, outer, normals, np.array(areas), np.array(centroids)
 
 
-def _joint_rows(n: int, r: float, t: float):
+def _joint_rows(n: int, r: float, t: float, point_load: int | None = None):
     """Per joint, the normal force N_j and the moment M_j about the joint's middle (signed so
     that M_j = e N_j with e > 0 towards the extrados) as affine functions ``a . x + b`` of
     ``x = (F_x, F_y, M_0, lambda)``: the reaction of the left abutment on the first voussoir,
-    and the horizontal body-force multiplier (weights per unit of density, g and depth)."""
+    and the multiplier of the variable load: a horizontal body force ``lambda`` times the
+    weights, or (``point_load`` = k) a downward force ``lambda`` at the middle of the extrados
+    chord of voussoir k (0-based). Weights per unit of density, g and depth (m^2)."""
     inner, outer, normals, w, c = _voussoirs(n, r, t)
     mid = 0.5 * (inner + outer)
     along = (outer - inner) / t  # from intrados to extrados
+
+    def below(values):  # sum over the voussoirs below each joint j = 0..n
+        return np.concatenate([np.zeros((1, *np.shape(values)[1:])), np.cumsum(values, axis=0)])
+
+    W, Wc = below(w), below(w[:, None] * c)  # weights below, and their first moments
+    if point_load is None:  # lambda w_k along x at each centroid
+        f = np.stack([W, np.zeros(n + 1)], axis=1)
+        lever = -(Wc[:, 1] - mid[:, 1] * W)  # sum (c_k - m_j) x (w_k, 0)
+    else:  # lambda (0, -1) at the middle of the extrados chord of voussoir point_load
+        q = 0.5 * (outer[point_load] + outer[point_load + 1])
+        on = np.arange(n + 1) > point_load
+        f = np.where(on[:, None], [0.0, -1.0], 0.0)
+        lever = np.where(on, -(q[0] - mid[:, 0]), 0.0)
     rows = []
     for j in range(n + 1):
-        W = w[:j].sum()
-        # force of the lower part on the upper one: F_j = (F_x + lambda W, F_y - W)
-        aN = np.array([normals[j, 0], normals[j, 1], 0.0, W * normals[j, 0]])
-        bN = -W * normals[j, 1]
+        # force of the lower part on the upper one: F_j = (F_x, F_y - W_j) + lambda f_j
+        aN = np.array([normals[j, 0], normals[j, 1], 0.0, f[j] @ normals[j]])
+        bN = -W[j] * normals[j, 1]
         d = mid[0] - mid[j]
-        lever_y = sum(w[k] * (c[k, 1] - mid[j, 1]) for k in range(j))
-        lever_x = sum(w[k] * (c[k, 0] - mid[j, 0]) for k in range(j))
-        aM = np.array([-d[1], d[0], 1.0, -lever_y])
-        bM = -lever_x
+        # moment about the joint's middle: M_0 + (m_0 - m_j) x F_0 + sum (p - m_j) x f
+        aM = np.array([-d[1], d[0], 1.0, lever[j]])
+        bM = -(Wc[j, 0] - mid[j, 0] * W[j])
         sign = along[j, 0] * normals[j, 1] - along[j, 1] * normals[j, 0]  # e x n
         rows.append((aN, bN, sign * aM, sign * bM))
     return rows
 
 
-def _programme(n, r, t, objective, lam_free):
-    rows = _joint_rows(n, r, t)
+def _programme(n, r, t, objective, lam_free, point_load=None):
+    rows = _joint_rows(n, r, t, point_load)
     A, b = [], []
     for aN, bN, aM, bM in rows:
         A += [aM - t / 2 * aN, -aM - t / 2 * aN, -aN]
@@ -101,11 +120,11 @@ def min_thickness_ratio(n: int) -> float:
     return hi
 
 
-def limit_hinges(n: int, t: float, lam_free: bool) -> dict[int, str]:
+def limit_hinges(n: int, t: float, lam_free: bool, point_load=None) -> dict[int, str]:
     """Joint -> face (intrados/extrados) where the thrust line touches the arch at the limit:
     at t (just above the minimum thickness; self-weight), or at the largest lambda."""
     res, rows = _programme(n, 1.0, t, np.array([0, 0, 0, -1.0]) if lam_free else np.zeros(4),
-                           lam_free)
+                           lam_free, point_load)
     assert res.status == 0
     out = {}
     for j, (aN, bN, aM, bM) in enumerate(rows):
@@ -115,8 +134,9 @@ def limit_hinges(n: int, t: float, lam_free: bool) -> dict[int, str]:
     return out
 
 
-def collapse_multiplier(n: int, t: float) -> float:
-    res, _ = _programme(n, 1.0, t, np.array([0, 0, 0, -1.0]), True)
+def collapse_multiplier(n: int, t: float, point_load: int | None = None) -> float:
+    res, _ = _programme(n, 1.0, t, np.array([0, 0, 0, -1.0]), True, point_load)
+    assert res.status == 0
     return float(res.x[3])
 
 
@@ -127,11 +147,6 @@ def test_limit_analysis_reproduces_couplet_heyman():
     hinges = limit_hinges(400, 1.000001 * min_thickness_ratio(400), False)
     haunch = min(j for j, side in hinges.items() if side == "intrados")
     assert 90.0 - 180.0 * haunch / 400 == pytest.approx(54.5, abs=0.5)
-
-
-def _cross(a, b):
-    a, b = np.asarray(a), np.asarray(b)
-    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
 
 
 # --- geometry and joints ---------------------------------------------------------------------------
@@ -289,6 +304,34 @@ def test_collapse_multiplier_of_a_horizontal_body_force(tmp_path):
     assert s["collapse"]["loads_at_onset"]["lambda"] == pytest.approx(lam, rel=0.02)
     assert s["mechanism"] == "four-hinge"
     _assert_hinges_at(s, limit_hinges(N, t, True))
+
+
+def test_collapse_load_of_a_point_load(tmp_path):
+    """A force growing on the extrados of voussoir 7 (37.5 to 45 deg from the springing):
+    the force at the onset within 2 % of limit analysis, and its four hinges."""
+    t = load_case(CASE).arch.thickness_m
+    per_area = 2000.0 * 9.81 * 0.25  # N per m^2 of the weights of _voussoirs
+    force = collapse_multiplier(N, t, point_load=6) * per_area
+    s = _run(tmp_path, "point", "loading.body_force.rate_per_s=0",
+             "loading.point_load={block: voussoir 7, rate_N_s: 200}",
+             "collapse.end_time_s=10")
+    assert s["status"] == "collapse"
+    assert s["collapse"]["loads_at_onset"]["point_load_N"] == pytest.approx(force, rel=0.02)
+    assert s["mechanism"] == "four-hinge"
+    _assert_hinges_at(s, limit_hinges(N, t, True, point_load=6))
+
+
+def test_settlement_opens_the_spreading_mechanism(tmp_path):
+    """The right support moving out by 2 cm and down by 1 cm: the arch follows on three hinges,
+    the crown turning about its extrados and the haunches about their intrados, and stands."""
+    s = _run(tmp_path, "settle", "loading.body_force.rate_per_s=0",
+             "loading.settlement={support: right, displacement_m: [0.02, -0.01, 0.0], "
+             "duration_s: 2.0}", "collapse.displacement_m=0.05", "collapse.end_time_s=3")
+    assert s["status"] == "standing" and s["mechanism"] == "three-hinge"
+    sides = {h["side"] for h in s["hinges"] if h["angle_from_crown_deg"] < 10.0}
+    assert sides == {"extrados"}
+    assert {h["side"] for h in s["hinges"] if h["angle_from_crown_deg"] > 30.0} == {"intrados"}
+    assert s["last_loads"]["settlement_m"] == pytest.approx(math.hypot(0.02, 0.01), rel=1e-9)
 
 
 def test_thrust_of_the_standing_arch_is_statically_admissible(tmp_path):
