@@ -318,7 +318,9 @@ def plot(
     """Write PNG figures of runs: force-displacement curves and damage maps of the wall.
 
     The curves of all the runs go on one chart with the study's 71 kN/mm initial slope; the
-    damage maps show the wall's face unit by unit (d_c, d_cpp, d_t, joint cohesion lost).
+    damage maps show the wall's face unit by unit (d_c, d_cpp, d_t, joint cohesion lost). An
+    arch run gets its mechanism instead: the deformed arch with its hinges, and the load
+    against the largest displacement.
     """
     try:
         at_mm = [float(v) for v in at.split(",")] if at else None
