@@ -15,6 +15,13 @@ cohesive joints, 0.5 MPa of vertical stress, 10 mm of imposed horizontal displac
     loading:  gravity, vertical stress, horizontal displacement stages     -> Loading
     solver:   time step, theta, NLGS tolerance                             -> Solver
     output:   what is written and how often                                -> Output
+    arch:     an arch of voussoirs instead of the wall (issue 18)          -> Arch
+    collapse: when an arch run has collapsed                               -> Collapse
+
+An arch case has ``arch:`` and its loads (``loading.body_force``, ``point_load``,
+``settlement``); the wall's sections (``wall``, ``supports``, ``loading.vertical_stress``,
+``loading.horizontal``) are then refused, and the arch's in a wall case (:data:`WALL_ONLY`,
+:data:`ARCH_ONLY`); the case written back has the sections of its builder only.
 
 Units are in the field names (``_m``, ``_Pa``, ``_Pa_m`` = Pa/m, ``_J_m2`` = J/m^2, ``_kg_m3``,
 ``_kg``, ``_s``, ``_m_s`` = m/s, ``_m_s2`` = m/s^2) or, for dimensionless numbers and counts, in
@@ -51,6 +58,7 @@ from typing import Annotated, Any, ClassVar, Literal, Union, get_args, get_origi
 
 import yaml
 from pydantic import (
+    AfterValidator,
     BaseModel,
     BeforeValidator,
     ConfigDict,
@@ -64,9 +72,12 @@ from pydantic import (
 from pydantic_core import PydanticCustomError
 
 __all__ = [
+    "Arch",
     "Blocks",
+    "BodyForce",
     "Case",
     "CaseError",
+    "Collapse",
     "Endo3d",
     "GravityStage",
     "HorizontalStage",
@@ -77,7 +88,9 @@ __all__ = [
     "Opening",
     "Output",
     "PatternCourse",
+    "PointLoad",
     "RefineRegion",
+    "Settlement",
     "Solver",
     "StressStage",
     "Supports",
@@ -702,6 +715,253 @@ class Joint(_Section):
 
 
 # ---------------------------------------------------------------------------------------------
+# Arches and limit states (issue 18): the arch builder, the growing loads, the collapse rule
+# ---------------------------------------------------------------------------------------------
+
+
+Vector3 = tuple[Real, Real, Real]
+
+
+def _unit(value: tuple[float, float, float]) -> tuple[float, float, float]:
+    """A direction (3 components, not all zero) made a unit vector."""
+    norm = math.sqrt(sum(v * v for v in value))
+    if not norm > 0.0:
+        raise PydanticCustomError("direction_zero", "a direction needs a non-zero component")
+    return tuple(v / norm for v in value)  # type: ignore[return-value]
+
+
+Direction = Annotated[Vector3, AfterValidator(_unit)]
+
+
+class Arch(_Section):
+    """An arch of voussoirs on two abutments (``masonry_nscd/scenes/arch.py``), instead of a
+    wall (lengths in m).
+
+    The arch lies in the x-y plane: x horizontal from the middle of the span, y up from the
+    springing line, z along its depth. ``radius_m`` is the radius of the arch's centreline
+    (the middle of the ring), ``span_m`` the distance between the centres of its two springing
+    joints. ``semicircular``: give one of them (span = 2 radius). ``pointed``: two arcs of
+    ``radius_m`` whose centres lie on the springing line, ``radius - span / 2`` from the middle
+    of the span on the other side, meeting at a vertical crown joint; give both, ``radius_m >
+    span_m / 2``, and an even number of voussoirs.
+
+    The joints between voussoirs are radial planes (a pointed arch's crown joint is vertical),
+    equally spaced in angle; each voussoir is a prism on the chords of its intrados and
+    extrados (one hexahedron, or ``elements_per_voussoir``). ``joint_thickness_m`` is the
+    initial gap of every joint (0: dry voussoirs in contact). Abutments: ``fixed`` - the
+    springers rest on two fixed rigid abutments; ``blocks`` - the abutments are rigid blocks
+    (piers) of ``abutment_width_m`` x ``abutment_height_m`` resting on fixed ground through a
+    joint of the joint law, free to slide and overturn.
+    """
+
+    shape: Literal["semicircular", "pointed"] = Field(
+        "semicircular", description="semicircular, or pointed (two arcs meeting at the crown)"
+    )
+    radius_m: Real | None = Field(
+        1.0, gt=0.0, le=1000.0,
+        description="radius of the centreline (m; null: from span_m, semicircular arch)",
+    )
+    span_m: Real | None = Field(
+        None, gt=0.0, le=2000.0,
+        description="distance between the centres of the springing joints (m; null: 2 radius, "
+        "semicircular arch)",
+    )
+    thickness_m: Real = Field(
+        0.15, gt=0.0, le=100.0, description="thickness of the ring, intrados to extrados (m)"
+    )
+    depth_m: Real = Field(0.25, gt=0.0, le=100.0, description="depth of the arch along z (m)")
+    voussoirs: Whole = Field(24, ge=3, le=500, description="number of voussoirs (count)")
+    joint_thickness_m: Real = Field(
+        0.0, ge=0.0, le=0.5, description="initial gap of every joint (m; 0: dry contact)"
+    )
+    elements_per_voussoir: tuple[ElementCount, ElementCount, ElementCount] = Field(
+        (1, 1, 1),
+        description="hexahedra per voussoir along the ring, through the thickness, along the "
+        "depth (counts, 1..8 each)",
+    )
+    contact_points_per_face: Whole = Field(
+        2, ge=1, le=4,
+        description="contact points per direction on each element face in contact (count)",
+    )
+    contact_point_rule: Literal["auto", "gauss", "lobatto"] = Field(
+        "auto",
+        description="gauss, lobatto (the corners among them: voussoirs hinge about the edges "
+        "of their faces) or auto: lobatto with 2 or more points, whatever the joint law",
+    )
+    abutments: Literal["fixed", "blocks"] = Field(
+        "fixed", description="fixed (rigid supports) or blocks (rigid piers on fixed ground)"
+    )
+    abutment_width_m: Real | None = Field(
+        None, gt=0.0, le=1000.0,
+        description="width of each abutment along x, centred on its springing (m; null: 2 "
+        "thickness)",
+    )
+    abutment_height_m: Real | None = Field(
+        None, gt=0.0, le=1000.0,
+        description="height of each abutment (m; null: the thickness)",
+    )
+
+    @property
+    def centreline_radius_m(self) -> float:
+        """Radius of the centreline (m)."""
+        return float(self.radius_m if self.radius_m is not None else self.span_m / 2.0)
+
+    @property
+    def centreline_span_m(self) -> float:
+        """Distance between the centres of the springing joints (m)."""
+        return float(self.span_m if self.span_m is not None else 2.0 * self.radius_m)
+
+    @model_validator(mode="after")
+    def _check_geometry(self) -> Arch:
+        problems: list[tuple[str, str]] = []
+        if self.radius_m is None and self.span_m is None:
+            problems.append(("radius_m", "give radius_m or span_m"))
+        elif self.shape == "semicircular":
+            if self.radius_m is not None and self.span_m is not None and \
+                    abs(self.span_m - 2.0 * self.radius_m) > 1e-9 * self.span_m:
+                problems.append(("span_m", (
+                    f"got {self.span_m:.6g} m with radius_m = {self.radius_m:.6g} m; a "
+                    "semicircular arch has span = 2 radius: give one of them")))
+        else:
+            if self.radius_m is None or self.span_m is None:
+                problems.append(("span_m" if self.span_m is None else "radius_m",
+                                 "a pointed arch needs both radius_m and span_m"))
+            elif not self.radius_m > self.span_m / 2.0:
+                problems.append(("radius_m", (
+                    f"got {self.radius_m:.6g} m; a pointed arch needs radius_m > span_m / 2 = "
+                    f"{self.span_m / 2.0:.6g} m (equal: semicircular)")))
+            if self.voussoirs % 2:
+                problems.append(("voussoirs", (
+                    f"got {self.voussoirs}; a pointed arch needs an even number (its crown "
+                    "is a joint)")))
+        if not problems:
+            r, t = self.centreline_radius_m, self.thickness_m
+            c = r - self.centreline_span_m / 2.0
+            if not r - t / 2.0 > c:
+                problems.append(("thickness_m", (
+                    f"got {t:.6g} m; the intrados radius (radius - thickness / 2) must exceed "
+                    f"{'the offset of the centres ' if c > 0 else ''}{c:.6g} m: at most "
+                    f"{2.0 * (r - c):.6g} m")))
+            width = self.abutment_width_m
+            if width is not None and width < t:
+                problems.append(("abutment_width_m", (
+                    f"got {width:.6g} m; an abutment must be at least as wide as the "
+                    f"springing joint, the thickness {t:.6g} m")))
+        _problems(problems)
+        return self
+
+
+class BodyForce(_Section):
+    """A body force ``lambda(t) g m`` on every block along ``direction`` (``g`` the gravity
+    of ``loading.gravity``, ``m`` the block's mass): the pseudo-static seismic or tilting-table
+    load, whose multiplier at collapse is the result. ``lambda`` rises to ``multiplier`` over
+    the tanh ramp ``ramp_s`` from ``start_s``, and grows at ``rate_per_s`` from there on, its
+    growth starting along the same ramp::
+
+        lambda(t) = multiplier s(t) + rate_per_s ramp_s S((t - start_s) / ramp_s)
+
+    (``s`` the ramp, ``S`` its integral, :mod:`masonry_nscd.loading.multiplier`). A horizontal
+    body force of ``lambda`` with gravity is a base tilted by ``atan(lambda)``.
+    """
+
+    direction: Direction = Field(
+        (1.0, 0.0, 0.0), description="direction of the body force (made a unit vector)"
+    )
+    multiplier: Real = Field(
+        0.0, ge=-100.0, le=100.0,
+        description="constant part of lambda, reached at start_s + ramp_s (dimensionless)",
+    )
+    rate_per_s: Real = Field(
+        0.0, ge=0.0, le=1000.0, description="growth of lambda after the ramp (1/s; 0: none)"
+    )
+    start_s: Real = Field(0.3, ge=0.0, le=1e6, description="time at which the ramp starts (s)")
+    ramp_s: Real = Field(0.1, gt=0.0, le=1e6, description="duration of the ramp (s)")
+
+    @property
+    def active(self) -> bool:
+        return self.multiplier != 0.0 or self.rate_per_s > 0.0
+
+
+class PointLoad(_Section):
+    """A force on one block (``block``: its name, e.g. ``voussoir 7``) at the middle of its
+    extrados face, ``force_N`` reached over the tanh ramp ``ramp_s`` from ``start_s`` and
+    growing at ``rate_N_s`` from there on (as ``lambda`` of ``body_force``)."""
+
+    block: str = Field(..., min_length=1, max_length=200, description="name of the block")
+    direction: Direction = Field(
+        (0.0, -1.0, 0.0), description="direction of the force (made a unit vector)"
+    )
+    force_N: Real = Field(0.0, ge=0.0, le=1e12, description="constant part of the force (N)")
+    rate_N_s: Real = Field(0.0, ge=0.0, le=1e12, description="growth of the force (N/s)")
+    start_s: Real = Field(0.3, ge=0.0, le=1e6, description="time at which the ramp starts (s)")
+    ramp_s: Real = Field(0.1, gt=0.0, le=1e6, description="duration of the ramp (s)")
+
+
+class Settlement(_Section):
+    """A support that moves: the fixed body under one springing (the abutment, or the ground
+    under a block abutment) moves by ``displacement_m`` along a tanh ramp of ``duration_s``
+    from ``start_s``."""
+
+    support: Literal["left", "right"] = Field(..., description="the support that moves")
+    displacement_m: Vector3 = Field(..., description="its displacement (m): x, y, z")
+    start_s: Real = Field(0.3, ge=0.0, le=1e6, description="time at which it starts (s)")
+    duration_s: Real = Field(1.0, gt=0.0, le=1e6, description="duration of the motion (s)")
+
+
+class Collapse(_Section):
+    """When a limit-state run (an arch) has collapsed, and what is read of it
+    (``masonry_nscd/post/limit.py``).
+
+    A mechanism: the largest displacement of a point of a block passes ``displacement_m``, or,
+    if it is given, the largest speed passes ``velocity_m_s``. The run then goes on for
+    ``after_s`` and stops, with status ``collapse``; the loads at collapse are read at the
+    onset of the mechanism, the last step before it at which every block was slower than
+    ``onset_velocity_m_s``. A run that reaches ``end_time_s`` stands (status ``standing``). A
+    hinge is a joint open by more than ``hinge_opening_m`` over most of its face and closed at
+    one edge.
+    """
+
+    displacement_m: Real = Field(
+        0.01, gt=0.0, le=100.0, description="a block point moved this far: collapse (m)"
+    )
+    velocity_m_s: Real | None = Field(
+        None, gt=0.0, le=1000.0,
+        description="a block point this fast: collapse (m/s; null: displacement only)",
+    )
+    onset_velocity_m_s: Real = Field(
+        1e-3, gt=0.0, le=1000.0,
+        description="slower than this, every block is at rest: the onset of the mechanism is "
+        "the last such step (m/s)",
+    )
+    hinge_opening_m: Real = Field(
+        1e-4, gt=0.0, le=10.0, description="a joint point opened by this much is open (m)"
+    )
+    end_time_s: Real = Field(
+        2.0, gt=0.0, le=1e7, description="the run stops here if it has not collapsed (s)"
+    )
+    after_s: Real = Field(
+        0.0, ge=0.0, le=1e6, description="time run on after the collapse is detected (s)"
+    )
+
+
+#: Sections of a case that belong to the wall builder and to the arch builder (the other's
+#: are refused when given, and left out of the case written back).
+WALL_ONLY = ("wall", "supports", "loading.vertical_stress", "loading.horizontal")
+ARCH_ONLY = ("arch", "collapse", "loading.body_force", "loading.point_load",
+             "loading.settlement")
+
+
+def _given(model: BaseModel, path: str) -> bool:
+    """Whether the dotted ``path`` was given in the case (not a default)."""
+    *parents, last = path.split(".")
+    for part in parents:
+        if part not in model.model_fields_set:
+            return False
+        model = getattr(model, part)
+    return last in model.model_fields_set and getattr(model, last) is not None
+
+
+# ---------------------------------------------------------------------------------------------
 # Supports and loading
 # ---------------------------------------------------------------------------------------------
 
@@ -989,6 +1249,17 @@ class Loading(_Section):
     ground_motion: GroundMotionStage | None = Field(
         None, description="acceleration record applied to the base (null: none)"
     )
+    # arches (issue 18): the loads of limit-state runs, declared below with the arch
+    body_force: BodyForce = Field(
+        default_factory=BodyForce,
+        description="arch: body force lambda(t) g m along a direction (the collapse multiplier)",
+    )
+    point_load: PointLoad | None = Field(
+        None, description="arch: a growing force on one block (null: none)"
+    )
+    settlement: Settlement | None = Field(
+        None, description="arch: the settlement of a support (null: none)"
+    )
 
     @property
     def end_time_s(self) -> float:
@@ -1120,6 +1391,12 @@ class Case(_Section):
     loading: Loading = Field(default_factory=Loading, description="load stages")
     solver: Solver = Field(default_factory=Solver, description="time step and contact solver")
     output: Output = Field(default_factory=Output, description="outputs")
+    arch: Arch | None = Field(
+        None, description="an arch of voussoirs instead of the wall (null: the wall)"
+    )
+    collapse: Collapse = Field(
+        default_factory=Collapse, description="arch: when the run has collapsed"
+    )
 
     @field_validator("name")
     @classmethod
@@ -1163,18 +1440,24 @@ class Case(_Section):
         made once where quads share them, are the face's nodes: one point per node, so the
         normal impulses that hold a face are unique, where 2 x 2 Gauss points per quad
         outnumber the nodes and let Newton's contact statuses cycle among equivalent
-        impulses; on rigid blocks they put the rocking on the corners (docs/choices.md)."""
-        w = self.wall
+        impulses; on rigid blocks they put the rocking on the corners (docs/choices.md). An
+        arch takes Lobatto points for every law: its joints hinge at their edges, and Gauss
+        points would make a voussoir of one element 0.577 of its thickness thick."""
+        w = self.arch if self.arch is not None else self.wall
         if w.contact_point_rule != "auto":
             return w.contact_point_rule
+        if self.arch is not None:  # voussoirs hinge about the edges of their faces, any law
+            return "lobatto" if w.contact_points_per_face >= 2 else "gauss"
         if self.joint.law == "coulomb" and w.contact_points_per_face >= 2:
             return "lobatto"
         return "gauss"
 
     @property
     def step_count(self) -> int:
-        """Expected number of time steps, ``ceil(end_time_s / time_step_s)``."""
-        return max(1, math.ceil(self.loading.end_time_s / self.solver.time_step_s - 1e-9))
+        """Expected number of time steps, ``ceil(end_time_s / time_step_s)`` (an arch:
+        ``collapse.end_time_s``)."""
+        end = self.collapse.end_time_s if self.arch is not None else self.loading.end_time_s
+        return max(1, math.ceil(end / self.solver.time_step_s - 1e-9))
 
     @model_validator(mode="after")
     def _check_supports(self) -> Case:
@@ -1206,6 +1489,7 @@ class Case(_Section):
                         f"reaches into a clamped course (the wall between the beams spans y = "
                         f"{free[0]:.6g} to {free[1]:.6g} m)")))
         problems += self._ground_motion_problems()
+        problems += self._builder_problems()
         if self.supports.top_vertical == "fixed" and stress != 0.0:
             problems.append(
                 (
@@ -1253,6 +1537,32 @@ class Case(_Section):
                 "top beam carries the vertical stress and is otherwise free: use 'load' (or "
                 "supports.top_beam: absent)")))
         return problems
+
+    def _builder_problems(self) -> list[tuple[str, str]]:
+        """The sections of the other builder given in the case (:data:`WALL_ONLY`,
+        :data:`ARCH_ONLY`), and a point load on a block the arch does not have."""
+        arch = self.arch is not None
+        problems = [(path, f"given with {'an arch' if arch else 'a wall'} case; it belongs to "
+                     f"{'the wall' if arch else 'an arch'} (leave it out"
+                     + ("" if arch else ", or give an arch: section") + ")")
+                    for path in (WALL_ONLY if arch else ARCH_ONLY) if _given(self, path)]
+        load = self.loading.point_load
+        if arch and load is not None:
+            names = [f"voussoir {k}" for k in range(1, self.arch.voussoirs + 1)]
+            if self.arch.abutments == "blocks":
+                names += ["left abutment", "right abutment"]
+            if load.block not in names:
+                problems.append(("loading.point_load.block", (
+                    f"got {load.block!r}; the blocks are voussoir 1 to voussoir "
+                    f"{self.arch.voussoirs} (from the left springing)"
+                    + (", left abutment, right abutment" if len(names) > self.arch.voussoirs
+                       else ""))))
+        return problems
+
+    def unused_sections(self) -> tuple[str, ...]:
+        """The dotted paths of the sections the case's builder does not read (left out of the
+        case written back)."""
+        return WALL_ONLY if self.arch is not None else ARCH_ONLY
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1820,14 +2130,17 @@ def _format_scalar(value: Any) -> str:
     return text
 
 
-def _emit(model: BaseModel, indent: int, lines: list[str], comments: bool) -> None:
+def _emit(model: BaseModel, indent: int, lines: list[str], comments: bool,
+          skip: Sequence[str] = (), prefix: str = "") -> None:
     pad = "  " * indent
     for name, info in type(model).model_fields.items():
+        if f"{prefix}{name}" in skip:
+            continue
         value = getattr(model, name)
         comment = f"  # {info.description}" if comments and info.description else ""
         if isinstance(value, BaseModel):
             lines.append(f"{pad}{name}:{comment}")
-            _emit(value, indent + 1, lines, comments)
+            _emit(value, indent + 1, lines, comments, skip, f"{prefix}{name}.")
         else:
             lines.append(f"{pad}{name}: {_format_scalar(value)}{comment}")
 
@@ -1840,5 +2153,5 @@ def case_to_yaml(case: Case, *, comments: bool = True) -> str:
     ``load_case`` of the text gives back an equal :class:`Case`.
     """
     lines = ["# masonry_nscd case file; SI units (m, Pa, N, J, s, kg)"] if comments else []
-    _emit(case, 0, lines, comments)
+    _emit(case, 0, lines, comments, case.unused_sections())
     return "\n".join(lines) + "\n"

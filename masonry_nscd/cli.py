@@ -70,14 +70,19 @@ def validate(
     w, loading = case.wall, case.loading
     openings = f", {len(w.openings)} opening{'s' if len(w.openings) > 1 else ''}" \
         if w.openings else ""
-    summary = (
-        f"{case.name}: {len(unit_boxes(w))} units in {w.courses} courses "
-        f"({w.bond} bond{openings}, {w.wall_length_m:.3f} x {w.wall_height_m:.3f} m), "
-        f"blocks {case.blocks.material}, joints {case.joint.law}, "
-        f"sigma_N = {loading.vertical_stress.value_Pa / 1e6:g} MPa "
-        f"({case.vertical_force_N / 1e3:g} kN), {_history_text(loading.horizontal, loading.ground_motion)}, "
-        f"about {case.step_count} steps of {case.solver.time_step_s:g} s"
-    )
+    if case.arch is not None:
+        from masonry_nscd.scenes.arch import describe
+
+        summary = describe(case)
+    else:
+        summary = (
+            f"{case.name}: {len(unit_boxes(w))} units in {w.courses} courses "
+            f"({w.bond} bond{openings}, {w.wall_length_m:.3f} x {w.wall_height_m:.3f} m), "
+            f"blocks {case.blocks.material}, joints {case.joint.law}, "
+            f"sigma_N = {loading.vertical_stress.value_Pa / 1e6:g} MPa "
+            f"({case.vertical_force_N / 1e3:g} kN), {_history_text(loading.horizontal, loading.ground_motion)}, "
+            f"about {case.step_count} steps of {case.solver.time_step_s:g} s"
+        )
     if print_case:
         typer.echo(f"# {summary}\n{case_to_yaml(case)}", nl=False)
     else:
@@ -316,7 +321,9 @@ def plot(
     """Write PNG figures of runs: force-displacement curves and damage maps of the wall.
 
     The curves of all the runs go on one chart with the study's 71 kN/mm initial slope; the
-    damage maps show the wall's face unit by unit (d_c, d_cpp, d_t, joint cohesion lost).
+    damage maps show the wall's face unit by unit (d_c, d_cpp, d_t, joint cohesion lost). An
+    arch run gets its mechanism instead: the deformed arch with its hinges, and the load
+    against the largest displacement.
     """
     try:
         at_mm = [float(v) for v in at.split(",")] if at else None
@@ -416,6 +423,68 @@ def calibrate_cmd(
     for line in cal.format_result(result):
         typer.echo(line)
     typer.echo(f"wrote {result.case_file} and {outdir / 'calibration.json'}")
+
+
+@app.command("threshold")
+def threshold_cmd(
+    case_file: Annotated[Path, typer.Argument(metavar="CASE.yaml", help="The case file (YAML).")],
+    param: Annotated[str, typer.Option("--param", metavar="PATH",
+                     help="Case field to search, e.g. arch.thickness_m.")],
+    bounds: Annotated[str, typer.Option(
+        "--bounds", metavar="LOW:HIGH",
+        help="Interval of the parameter; one bound must stand and the other collapse.")],
+    rtol: Annotated[float, typer.Option(
+        "--rtol", help="Stop when the bracket is narrower than this times its middle.")
+    ] = 2e-3,
+    max_runs: Annotated[int, typer.Option("--max-runs", help="At most this many runs.")] = 30,
+    output: Annotated[Path | None, typer.Option(
+        "-o", "--output", metavar="OUTDIR",
+        help="Study folder (default results/<case name>_threshold/).")] = None,
+    overrides: SetOption = None,
+    overwrite: Annotated[bool, typer.Option("--overwrite",
+                         help="Write into a folder that is not empty.")] = False,
+) -> None:
+    """Find the value of one parameter between standing and collapse (minimum thickness,
+    critical multiplier) by bisection on runs of a limit-state case; writes threshold.csv and
+    threshold.json."""
+    case = _load_case_or_exit(case_file, overrides)
+    from masonry_nscd import threshold as th
+    from masonry_nscd.case import CaseError, load_case
+    from masonry_nscd.run import RunFailure
+
+    try:
+        th.check_case(case)
+        lo_hi = th.parse_range(bounds, "--bounds")
+        th.parameter_value(case, param)
+        if not (rtol > 0.0 and max_runs >= 2):
+            raise th.ThresholdError("--rtol must be > 0 and --max-runs at least 2")
+    except th.CalibrationError as exc:
+        _fail(str(exc), 2)
+    outdir = output or Path("results") / f"{case.name}_threshold"
+    if outdir.exists() and (not outdir.is_dir() or any(outdir.iterdir())) and not overwrite:
+        _fail(f"output folder {outdir} exists and is not empty: use --overwrite or another -o", 2)
+
+    def load(value: float):
+        return load_case(case_file, [*(overrides or ()), f"{param}={float(value)!r}",
+                                     "output.vtu=false"])
+
+    typer.echo(f"threshold of {param} of {case.name} in [{lo_hi[0]:g}, {lo_hi[1]:g}] (runs in "
+               f"{outdir / 'runs'})")
+    try:
+        result = th.find_threshold(case, load, param, lo_hi, outdir, rtol=rtol,
+                                   max_runs=max_runs, echo=typer.echo)
+    except CaseError as exc:
+        _fail(f"invalid value of {param}: {'; '.join(exc.messages)}", 2)
+    except th.CalibrationError as exc:
+        _fail(str(exc), 2)
+    except RunFailure as exc:
+        _fail(f"a threshold run failed: {exc}", 1)
+    except KeyboardInterrupt:
+        _fail(f"interrupted; the runs so far are in {outdir / 'runs'}", 130)
+    paths = th.write_outputs(result, outdir)
+    for line in th.format_table(result):
+        typer.echo(line)
+    typer.echo(f"wrote {paths[0]} and {paths[1]}")
 
 
 @app.command("stress-test")

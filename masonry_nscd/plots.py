@@ -497,10 +497,18 @@ def plot_runs(outdirs: Sequence[Path | str], plot_dir: Path, at_mm: Sequence[flo
     """
     runs = [load_run(d) for d in outdirs]
     label_runs(runs)
+    written, notes = [], []
+    limit = [r for r in runs if r.scene.get("limit_state")]  # arches: their mechanisms
+    if limit:
+        from masonry_nscd.plots_limit import plot_limit_runs
+
+        written, notes = plot_limit_runs(limit, plot_dir, magnify)
+        runs = [r for r in runs if not r.scene.get("limit_state")]
+        if not runs:
+            return written, notes
     pushed = [r for r in runs if not is_ground_motion(r)]
-    written = [plot_curves(pushed, plot_dir / "force_displacement.png", reference_kN_mm)] \
-        if pushed else []
-    notes = []
+    if pushed:
+        written.append(plot_curves(pushed, plot_dir / "force_displacement.png", reference_kN_mm))
     for run in runs:
         if is_ground_motion(run):
             written.append(plot_ground_motion(run, plot_dir / f"ground_motion_{_slug(run.label)}"

@@ -575,6 +575,20 @@ def summarize_run(outdir: Path | str,
         ux_by_step = dict(zip(np.asarray(curve["step"], dtype=int),
                               (float(v) for v in curve["ux_mm"]), strict=True))
         summary["failure_sequence"] = failure_sequence(h5, scene, ux_by_step)
+    if scene.get("limit_state"):  # an arch: its status, collapse and hinges
+        from masonry_nscd.post.limit import limit_summary
+
+        keep = ("steps", "last_time_s", "unconverged_steps", "worst_residual",
+                "max_iterations_per_step", "steps_with_failed_gauss_points", "steps_subdivided",
+                "largest_damage")
+        last = {k: _num(list(v)[-1]) for k, v in curve.items() if len(v)}
+        return {"case_name": case.name, "builder": scene.get("builder"),
+                "block_material": case.blocks.material, "joint_law": case.joint.law,
+                **limit_summary(outdir, scene, fields),
+                "support_forces_last_kN": {  # the force of each support on the structure
+                    "left": [last.get("fx_kN"), last.get("fy_kN")],
+                    "right": [last.get("fx_bottom_kN"), last.get("fy_bottom_kN")]},
+                **{k: summary[k] for k in keep if k in summary}}
     head = {"case_name": case.name, "block_material": case.blocks.material,
             "vertical_stress_MPa": case.loading.vertical_stress.value_Pa / 1e6,
             "vertical_force_kN": case.vertical_force_N / 1e3,
@@ -630,6 +644,13 @@ def _fmt(x: float | None, spec: str, unit: str = "") -> str:
 
 def format_summary(s: Mapping[str, Any]) -> list[str]:
     """A short human report of a summary, a few lines."""
+    if "status" in s and "collapse" in s:  # a limit-state run (masonry_nscd/post/limit.py)
+        from masonry_nscd.post.limit import format_limit
+
+        return [*format_limit(s), f"steps not converged {s['unconverged_steps']} (worst "
+                f"residual {_fmt(s['worst_residual'], '.2e')})"
+                + (f"; {s['steps_subdivided']} steps made again as smaller ones"
+                   if s.get("steps_subdivided") else "")]
     cyclic = s.get("history", "monotonic") not in ("monotonic", "ground_motion")
     if s.get("history") == "ground_motion":
         peak = (f"peak drift {_fmt(s['peak_drift_mm'], '.4g', ' mm')} "
@@ -698,7 +719,7 @@ def report_run(outdir: Path | str, log: Callable[[str], None],
     try:
         summary = summarize_run(outdir, curve)
         path = write_summary(outdir, summary)
-        if summary["history"] not in ("monotonic", "ground_motion"):
+        if summary.get("history", "monotonic") not in ("monotonic", "ground_motion"):
             from masonry_nscd.io.runfolder import CSV
 
             rows, envelope = run_cycles(curve if curve is not None else

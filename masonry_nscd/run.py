@@ -149,8 +149,10 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     integ = scene.integrator(point.state["t"] if point else 0.0)
     s = integ.sys
     log(f"case {case.name}: {len(scene.structure)} units, {s.npt} contact points, {s.ndof} "
-        f"dofs, blocks {case.blocks.material}, sigma_N "
-        f"{case.loading.vertical_stress.value_Pa:.4g} Pa, contact solver {scene.solver.method}"
+        f"dofs, blocks {case.blocks.material}"
+        + (f", sigma_N {case.loading.vertical_stress.value_Pa:.4g} Pa" if scene.builder == "wall"
+           else f", {scene.builder}")
+        + f", contact solver {scene.solver.method}"
         + (" (auto)" if case.solver.method == "auto" else "")
         + (f", contact points at {scene.meta['contact_point_rule']} points"
            if "contact_point_rule" in scene.meta else ""))
@@ -170,6 +172,12 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     else:
         rec = Recorder.resume(outdir, point, arrays, vtu=out.vtu, hdf5=out.hdf5)
     curve = rec.curve
+    monitor = None  # a limit-state scene's watch for its collapse (masonry_nscd/collapse.py)
+    if scene.collapse is not None:
+        from masonry_nscd.collapse import CollapseMonitor
+
+        monitor = CollapseMonitor(scene, integ, outdir, log,
+                                  resume_step=point.step if point else None)
     h = scene.solver.h
     n_est = math.ceil(scene.expected_end_s / h)
     every = progress_every or max(1, n_est // 40)
@@ -250,6 +258,8 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
             except RunFailure as exc:
                 raise failure(rep.step, rep.time, str(exc)) from exc
             done = scene.finished(ux, rep.time)
+            if monitor is not None and monitor.observe(integ, rep.step, rep.time):
+                done = True  # a collapse, and its after_s have passed
             stopped = not done and stop_when is not None and bool(stop_when(curve))
             done = done or stopped
             if rep.step % case.output.every_steps == 0 or done:
@@ -284,6 +294,9 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     except RunFailure as exc:
         with contextlib.suppress(RunOutputError):
             log(f"failed: {exc}", show=False)
+        if monitor is not None:
+            with contextlib.suppress(OSError):
+                monitor.finish("failed", str(exc))
         if not isinstance(exc, RunOutputError):  # the summary of what was computed
             report_run(outdir, log, curve)  # never raises
         raise
@@ -291,10 +304,15 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
         with contextlib.suppress(RunOutputError):
             log(f"interrupted at step {integ.step_index}: results kept up to the last output "
                 f"step (resume with: masonry run --resume {outdir})")
+        if monitor is not None:
+            with contextlib.suppress(OSError):
+                monitor.finish("interrupted")
         report_run(outdir, log, curve)
         raise
     finally:
         rec.close()
+        if monitor is not None:
+            monitor.close()
     secs = time.perf_counter() - t_start
     log(f"done: {integ.step_index} steps in {secs:.1f} s, Ux {1e3 * ux:.4f} mm, "
         f"Fx {1e-3 * top[0]:.3f} kN; {unconverged} steps not converged "
@@ -307,6 +325,8 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
             f"impacts {e['dissipated_impacts']:.4g}, blocks {e['dissipated_blocks']:.4g}) + "
             f"numerical {e['numerical']:.4g} J; imbalance {e['imbalance']:.3g} J "
             f"(relative {e['relative_imbalance']:.2e})")
+    if monitor is not None:
+        monitor.finish("done")
     report_run(outdir, log)
     log.close()
     return RunResult(integ.step_index, 1e3 * ux, 1e-3 * top[0], secs, unconverged, outdir,

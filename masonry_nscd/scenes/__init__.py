@@ -1,6 +1,7 @@
 """Scene builders: a case section turned into a block assembly ready to step.
 
-``build_scene(case)`` picks the builder of the case (today the wall of ``case.wall``); each
+``build_scene(case)`` picks the builder of the case (the arch of ``case.arch`` when it has one,
+the wall of ``case.wall`` otherwise); each
 builder returns a :class:`~masonry_nscd.scenes.scene.Scene`. A new geometry is a new builder
 module here and its section in ``case.py``.
 """
@@ -10,6 +11,10 @@ from __future__ import annotations
 
 def build_scene(case):
     """The scene of a validated case."""
+    if getattr(case, "arch", None) is not None:
+        from masonry_nscd.scenes.arch import build_arch
+
+        return build_arch(case)
     from masonry_nscd.scenes.wall import build_wall
 
     return build_wall(case)

@@ -106,6 +106,7 @@ class Scene:
     meta: dict[str, Any] = field(default_factory=dict)  # builder's values for the summary
     # (dofs, weights) of U_x and of U_y, global dofs (None: the driven body's reference point)
     measured: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None
+    collapse: Any = None  # a limit-state scene's collapse.CollapseRule (None: no watch)
 
     # --- what changes with time -----------------------------------------------------------
     def stage_at(self, t: float) -> str:
@@ -196,7 +197,8 @@ class Scene:
             "history": self.history,
             "contact_solver": self.solver.method,
             "driven": {"body": name(self.driven),
-                       "reference_m": [float(v) for v in self.bodies[self.driven].reference]},
+                       "reference_m": [float(v) for v in getattr(  # a block: its first node
+                           self.bodies[self.driven], "reference", self.bodies[self.driven].X[0])]},
             "reactions": {k: name(b) for k, b in self.reactions.items()},
             "holds": [{"body": name(hd.body), "dof": DOF_NAMES[hd.dof], "from_s": hd.from_s}
                       for hd in self.holds],
@@ -204,5 +206,6 @@ class Scene:
             "structure": [{"body": i, "kind": "rigid" if isinstance(self.bodies[i], RigidBody)
                            else "block", **info}
                           for i, info in zip(self.structure, self.body_info)],
+            **({"collapse": self.collapse.info()} if self.collapse is not None else {}),
             **self.meta,
         }

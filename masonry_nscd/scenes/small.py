@@ -330,3 +330,47 @@ def rocking_block(*, width=0.2, height=0.8, depth=0.15, mu=0.8, record=None, til
     return integ, {"mass": block.mass, "rotation_dof": 5, "ground": ground,
                    "threshold_m_s2": gravity * b / hh,
                    "housner_factor": 1.0 - 1.5 * b * b / (b * b + hh * hh)}
+
+
+def tilting_block(*, width=0.1, height=0.4, depth=0.15, mu=0.6, rate_per_s=0.05,
+                  multiplier=0.0, start_s=0.1, ramp_s=0.1, gravity=9.81, h=2e-3,
+                  law: str = "coulomb", method: str = "nlgs", tolerance=1e-8,
+                  rule: str = "lobatto", displacement_m=0.01, onset_velocity_m_s=1e-4,
+                  end_s=10.0, joint_kw=None):
+    """A rigid block (2000 kg/m^3; ``width`` along x, ``height`` along y) free on a fixed base,
+    under gravity (ramped over [0, 0.05] s) and a horizontal body force ``lambda(t) g m``
+    along +x that rises to ``multiplier`` and grows at ``rate_per_s``
+    (:class:`masonry_nscd.loading.multiplier.GrowingMultiplier`): the tilting table, a base
+    tilted by ``atan(lambda)``. A limit-state scene (:mod:`masonry_nscd.collapse`): it topples
+    about its toe at ``lambda = width / height`` if ``mu`` is larger, and slides at
+    ``lambda = mu`` otherwise, with its contact points at the corners of its base (``rule``
+    ``lobatto``). Returns the :class:`~masonry_nscd.scenes.scene.Scene`."""
+    from masonry_nscd.collapse import CollapseRule, LoadFactor
+    from masonry_nscd.loading.multiplier import GrowingMultiplier
+    from masonry_nscd.scenes.scene import Scene, SolverSettings, Stage
+
+    P = np.atleast_2d(fczm.joint_params(law=law, mu=mu, **dict(joint_kw or {})))
+    base = _fixed_plate((width / 2, -0.05, depth / 2), (4 * width, 0.1, 2 * depth))
+    base.name = "base"
+    block = RigidBody.box((0, 0, 0), (width, height, depth), 2000.0, (1, 1, 1), name="block")
+    bodies = [block, base]
+    n = int(dof_offsets(bodies)[-1])
+    pts = contact_points(bodies, _all_joints(), max_gap=0.0, rule=rule)
+    loads = Loads()
+    G = np.zeros(n)
+    G[:6] = block.weight_load(np.array([0.0, -1.0, 0.0]))
+    loads.add(G, Ramp(gravity, 0.0, 0.05))
+    lam = GrowingMultiplier(multiplier, rate_per_s, start_s, ramp_s)
+    B = np.zeros(n)
+    B[:6] = block.weight_load(np.array([1.0, 0.0, 0.0]))
+    loads.add(B, lambda t: gravity * lam(t))
+    rule_ = CollapseRule(displacement_m=displacement_m, onset_velocity_m_s=onset_velocity_m_s,
+                         factors=[LoadFactor("lambda", "", lam, "body force multiplier")])
+    solver = SolverSettings(h=h, tolerance=tolerance, max_iterations=20000, check_every=1,
+                            method=method)
+    return Scene(name="tilting block", bodies=bodies, points=pts, groups=("base",), params=P,
+                 loads=loads, solver=solver, structure=[0], body_info=[{"name": "block"}],
+                 driven=0, reactions={"top": 1, "bottom": 1},
+                 stages=[Stage("gravity", 0.0), Stage("body force", start_s)],
+                 push_stage="gravity", target_m=None, expected_end_s=end_s,
+                 time_limit_s=end_s, builder="small", collapse=rule_)

@@ -1,0 +1,281 @@
+r"""Collapse of a limit-state run: when a structure has become a mechanism, and at what load.
+
+A limit-state scene (an arch, :mod:`masonry_nscd.scenes.arch`) carries a :class:`CollapseRule`;
+the run loop (:mod:`masonry_nscd.run`) gives every step to a :class:`CollapseMonitor`, which
+reads the displacement and the velocity of every point of every block of the structure (the
+nodes of its mesh: a rigid block's corners move by ``u_0 + theta x (x - x_ref)``) and decides:
+
+* **collapse** when the largest displacement of a block point passes ``displacement_m`` (m), or,
+  if the rule has one, its largest speed passes ``velocity_m_s`` (m/s): the structure has turned
+  into a mechanism. The run goes on for ``after_s`` (s, so that the mechanism shows) and stops;
+  its status is ``collapse``, not a failure: the command exits with 0.
+* the **onset** of the mechanism: the last step before the collapse at which every block point
+  was slower than ``onset_velocity_m_s`` (m/s), the structure at rest. The loads at collapse
+  (the body-force multiplier ``lambda``, the force on a block, a settlement: the scene's
+  :class:`LoadFactor` s) are read there: with a load that grows while the mechanism gains
+  speed, the load when the displacement bound is passed is later, and higher, than the load
+  that started it. Both are reported.
+* **standing**: the run reached its end time (``collapse.end_time_s``) without collapse.
+
+A solver failure is no collapse: the run stops with exit code 1 and the status ``failed``.
+
+Outputs in the run folder: ``limit.csv``, one row per step (``step, time_s``, each load factor,
+``max_displacement_m``, ``max_speed_m_s``, ``kinetic_energy_J``), and ``limit.json``, the status
+and the collapse (:meth:`CollapseMonitor.record`), which the summary reads
+(:mod:`masonry_nscd.post.limit`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+LIMIT_CSV = "limit.csv"
+LIMIT_JSON = "limit.json"
+#: Blocks listed as those that moved most at collapse.
+MOVED_MOST = 5
+
+
+@dataclass(frozen=True)
+class LoadFactor:
+    """A load whose value at collapse is reported: ``name`` (a CSV column and a key of the
+    summary), its unit, ``value(t)`` and what it is."""
+
+    name: str
+    unit: str
+    value: Callable[[float], float]
+    description: str = ""
+
+
+@dataclass
+class CollapseRule:
+    """What a scene calls a collapse (module docstring; ``collapse`` section of the case)."""
+
+    displacement_m: float
+    velocity_m_s: float | None = None
+    onset_velocity_m_s: float = 1e-3
+    hinge_opening_m: float = 1e-4
+    after_s: float = 0.0
+    factors: list[LoadFactor] = field(default_factory=list)
+
+    def info(self) -> dict[str, Any]:
+        return {"displacement_m": self.displacement_m, "velocity_m_s": self.velocity_m_s,
+                "onset_velocity_m_s": self.onset_velocity_m_s,
+                "hinge_opening_m": self.hinge_opening_m, "after_s": self.after_s,
+                "load_factors": [{"name": f.name, "unit": f.unit, "description": f.description}
+                                 for f in self.factors]}
+
+
+def point_map(bodies, structure, body_dof0, ndof):
+    """The sparse map ``B`` (3p, ndof) from the dofs to the displacements of the nodes of the
+    structure's bodies (p points), and the body of each point."""
+    from scipy.sparse import csr_matrix
+
+    from masonry_nscd.model import RigidBody
+
+    rows, cols, vals, owner = [], [], [], []
+    p = 0
+    for k, i in enumerate(structure):
+        b = bodies[i]
+        d0 = int(body_dof0[i])
+        if isinstance(b, RigidBody):
+            for x in np.asarray(b.X):
+                r = x - b.reference
+                for d in range(3):
+                    rows.append(3 * p + d)
+                    cols.append(d0 + d)
+                    vals.append(1.0)
+                # theta x r: row d gets sum_e eps_{d e f} theta_e r_f
+                for d, e, f, s in ((0, 1, 2, 1), (0, 2, 1, -1), (1, 2, 0, 1), (1, 0, 2, -1),
+                                   (2, 0, 1, 1), (2, 1, 0, -1)):
+                    rows.append(3 * p + d)
+                    cols.append(d0 + 3 + e)
+                    vals.append(s * r[f])
+                owner.append(k)
+                p += 1
+        else:
+            for node in range(len(b.X)):
+                for d in range(3):
+                    rows.append(3 * p + d)
+                    cols.append(d0 + 3 * node + d)
+                    vals.append(1.0)
+                owner.append(k)
+                p += 1
+    return csr_matrix((vals, (rows, cols)), shape=(3 * p, ndof)), np.asarray(owner, dtype=int)
+
+
+class CollapseMonitor:
+    """Watches a run step by step for the collapse of the structure (module docstring)."""
+
+    def __init__(self, scene, integ, outdir: Path | str | None, log: Callable[..., None], *,
+                 resume_step: int | None = None):
+        self.rule: CollapseRule = scene.collapse
+        self.log = log
+        self.outdir = None if outdir is None else Path(outdir)
+        s = integ.sys
+        self.names = [scene.bodies[i].name or f"body {i}" for i in scene.structure]
+        self.B, self.owner = point_map(scene.bodies, scene.structure, s.body_dof0, s.ndof)
+        self.starts = np.flatnonzero(np.r_[True, self.owner[1:] != self.owner[:-1]])
+        self.onset: dict[str, Any] | None = None
+        self.detected: dict[str, Any] | None = None
+        self.stop_at = math.inf
+        self.last: dict[str, Any] = {}
+        self.columns = ["step", "time_s", *(f.name for f in self.rule.factors),
+                        "max_displacement_m", "max_speed_m_s", "kinetic_energy_J"]
+        self.file = None
+        if self.outdir is None:  # no files (:func:`watch`)
+            return
+        path = self.outdir / LIMIT_CSV
+        kept: list[str] = []
+        if resume_step is not None and path.exists():
+            kept = self._replay(path, resume_step)
+        self.file = open(path, "w")  # noqa: SIM115 (closed by close)
+        self.file.write(",".join(self.columns) + "\n")
+        for line in kept:
+            self.file.write(line)
+        self.file.flush()
+
+    def _replay(self, path: Path, step: int) -> list[str]:
+        """The rows of an interrupted run's ``limit.csv`` up to ``step`` (kept), and the onset
+        and collapse they show, for a resumed run."""
+        lines = path.read_text().splitlines(keepends=True)[1:]
+        kept = []
+        for line in lines:
+            try:
+                values = [float(v) for v in line.split(",")]
+            except ValueError:
+                break
+            if len(values) != len(self.columns) or values[0] > step:
+                break
+            kept.append(line)
+            row = dict(zip(self.columns, values, strict=True))
+            self._judge(int(row["step"]), row["time_s"], row["max_displacement_m"],
+                        row["max_speed_m_s"], None, quiet=True)
+        return kept
+
+    def loads(self, t: float) -> dict[str, float]:
+        return {f.name: float(f.value(t)) for f in self.rule.factors}
+
+    def observe(self, integ, step: int, t: float) -> bool:
+        """Take the state after ``step`` (ending at ``t``, s); True when the run should stop
+        (the collapse was detected, and ``after_s`` has passed since)."""
+        disp = np.linalg.norm((self.B @ integ.u).reshape(-1, 3), axis=1)
+        speed = np.linalg.norm((self.B @ integ.v).reshape(-1, 3), axis=1)
+        d_max, v_max = float(disp.max(initial=0.0)), float(speed.max(initial=0.0))
+        kinetic = 0.5 * float(integ.v @ (integ.sys.mass * integ.v))  # lumped (diagonal) mass
+        loads = self.loads(t)
+        self.last = {"step": step, "time_s": t, "loads": loads, "max_displacement_m": d_max,
+                     "max_speed_m_s": v_max}
+        if self.file is not None:
+            values = [step, t, *loads.values(), d_max, v_max, kinetic]
+            self.file.write(",".join(repr(float(v)) if not isinstance(v, int) else str(v)
+                                     for v in values) + "\n")
+            self.file.flush()
+        self._judge(step, t, d_max, v_max, disp)
+        return self.detected is not None and t >= self.stop_at - 1e-9
+
+    def _judge(self, step: int, t: float, d_max: float, v_max: float,
+               disp: np.ndarray | None, quiet: bool = False) -> None:
+        r = self.rule
+        if self.detected is not None:
+            return
+        if v_max < r.onset_velocity_m_s:
+            self.onset = {"step": step, "time_s": t, "loads": self.loads(t)}
+        by = "displacement" if d_max > r.displacement_m else \
+            "velocity" if r.velocity_m_s is not None and v_max > r.velocity_m_s else None
+        if by is None:
+            return
+        moved = []
+        if disp is not None:
+            per_body = np.maximum.reduceat(disp, self.starts)
+            order = np.argsort(-per_body)[:MOVED_MOST]
+            moved = [{"body": self.names[self.owner[self.starts[k]]],
+                      "displacement_m": float(per_body[k])} for k in order]
+        self.detected = {"by": by, "step": step, "time_s": t, "loads": self.loads(t),
+                         "max_displacement_m": d_max, "max_speed_m_s": v_max,
+                         "moved_most": moved}
+        self.stop_at = t + r.after_s
+        if quiet:
+            return
+        onset = self.onset
+        loads = onset["loads"] if onset else self.detected["loads"]
+        text = ", ".join(f"{k} {v:.5g}" for k, v in loads.items())
+        self.log(f"collapse at step {step} (t = {t:.4f} s): largest displacement "
+                 f"{d_max:.4g} m, speed {v_max:.4g} m/s ({by} bound passed); onset of the "
+                 f"mechanism at t = {onset['time_s']:.4f} s" if onset else
+                 f"collapse at step {step} (t = {t:.4f} s): the structure never was at rest")
+        if text:
+            self.log(f"collapse: loads at the onset: {text}")
+        if moved:
+            self.log("collapse: moved most: " + ", ".join(
+                f"{m['body']} {1e3 * m['displacement_m']:.3g} mm" for m in moved))
+
+    def record(self, status: str, message: str = "") -> dict[str, Any]:
+        """The status of the run and its collapse, as written to ``limit.json``."""
+        collapse = None
+        if self.detected is not None:
+            onset = self.onset
+            collapse = {
+                "detected_by": self.detected["by"],
+                "onset_step": onset["step"] if onset else None,
+                "onset_time_s": onset["time_s"] if onset else None,
+                "loads_at_onset": onset["loads"] if onset else None,
+                "detected_step": self.detected["step"],
+                "detected_time_s": self.detected["time_s"],
+                "loads_at_detection": self.detected["loads"],
+                "max_displacement_at_detection_m": self.detected["max_displacement_m"],
+                "max_speed_at_detection_m_s": self.detected["max_speed_m_s"],
+                "moved_most": self.detected["moved_most"]}
+        return {"status": status, "message": message, "rule": self.rule.info(),
+                "collapse": collapse, "last": self.last}
+
+    def finish(self, status: str, message: str = "") -> None:
+        """Write ``limit.json`` with the run's ``status`` (``collapse`` when it was detected,
+        whatever is passed, unless the run failed or was interrupted before)."""
+        from masonry_nscd.io.atomic import atomic_write
+
+        if status == "done":
+            status = "collapse" if self.detected is not None else "standing"
+        text = json.dumps(_finite(self.record(status, message)), indent=2,
+                          allow_nan=False) + "\n"
+        atomic_write(self.outdir / LIMIT_JSON, lambda p: Path(p).write_text(text))
+
+    def close(self) -> None:
+        if self.file is not None:
+            self.file.close()
+
+
+def watch(scene, end_s: float, log: Callable[..., None] = lambda *_a, **_k: None
+          ) -> dict[str, Any]:
+    """Step a limit-state ``scene`` from rest until it collapses (and ``after_s`` has passed)
+    or until ``end_s`` (s), without writing anything; returns :meth:`CollapseMonitor.record`
+    with the rigid bodies' dofs at the end (``"u"``, by scene body index). For tests and
+    studies that need no run folder."""
+    integ = scene.integrator()
+    mon = CollapseMonitor(scene, integ, None, log)
+    h = scene.solver.h
+    while integ.t < end_s - 1e-6 * h:
+        rep = integ.step()
+        if mon.observe(integ, rep.step, rep.time):
+            break
+    out = mon.record("collapse" if mon.detected is not None else "standing")
+    d0 = integ.sys.body_dof0
+    out["u"] = {i: integ.u[d0[i]:d0[i + 1]].copy() for i in range(len(scene.bodies))}
+    return out
+
+
+def _finite(obj):
+    """NaN and infinities as None, for JSON."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_finite(v) for v in obj]
+    return obj

@@ -1,0 +1,164 @@
+"""Figures of limit-state runs (an arch): the mechanism, and the load against the motion.
+
+``mechanism_<run>.png`` (:func:`plot_mechanism`), two panels:
+
+* the structure at the last output step of ``results.h5`` (the collapse, or the end of a run
+  that stands), each element's front face (z-min) drawn deformed with its displacements
+  multiplied by ``magnify`` (by default so that the largest displacement shows as 4 % of the
+  structure's width), over the outline of the undeformed structure and the supports; the hinges
+  of the summary (:mod:`masonry_nscd.post.limit`) marked at their pivots (a red dot, labelled
+  with the joint and the face), sliding joints with a blue cross;
+* the growing load (the first of the scene's load factors: the body-force multiplier ``lambda``,
+  the force on a block) against the largest displacement of a block point (``limit.csv``), with
+  the onset of the mechanism and its detection marked; without a growing load, the largest
+  displacement against time.
+
+Matplotlib through its object-oriented API (Agg), as :mod:`masonry_nscd.plots`.
+"""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+#: The largest displacement is drawn as this fraction of the structure's width by default.
+AUTO_MAGNIFY_FRACTION = 0.04
+
+
+def _read_limit_csv(path: Path) -> dict[str, np.ndarray]:
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    if not rows:
+        return {}
+    head, body = rows[0], []
+    for row in rows[1:]:
+        try:
+            values = [float(v) for v in row]
+        except ValueError:
+            break
+        if len(values) == len(head):
+            body.append(values)
+    data = np.array(body, dtype=float).reshape(-1, len(head))
+    return {k: data[:, j] for j, k in enumerate(head)}
+
+
+def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
+    """The mechanism figure of a limit-state run folder (module docstring); ``run`` is a
+    :class:`masonry_nscd.plots.RunData`."""
+    from matplotlib.collections import PolyCollection
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Rectangle
+
+    from masonry_nscd.collapse import LIMIT_CSV
+    from masonry_nscd.plots import _save
+    from masonry_nscd.post.limit import limit_summary
+    from masonry_nscd.report import read_fields
+
+    fields = read_fields(run.outdir / "results.h5")
+    if fields is None:
+        raise ValueError(f"{run.outdir}: results.h5 has no output step")
+    summary = limit_summary(run.outdir, run.scene, fields)
+    disp = fields.nodal_displacement_m if fields.nodal_displacement_m is not None \
+        else np.zeros_like(fields.nodes_m)
+    front = fields.hexes[:, :4]
+    ref = fields.nodes_m[:, :2]
+    width = float(np.ptp(ref[:, 0])) or 1.0
+    largest = float(np.linalg.norm(disp, axis=1).max(initial=0.0))
+    if magnify <= 0.0:
+        magnify = AUTO_MAGNIFY_FRACTION * width / largest if largest > 0.0 else 1.0
+    moved = ref + magnify * disp[:, :2]
+    fig = Figure(figsize=(14, 6), layout="constrained")
+    ax, bx = fig.subplots(1, 2, width_ratios=(1.4, 1.0))
+    for box in (run.scene.get("arch") or {}).get("supports_xy_m", []):
+        x0, y0, x1, y1 = box
+        ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, facecolor="0.8", edgecolor="0.5",
+                               hatch="//", linewidth=0.5))
+    ax.add_collection(PolyCollection(ref[front], facecolors="none", edgecolors="0.75",
+                                     linewidths=0.6, linestyles="--"))
+    node_disp = np.linalg.norm(disp[:, :2], axis=1)
+    pc = PolyCollection(moved[front], array=1e3 * node_disp[front].mean(axis=1), cmap="viridis",
+                        edgecolors="0.2", linewidths=0.5)
+    ax.add_collection(pc)
+    fig.colorbar(pc, ax=ax, shrink=0.8, label="displacement (mm)")
+
+    def placed(point) -> np.ndarray:
+        """A reference point moved with the nearest node of the front faces."""
+        p = np.asarray(point, dtype=float)
+        nodes = np.unique(front)
+        k = nodes[np.argmin(np.linalg.norm(fields.nodes_m[nodes] - p, axis=1))]
+        return p[:2] + magnify * disp[k, :2]
+
+    for h in summary["hinges"]:
+        p = placed(h["pivot_m"])
+        ax.plot(*p, "o", color="red", markersize=9, markeredgecolor="k", zorder=5)
+        label = f"joint {h['joint']}\n{h['side']}" if h.get("joint") is not None else \
+            "\n".join(h["bodies"])
+        ax.annotate(label, p, textcoords="offset points", xytext=(8, 6), fontsize=8,
+                    color="darkred")
+    for j in summary["sliding_joints"]:
+        p = placed(j["centre_m"])
+        ax.plot(*p, "x", color="blue", markersize=10, markeredgewidth=2, zorder=5)
+    lo, hi = np.minimum(ref.min(axis=0), moved.min(axis=0)), np.maximum(ref.max(axis=0),
+                                                                         moved.max(axis=0))
+    pad = 0.08 * float(max(hi - lo))
+    ax.set_xlim(lo[0] - pad, hi[0] + pad)
+    ax.set_ylim(lo[1] - 2 * pad, hi[1] + pad)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    c = summary.get("collapse")
+    loads = (c or {}).get("loads_at_onset") or {}
+    ax.set_title(f"{summary['status']}: {summary['mechanism']} mechanism"
+                 + (f" ({', '.join(f'{k} = {v:.4g}' for k, v in loads.items())} at the onset)"
+                    if loads else "")
+                 + f"\nstep {fields.step}, t = {fields.time_s:.3f} s, displacements x "
+                 f"{magnify:.3g}; hinges (red) at their pivots")
+
+    table = _read_limit_csv(run.outdir / LIMIT_CSV)
+    factors = [f["name"] for f in summary.get("load_factors", []) if f["name"] in table]
+    if table and len(table.get("time_s", [])):
+        d = 1e3 * table["max_displacement_m"]
+        if factors:
+            name = factors[0]
+            bx.plot(d, table[name], color="C0")
+            bx.set_ylabel(name)
+            bx.set_xlabel("largest displacement of a block point (mm)")
+            y_of = dict(zip(table["step"].astype(int), table[name], strict=True))
+        else:
+            bx.plot(table["time_s"], d, color="C0")
+            bx.set_xlabel("t (s)")
+            bx.set_ylabel("largest displacement of a block point (mm)")
+            y_of = None
+        x_of = dict(zip(table["step"].astype(int), d, strict=True))
+        t_of = dict(zip(table["step"].astype(int), table["time_s"], strict=True))
+        for key, mark, text in (("onset_step", "o", "onset"), ("detected_step", "s",
+                                                                "detected")):
+            step = (c or {}).get(key)
+            if step is None or step not in x_of:
+                continue
+            xy = (x_of[step], y_of[step]) if y_of else (t_of[step], x_of[step])
+            bx.plot(*xy, mark, color="red")
+            bx.annotate(text, xy, textcoords="offset points", xytext=(6, -12), fontsize=8)
+        bx.grid(alpha=0.3)
+        bx.set_title("load against motion" if factors else "motion")
+    fig.suptitle(f"{run.label}: {run.scene.get('builder', '')} "
+                 f"({run.case.blocks.material} blocks, joints {run.case.joint.law})")
+    return _save(fig, path)
+
+
+def plot_limit_runs(runs: Sequence, plot_dir: Path,
+                    magnify: float = 0.0) -> tuple[list[Path], list[str]]:
+    """The mechanism figure of each limit-state run with a ``results.h5``."""
+    from masonry_nscd.plots import _slug
+
+    written, notes = [], []
+    for run in runs:
+        if not run.has_fields:
+            notes.append(f"{run.outdir}: no results.h5, no mechanism figure")
+            continue
+        written.append(plot_mechanism(run, plot_dir / f"mechanism_{_slug(run.label)}.png",
+                                      magnify))
+    return written, notes

@@ -1,0 +1,235 @@
+r"""What a limit-state run ended in: its status, its collapse, its hinges and sliding joints.
+
+The status and the collapse come from ``limit.json`` (:mod:`masonry_nscd.collapse`); the state
+of the joints from the last output step of ``results.h5``.
+
+A joint (the contact points between two bodies) at one output step, from the normal opening
+``u_n`` (m) of its points (positive: open) and their slip:
+
+* the opening is fitted by a plane over the face, ``u_n(x) = a + g . (x - x_c)`` (least squares,
+  ``g`` in the face's plane, m/m: the joint's relative rotation), and read along ``g`` over the
+  extent of the points ``[s_min, s_max]``;
+* the **open fraction** is the part of that extent where the fitted opening passes
+  ``hinge_opening_m`` (the ``collapse`` section of the case);
+* a **hinge**: open over at least half of the face (``HINGE_FRACTION``) and closed at one edge
+  (the fitted opening at ``s_min`` at most ``hinge_opening_m``): the two bodies turn about that
+  edge, the **pivot**. With Gauss-Lobatto points (an arch's default) the points span the face;
+* **open**: open everywhere (the bodies have separated);
+* **sliding**: closed, and a point has slid by more than ``hinge_opening_m`` (tangential
+  relative displacement).
+
+An arch's joints are numbered from 0 (the left springing) to ``n`` (the right one), joint ``j``
+between voussoirs ``j`` and ``j + 1``; the pivot is on the ``intrados`` or the ``extrados``
+(whichever end of the joint line is nearer), and ``angle_from_crown_deg`` is the angle of the
+joint's line from the vertical through the centre of its arc (the crown joint of a pointed arch
+has none).
+
+The mechanism is named from the count: ``four-hinge`` (a fixed arch's one degree of freedom),
+``three-hinge``, ``five-hinge`` (the symmetric mechanism of a symmetric arch and load), ...,
+``sliding``, or ``hinges and sliding``; ``none`` when no joint has moved.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+#: A hinge is open over at least this fraction of its face.
+HINGE_FRACTION = 0.5
+_COUNT_NAMES = {1: "one-hinge", 2: "two-hinge", 3: "three-hinge", 4: "four-hinge",
+                5: "five-hinge", 6: "six-hinge"}
+
+
+def joint_states(fields, scene: Mapping[str, Any], opening_m: float) -> list[dict[str, Any]]:
+    """Every joint of the scene's joint groups at the output step of ``fields`` (module
+    docstring), in the order of their first point."""
+    groups = list(scene["groups"])
+    joint_ids = [groups.index(g) for g in scene["joint_groups"]]
+    names = dict(enumerate(scene["bodies"]))
+    u = fields.joint_u_m
+    if u is None:
+        return []
+    idx = np.flatnonzero(np.isin(fields.contact_group, joint_ids))
+    pairs: dict[tuple[int, int], list[int]] = {}
+    for a in idx:
+        cand, ant = (int(b) for b in fields.contact_bodies[a])
+        pairs.setdefault((min(cand, ant), max(cand, ant)), []).append(int(a))
+    arch = scene.get("arch")
+    out = []
+    for (b0, b1), members in pairs.items():
+        pts = np.asarray(members)
+        x = fields.contact_points_m[pts]
+        n = fields.contact_frame[pts[0], 0]
+        un = u[pts, 0]
+        slip = float(np.linalg.norm(u[pts, 1:], axis=1).max())
+        xc = x.mean(axis=0)
+        d = x - xc
+        d = d - np.outer(d @ n, n)  # in the face's plane
+        # least squares u_n = a + g . d, g in the plane (the normal component has no data)
+        A = np.column_stack([np.ones(len(pts)), d])
+        coef, *_ = np.linalg.lstsq(A, un, rcond=None)
+        a0, g = float(coef[0]), coef[1:] - (coef[1:] @ n) * n
+        gnorm = float(np.linalg.norm(g))
+        if gnorm > 0.0:
+            e = g / gnorm
+            s = d @ e
+            s_lo, s_hi = float(s.min()), float(s.max())
+        else:
+            e, s_lo, s_hi = np.zeros(3), 0.0, 0.0
+        low, high = a0 + gnorm * s_lo, a0 + gnorm * s_hi
+        if high <= opening_m:
+            fraction = 0.0
+        elif low > opening_m:
+            fraction = 1.0
+        else:
+            fraction = (high - opening_m) / (high - low) if high > low else 0.0
+        if fraction >= HINGE_FRACTION and low <= opening_m:
+            kind = "hinge"
+        elif fraction >= 1.0:
+            kind = "open"
+        elif fraction == 0.0 and slip > opening_m:
+            kind = "sliding"
+        elif fraction > 0.0:
+            kind = "partly open"
+        else:
+            kind = "closed"
+        pivot = xc + s_lo * e
+        entry: dict[str, Any] = {
+            "bodies": [names[b0], names[b1]], "group": groups[int(fields.contact_group[pts[0]])],
+            "kind": kind, "open_fraction": fraction, "max_opening_m": float(max(high, un.max())),
+            "rotation_rad": gnorm, "slip_m": slip,
+            "pivot_m": [float(v) for v in pivot] if kind == "hinge" else None,
+            "centre_m": [float(v) for v in xc]}
+        if arch is not None:
+            entry.update(_arch_place(arch, names[b0], names[b1], pivot if kind == "hinge"
+                                     else None))
+        out.append(entry)
+    return out
+
+
+def _arch_place(arch: Mapping[str, Any], name0: str, name1: str,
+                pivot: np.ndarray | None) -> dict[str, Any]:
+    """The joint number of an arch's joint, the angle of its line from the crown, and on which
+    face its pivot is."""
+    n = int(arch["voussoirs"])
+
+    def number(name: str) -> int | None:
+        if name.startswith("voussoir "):
+            return int(name.split()[1])
+        return None
+
+    k0, k1 = number(name0), number(name1)
+    if k0 is not None and k1 is not None:
+        j = min(k0, k1)
+    elif (k0 or k1) is not None:
+        j = 0 if (k0 or k1) == 1 else n
+    else:
+        return {"joint": None}
+    p_in = np.asarray(arch["joints_intrados_m"][j])
+    p_out = np.asarray(arch["joints_extrados_m"][j])
+    centre = arch["joint_centres_m"][j]
+    mid = 0.5 * (p_in + p_out)
+    angle = None if centre is None else \
+        math.degrees(math.atan2(abs(mid[0] - centre[0]), mid[1] - centre[1]))
+    side = None
+    if pivot is not None:
+        side = "intrados" if np.linalg.norm(pivot[:2] - p_in) < np.linalg.norm(pivot[:2] - p_out) \
+            else "extrados"
+    return {"joint": j, "angle_from_crown_deg": angle, "side": side}
+
+
+def mechanism_name(joints: list[dict[str, Any]]) -> str:
+    """``four-hinge``, ``sliding``, ``hinges and sliding``, ``none``... (module docstring)."""
+    hinges = sum(1 for j in joints if j["kind"] == "hinge")
+    sliding = sum(1 for j in joints if j["kind"] == "sliding")
+    if hinges and sliding:
+        return "hinges and sliding"
+    if sliding:
+        return "sliding"
+    if hinges:
+        return _COUNT_NAMES.get(hinges, f"{hinges}-hinge")
+    return "none" if not any(j["kind"] in ("open", "partly open") for j in joints) \
+        else "joints opening"
+
+
+def read_limit(outdir: Path | str) -> dict[str, Any] | None:
+    """``limit.json`` of a run folder (None: none written)."""
+    from masonry_nscd.collapse import LIMIT_JSON
+
+    path = Path(outdir) / LIMIT_JSON
+    if not path.exists():
+        return None
+    return json.loads(path.read_text())
+
+
+def limit_summary(outdir: Path | str, scene: Mapping[str, Any], fields) -> dict[str, Any]:
+    """The limit-state part of ``summary.json``: ``status`` (``collapse``, ``standing``,
+    ``failed``, ``interrupted``, or ``running`` when no status was written), ``collapse``
+    (loads and time at the onset and at the detection, the blocks that moved most; None if
+    it stands), ``hinges`` (the hinges and sliding joints at the last output step),
+    ``mechanism``, and ``moving_at_end`` (standing, but a block point faster than
+    ``collapse.onset_velocity_m_s`` at the end: a mechanism too slow to pass the displacement
+    bound in the time of the run)."""
+    record = read_limit(outdir) or {}
+    rule = scene.get("collapse") or {}
+    opening = float(rule.get("hinge_opening_m", 1e-4))
+    joints = joint_states(fields, scene, opening) if fields is not None else []
+    moved = [j for j in joints if j["kind"] in ("hinge", "sliding", "open")]
+    out: dict[str, Any] = {
+        "status": record.get("status", "running"),
+        "collapse": record.get("collapse"),
+        "mechanism": mechanism_name(joints) if fields is not None else None,
+        "hinges": [j for j in moved if j["kind"] == "hinge"],
+        "sliding_joints": [j for j in moved if j["kind"] == "sliding"],
+        "open_joints": [j for j in moved if j["kind"] == "open"],
+        "joints_step": fields.step if fields is not None else None,
+        "load_factors": rule.get("load_factors", []),
+        "last_loads": (record.get("last") or {}).get("loads"),
+    }
+    last_speed = (record.get("last") or {}).get("max_speed_m_s")
+    # standing by the rule, but still in motion at the end: a slow mechanism may be forming
+    out["moving_at_end"] = bool(out["status"] == "standing" and last_speed is not None
+                                and last_speed > float(rule.get("onset_velocity_m_s", 0.0)))
+    if record.get("message"):
+        out["status_message"] = record["message"]
+    return out
+
+
+def format_limit(s: Mapping[str, Any]) -> list[str]:
+    """The lines of the short report of a limit-state summary."""
+    lines = [f"status: {s['status']}" + (f" ({s['status_message']})"
+                                         if s.get("status_message") else "")]
+    c = s.get("collapse")
+    if c:
+        loads = c.get("loads_at_onset") or c.get("loads_at_detection") or {}
+        when = c.get("onset_time_s")
+        lines.append("collapse: " + (", ".join(f"{k} = {v:.5g}" for k, v in loads.items())
+                                     + " at the onset" if loads else "the mechanism started")
+                     + (f", t = {when:.4f} s" if when is not None else "")
+                     + f" (detected by its {c['detected_by']} at t = "
+                     f"{c['detected_time_s']:.4f} s)")
+        if c.get("moved_most"):
+            lines.append("collapse: moved most: " + ", ".join(
+                f"{m['body']} ({1e3 * m['displacement_m']:.3g} mm)" for m in c["moved_most"][:3]))
+    elif s.get("last_loads"):
+        lines.append("standing at " + ", ".join(f"{k} = {v:.5g}"
+                                                for k, v in s["last_loads"].items()))
+    if s.get("moving_at_end"):
+        lines.append("standing, but still moving at the end: a slow mechanism may be forming "
+                     "(a later collapse.end_time_s tells)")
+    if s.get("mechanism") is not None:
+        hinges = s.get("hinges") or []
+        where = "; ".join(
+            (f"joint {h['joint']} ({h['side']}, {h['angle_from_crown_deg']:.1f} deg from the "
+             "crown)" if h.get("joint") is not None and h.get("angle_from_crown_deg") is not None
+             else f"joint {h.get('joint')} ({h.get('side')})" if h.get("joint") is not None
+             else f"{h['bodies'][0]} / {h['bodies'][1]}") for h in hinges)
+        lines.append(f"mechanism: {s['mechanism']}" + (f"; hinges at {where}" if hinges else "")
+                     + (f"; {len(s['sliding_joints'])} joints sliding"
+                        if s.get("sliding_joints") else ""))
+    return lines

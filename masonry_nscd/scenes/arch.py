@@ -1,0 +1,343 @@
+r"""The arch: voussoirs on two abutments, a builder of the block assembly (issue 18).
+
+Coordinates: x horizontal from the middle of the span, y up from the springing line, z along
+the arch's depth (``0 <= z <= depth``). SI units.
+
+Geometry (:func:`arch_geometry`). ``R`` the radius of the centreline, ``t`` the thickness,
+``R_i = R - t/2`` and ``R_e = R + t/2`` the radii of the intrados and of the extrados, ``L`` the
+span between the centres of the springing joints, ``n`` voussoirs numbered from the left.
+
+* Semicircular: centre ``(0, 0)``; joint ``j = 0..n`` on the radial line of angle
+  ``theta_j = pi j / n`` from the left springing, direction ``u_j = (-cos theta_j, sin
+  theta_j)``, from ``R_i u_j`` to ``R_e u_j``.
+* Pointed: the left half is an arc of centre ``(c, 0)``, ``c = R - L/2``, from the left
+  springing (angle 0) to the crown, where it meets the vertical ``x = 0`` at the angle
+  ``phi_c = acos(c / R)`` of its centreline; its ``n/2`` voussoirs are bounded by the radial
+  lines at ``phi_j = phi_c j / (n/2)``, ``j < n/2``, and by the vertical crown joint, from
+  ``(0, sqrt(R_i^2 - c^2))`` to ``(0, sqrt(R_e^2 - c^2))``. The right half is its mirror image.
+
+Voussoir ``k`` lies between joints ``k - 1`` and ``k``: a prism on the quadrilateral of the two
+joint lines (its intrados and extrados are the chords), extruded along z; one hexahedron (a
+rigid voussoir keeps it as its geometry: mass, centre and inertia of the prism) or
+``elements_per_voussoir`` (along the ring, through the thickness, along z), mapped bilinearly.
+Each joint's unit normal ``n_j = (sin theta_j, cos theta_j)`` points towards the higher
+voussoirs' numbers; with a joint thickness ``g`` each face is moved back by ``g/2`` along it,
+so the two faces of a joint stay parallel, ``g`` apart.
+
+Abutments (``arch.abutments``): ``fixed`` - two fixed rigid boxes, ``abutment_width_m`` wide
+(centred on the springing's centreline) and ``abutment_height_m`` tall, under the springing
+joints; ``blocks`` - the abutments are rigid blocks of those sizes (the blocks' density) resting
+on two fixed ground plates, through a joint of the joint law: they slide and overturn. The
+fixed body under each side (the abutment, or the ground under a block abutment) is the support
+whose force on the structure is reported, and the one that settles with
+``loading.settlement``.
+
+Joints are found by contact detection (:mod:`masonry_nscd.model.detection`: radial planes face
+each other as a bed joint does) and named ``voussoir`` (between voussoirs), ``springing``
+(springer on abutment) and ``base`` (block abutment on the ground), all of the case's joint
+law.
+
+Loads: gravity on every block (``loading.gravity``); the body force ``lambda(t) g m`` along
+``loading.body_force.direction``; a force growing on one block at the middle of its extrados
+face (``loading.point_load``); the settlement of a support. The curve's ``U_x``, ``U_y`` are
+the displacements of the crown voussoir's reference point (the keystone, or the voussoir right
+of the crown joint; a rigid voussoir's centre of mass, an elastic one's first node); ``F_x``,
+``F_y`` the force of the left support on the arch, ``*_bottom`` of the right one. The run stops
+at collapse or at ``collapse.end_time_s`` (:mod:`masonry_nscd.collapse`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from masonry_nscd.collapse import CollapseRule, LoadFactor
+from masonry_nscd.contact import laws
+from masonry_nscd.fe import hex8
+from masonry_nscd.loading import Loads, Ramp, at_rest
+from masonry_nscd.loading.multiplier import GrowingMultiplier, SmoothMotion
+from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody, dof_offsets
+from masonry_nscd.model.detection import find_joints, joint_points
+from masonry_nscd.scenes.scene import Scene, SolverSettings, Stage
+
+X, Y, Z = 0, 1, 2
+#: Joint groups of an arch, in the order of their ids.
+GROUPS = ("voussoir", "springing", "base")
+GROUND_HEIGHT_FRACTION = 0.25  # a ground plate is this fraction of the abutment's height
+
+
+@dataclass
+class ArchGeometry:
+    """The voussoirs' quadrilaterals and the joints of an arch (m)."""
+
+    quads: np.ndarray  # (n, 4, 2): intrados low, intrados high, extrados high, extrados low
+    joints_in: np.ndarray  # (n + 1, 2) intrados end of each joint line (before the gap)
+    joints_out: np.ndarray  # (n + 1, 2) extrados end
+    normals: np.ndarray  # (n + 1, 2) unit normal of each joint, towards higher voussoirs
+    centres: np.ndarray  # (n + 1, 2) centre of the arc whose radius the joint lies on
+    radius: float  # centreline radius R (m)
+    span: float  # centreline span L (m)
+    thickness: float  # m
+    crown_joint: int | None  # index of the crown joint (None: a keystone)
+    keystone: int  # index (0-based) of the crown voussoir
+
+    @property
+    def count(self) -> int:
+        return len(self.quads)
+
+
+def arch_geometry(shape: str, radius: float, span: float, thickness: float, n: int,
+                  gap: float = 0.0) -> ArchGeometry:
+    """The geometry of the module docstring."""
+    r_i, r_e = radius - thickness / 2.0, radius + thickness / 2.0
+    if shape == "semicircular":
+        theta = np.pi * np.arange(n + 1) / n
+        u = np.stack([-np.cos(theta), np.sin(theta)], axis=1)
+        normals = np.stack([np.sin(theta), np.cos(theta)], axis=1)
+        centres = np.zeros((n + 1, 2))
+        j_in, j_out = r_i * u, r_e * u
+        crown = n // 2 if n % 2 == 0 else None
+        if crown is not None:  # exactly vertical (sin, cos of pi/2 are not exact)
+            normals[crown] = (1.0, 0.0)
+            j_in[crown], j_out[crown] = (0.0, r_i), (0.0, r_e)
+    else:
+        c = radius - span / 2.0
+        m = n // 2
+        phi_c = math.acos(c / radius)
+        phi = phi_c * np.arange(m) / m
+        u = np.stack([-np.cos(phi), np.sin(phi)], axis=1)
+        left_in = np.array([c, 0.0]) + r_i * u
+        left_out = np.array([c, 0.0]) + r_e * u
+        left_n = np.stack([np.sin(phi), np.cos(phi)], axis=1)
+        top_in = np.array([[0.0, math.sqrt(r_i ** 2 - c ** 2)]])
+        top_out = np.array([[0.0, math.sqrt(r_e ** 2 - c ** 2)]])
+        mirror = np.array([-1.0, 1.0])
+        j_in = np.concatenate([left_in, top_in, (left_in * mirror)[::-1]])
+        j_out = np.concatenate([left_out, top_out, (left_out * mirror)[::-1]])
+        # the right half's normals point the other way round the arc (towards higher numbers)
+        normals = np.concatenate([left_n, [[1.0, 0.0]], (left_n * np.array([1.0, -1.0]))[::-1]])
+        centres = np.concatenate([np.tile([c, 0.0], (m, 1)), [[np.nan, np.nan]],
+                                  np.tile([-c, 0.0], (m, 1))])
+        crown = m
+    quads = np.empty((n, 4, 2))
+    for k in range(n):
+        lo, hi = k, k + 1
+        shift_lo, shift_hi = 0.5 * gap * normals[lo], -0.5 * gap * normals[hi]
+        quads[k] = [j_in[lo] + shift_lo, j_in[hi] + shift_hi, j_out[hi] + shift_hi,
+                    j_out[lo] + shift_lo]
+    keystone = crown if crown is not None else n // 2
+    return ArchGeometry(quads, j_in, j_out, normals, centres, radius, span, thickness, crown,
+                        keystone)
+
+
+def prism_mesh(quad: np.ndarray, depth: float, divisions=(1, 1, 1)
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Hexahedral mesh (nodes (k, 3), cells (e, 8)) of the prism on the quadrilateral ``quad``
+    (4, 2), counter-clockwise, extruded from z = 0 to ``depth``; ``divisions`` along the edge
+    0-1, along the edge 0-3 and along z, mapped bilinearly."""
+    U, conn = hex8.box_mesh(np.zeros(3), np.ones(3), tuple(divisions))
+    s, r = U[:, 0:1], U[:, 1:2]
+    xy = ((1 - s) * (1 - r) * quad[0] + s * (1 - r) * quad[1] + s * r * quad[2]
+          + (1 - s) * r * quad[3])
+    return np.column_stack([xy, depth * U[:, 2]]), conn
+
+
+def describe(case) -> str:
+    """One line on an arch case (``masonry validate``)."""
+    a, ld = case.arch, case.loading
+    loads = ["gravity"]
+    bf = ld.body_force
+    if bf.active:
+        loads.append(f"body force lambda {bf.multiplier:g} + {bf.rate_per_s:g}/s along "
+                     f"({', '.join(f'{v:.3g}' for v in bf.direction)})")
+    if ld.point_load is not None:
+        loads.append(f"a force on {ld.point_load.block}")
+    if ld.settlement is not None:
+        loads.append(f"settlement of the {ld.settlement.support} support")
+    return (f"{case.name}: {a.shape} arch of {a.voussoirs} voussoirs, radius "
+            f"{a.centreline_radius_m:.4g} m, span {a.centreline_span_m:.4g} m, thickness "
+            f"{a.thickness_m:.4g} m (t/R = {a.thickness_m / a.centreline_radius_m:.4g}), "
+            f"{a.abutments} abutments, blocks {case.blocks.material}, joints {case.joint.law}; "
+            f"{', '.join(loads)}; until collapse or {case.collapse.end_time_s:g} s, about "
+            f"{case.step_count} steps of {case.solver.time_step_s:g} s")
+
+
+def _box(lo, hi) -> tuple[np.ndarray, np.ndarray]:
+    lo = np.asarray(lo, dtype=float)
+    return hex8.box_mesh(lo, np.asarray(hi, dtype=float) - lo, (1, 1, 1))
+
+
+def build_arch(case) -> Scene:
+    """The scene of an arch case (module docstring)."""
+    a, blk, sol, ld = case.arch, case.blocks, case.solver, case.loading
+    R, L, t = a.centreline_radius_m, a.centreline_span_m, a.thickness_m
+    n, depth, g = a.voussoirs, a.depth_m, a.joint_thickness_m
+    geo = arch_geometry(a.shape, R, L, t, n, g)
+    bodies: list = []
+    info = []
+    material = MAT_ENDO3D if blk.material == "endo3d" else MAT_ELASTIC
+    for k in range(n):
+        name = f"voussoir {k + 1}"
+        role = ("left springer" if k == 0 else "right springer" if k == n - 1 else
+                "keystone" if k == geo.keystone and geo.crown_joint is None else "")
+        Xv, cv = prism_mesh(geo.quads[k], depth, a.elements_per_voussoir)
+        if blk.material == "rigid":
+            bodies.append(RigidBody.from_mesh(Xv, cv, blk.density_kg_m3, name=name))
+        else:
+            bodies.append(Block(X=Xv, conn=cv, E=blk.E_Pa, nu=blk.nu, density=blk.density_kg_m3,
+                                material=material, name=name))
+        info.append({"name": name, "voussoir": k + 1, "role": role})
+    n_vous = len(bodies)
+
+    # --- abutments ----------------------------------------------------------------------------
+    width = a.abutment_width_m if a.abutment_width_m is not None else 2.0 * t
+    height = a.abutment_height_m if a.abutment_height_m is not None else t
+    top = -0.5 * g  # top of the abutments
+    settle = ld.settlement
+    supports = {}
+    for side, xs in (("left", -L / 2.0), ("right", L / 2.0)):
+        imposed = dict.fromkeys(range(6), at_rest)
+        if settle is not None and settle.support == side:
+            for d in range(3):
+                if settle.displacement_m[d]:
+                    imposed[d] = SmoothMotion(settle.displacement_m[d], settle.start_s,
+                                              settle.duration_s)
+        if a.abutments == "fixed":
+            Xa, ca = _box((xs - width / 2, top - height, 0.0), (xs + width / 2, top, depth))
+            bodies.append(RigidBody(center=Xa.mean(axis=0), mass=1.0, inertia=np.ones(3),
+                                    imposed_velocity=imposed, name=f"{side} abutment", X=Xa,
+                                    conn=ca, support=True))
+        else:
+            block = RigidBody.box((xs - width / 2, top - height, 0.0), (width, height, depth),
+                                  blk.density_kg_m3, name=f"{side} abutment")
+            bodies.append(block)
+            info.append({"name": block.name, "voussoir": None, "role": f"{side} abutment"})
+            y_ground = top - height - g
+            hg = GROUND_HEIGHT_FRACTION * height
+            Xg, cg = _box((xs - width, y_ground - hg, 0.0), (xs + width, y_ground, depth))
+            supports[side] = len(bodies)
+            bodies.append(RigidBody(center=Xg.mean(axis=0), mass=1.0, inertia=np.ones(3),
+                                    imposed_velocity=imposed, name=f"{side} ground", X=Xg,
+                                    conn=cg, support=True))
+            continue
+        supports[side] = len(bodies) - 1
+    structure = [i for i, b in enumerate(bodies) if not getattr(b, "support", False)]
+    # body_info is in the order of ``structure``: the voussoirs, then the block abutments
+    # (appended in the loop above in that same order)
+
+    # --- joints -------------------------------------------------------------------------------
+    fixed = set(supports.values())
+
+    def classify(joint, antagonist):
+        pair = {joint.candidate.body, antagonist.body}
+        if pair & fixed and not pair & set(range(n_vous)):
+            name = "base"
+        elif pair <= set(range(n_vous)):
+            name = "voussoir"
+        else:
+            name = "springing"
+        return GROUPS.index(name), laws.KIND_JOINT, 0
+
+    detection = find_joints(bodies, max_gap=g)
+    points = joint_points(bodies, detection.joints, classify, n_gauss=a.contact_points_per_face,
+                          rule=case.contact_point_rule)
+    params = np.atleast_2d(laws.params_from_case(case.joint))
+
+    # --- loads --------------------------------------------------------------------------------
+    dof0 = dof_offsets(bodies)
+    ndof = int(dof0[-1])
+    loads = Loads()
+
+    def weight_pattern(direction) -> np.ndarray:
+        """Per unit of acceleration along ``direction``: m * direction on every block."""
+        F = np.zeros(ndof)
+        for i in structure:
+            b = bodies[i]
+            if isinstance(b, RigidBody):
+                F[dof0[i]:dof0[i + 1]] = b.weight_load(direction)
+            else:
+                m = b.lumped_mass()
+                for d in range(3):
+                    F[dof0[i] + d:dof0[i + 1]:3] = direction[d] * m[d::3]
+        return F
+
+    grav = ld.gravity
+    loads.add(weight_pattern((0.0, -1.0, 0.0)), Ramp(grav.value_m_s2, grav.start_s, grav.ramp_s))
+    stages = [Stage("gravity", 0.0)]
+    factors = []
+    bf = ld.body_force
+    if bf.active:
+        lam = GrowingMultiplier(bf.multiplier, bf.rate_per_s, bf.start_s, bf.ramp_s)
+        gval = grav.value_m_s2
+        loads.add(weight_pattern(bf.direction), lambda s, lam=lam, gval=gval: gval * lam(s))
+        stages.append(Stage("body force", bf.start_s))
+        factors.append(LoadFactor("lambda", "", lam, "body force multiplier (of g m)"))
+    pl = ld.point_load
+    if pl is not None:
+        k = next(i for i, b in enumerate(bodies) if b.name == pl.block)
+        b = bodies[k]
+        if k < n_vous:
+            q = geo.quads[k]
+            at = np.array([*(0.5 * (q[2] + q[3])), 0.5 * depth])  # the extrados chord's middle
+        else:
+            at = np.array([b.X[:, 0].mean(), b.X[:, 1].max(), 0.5 * depth])
+        F = np.zeros(ndof)
+        force = np.asarray(pl.direction, dtype=float)
+        if isinstance(b, RigidBody):
+            F[dof0[k]:dof0[k] + 3] = force
+            F[dof0[k] + 3:dof0[k] + 6] = np.cross(at - b.reference, force)
+        else:  # the nodes of the top face nearest to the point share it
+            d2 = np.linalg.norm(b.X - at, axis=1)
+            near = np.flatnonzero(d2 <= d2.min() + 1e-9 * (1.0 + d2.min()))
+            for node in near:
+                F[dof0[k] + 3 * node:dof0[k] + 3 * node + 3] = force / len(near)
+        P = GrowingMultiplier(pl.force_N, pl.rate_N_s, pl.start_s, pl.ramp_s)
+        loads.add(F, P)
+        stages.append(Stage("point load", pl.start_s))
+        factors.append(LoadFactor("point_load_N", "N", P, f"force on {pl.block}"))
+    if settle is not None:
+        stages.append(Stage("settlement", settle.start_s))
+        motion = SmoothMotion(float(np.linalg.norm(settle.displacement_m)), settle.start_s,
+                              settle.duration_s)
+        factors.append(LoadFactor("settlement_m", "m", motion.displacement,
+                                  f"settlement of the {settle.support} support"))
+    stages.sort(key=lambda st: st.start_s)
+
+    endo = None
+    if blk.material == "endo3d":
+        from masonry_nscd.materials.point_driver import params_from_case
+
+        endo = params_from_case(case)
+    col = case.collapse
+    solver = SolverSettings(
+        h=sol.time_step_s, theta=sol.theta, tolerance=sol.tolerance,
+        max_iterations=sol.max_iterations, check_every=sol.check_every,
+        method=case.contact_solver, max_halvings=sol.max_step_halvings,
+        halve_after_failure=sol.halved_steps_after_failure, endo3d_params=endo,
+        endo3d_tau=blk.endo3d.relaxation_time_s)
+    rule = CollapseRule(displacement_m=col.displacement_m, velocity_m_s=col.velocity_m_s,
+                        onset_velocity_m_s=col.onset_velocity_m_s,
+                        hinge_opening_m=col.hinge_opening_m, after_s=col.after_s,
+                        factors=factors)
+    centres = [None if not np.isfinite(c).all() else [float(c[0]), float(c[1])]
+               for c in geo.centres]
+    return Scene(
+        name=case.name, builder="arch", bodies=bodies, points=points, groups=GROUPS,
+        params=params, loads=loads, solver=solver, structure=structure, body_info=info,
+        driven=geo.keystone, reactions={"top": supports["left"], "bottom": supports["right"]},
+        stages=stages, push_stage="gravity", target_m=None, expected_end_s=col.end_time_s,
+        time_limit_s=col.end_time_s, history={"kind": "monotonic", "cycles": []},
+        collapse=rule,
+        meta={"contact_point_rule": case.contact_point_rule, "limit_state": True,
+              "arch": {"shape": a.shape, "radius_m": R, "span_m": L, "thickness_m": t,
+                       "depth_m": depth, "voussoirs": n, "abutments": a.abutments,
+                       "crown_voussoir": geo.keystone + 1,
+                       "supports_xy_m": [[*bodies[i].X[:, :2].min(axis=0).tolist(),
+                                          *bodies[i].X[:, :2].max(axis=0).tolist()]
+                                         for i in supports.values()],
+                       "joint_centres_m": centres,
+                       "joints_intrados_m": geo.joints_in.tolist(),
+                       "joints_extrados_m": geo.joints_out.tolist()}},
+    )
