@@ -28,12 +28,12 @@ Units: s, m/s^2, m/s, m throughout.
 
 from __future__ import annotations
 
-import csv
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from masonry_nscd.loading.histories import read_time_series
 
 __all__ = ["GroundMotion", "read_acceleration_record"]
 
@@ -46,38 +46,8 @@ def read_acceleration_record(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     is not finite, fewer than two rows, a first time other than 0, times that do not increase
     strictly.
     """
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ValueError(f"file not found: {path}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"cannot read {path}: {exc}") from None
-    rows = [(n, row) for n, row in enumerate(csv.reader(text.splitlines()), start=1)
-            if row and any(c.strip() for c in row) and not row[0].lstrip().startswith("#")]
-    if not rows or [c.strip() for c in rows[0][1]] != ["time_s", "acceleration_m_s2"]:
-        raise ValueError(f"{path}: the first line must be the header "
-                         "'time_s,acceleration_m_s2'")
-    t, a = [], []
-    for n, row in rows[1:]:
-        try:
-            x, y = (float(c) for c in row)
-        except ValueError:
-            raise ValueError(f"{path}, line {n}: expected two numbers (time_s, "
-                             f"acceleration_m_s2), got {','.join(row)!r}") from None
-        if not (math.isfinite(x) and math.isfinite(y)):
-            raise ValueError(f"{path}, line {n}: values must be finite")
-        if t and not x > t[-1]:
-            raise ValueError(f"{path}, line {n}: time {x:g} s does not follow {t[-1]:g} s "
-                             "(times must increase strictly)")
-        if not t and x != 0.0:
-            raise ValueError(f"{path}, line {n}: the record must start at time 0 (its time 0 "
-                             f"is the case's loading.ground_motion.start_s), got {x:g} s")
-        t.append(x)
-        a.append(y)
-    if len(t) < 2:
-        raise ValueError(f"{path}: at least two rows are needed, found {len(t)}")
-    return np.array(t), np.array(a)
+    return read_time_series(path, "acceleration_m_s2",
+                            time_zero="its time 0 is the case's loading.ground_motion.start_s")
 
 
 @dataclass(frozen=True)

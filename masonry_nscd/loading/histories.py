@@ -202,12 +202,15 @@ def cyclic(amplitudes_m: Sequence[float], cycles_per_amplitude: int, rate_m_s: f
                                path)
 
 
-def read_displacement_table(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
-    """The rows ``(time_s, displacement_m)`` of a CSV file with that header (s, m).
+def read_time_series(path: str | Path, column: str,
+                     time_zero: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The rows ``(time_s, <column>)`` of a two-column CSV file with the header
+    ``time_s,<column>`` (lines starting with ``#`` and empty lines skipped).
 
-    Raises ValueError naming the line for: a missing or other header, a row that is not two
-    numbers, a value that is not finite, fewer than two rows, a first row other than
-    ``0, 0``, times that do not increase strictly.
+    Raises ValueError naming the file and the line for: a missing file, a missing or other
+    header, a row that is not two numbers, a value that is not finite, times that do not
+    increase strictly, fewer than two rows, and, when ``time_zero`` says what the series'
+    time 0 is, a first time other than 0.
     """
     path = Path(path)
     try:
@@ -218,24 +221,38 @@ def read_displacement_table(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
         raise ValueError(f"cannot read {path}: {exc}") from None
     rows = [(n, row) for n, row in enumerate(csv.reader(text.splitlines()), start=1)
             if row and any(c.strip() for c in row) and not row[0].lstrip().startswith("#")]
-    if not rows or [c.strip() for c in rows[0][1]] != ["time_s", "displacement_m"]:
-        raise ValueError(f"{path}: the first line must be the header 'time_s,displacement_m'")
-    t, u = [], []
+    if not rows or [c.strip() for c in rows[0][1]] != ["time_s", column]:
+        raise ValueError(f"{path}: the first line must be the header 'time_s,{column}'")
+    t, v = [], []
     for n, row in rows[1:]:
         try:
             a, b = (float(c) for c in row)
         except ValueError:
-            raise ValueError(f"{path}, line {n}: expected two numbers (time_s, displacement_m), "
+            raise ValueError(f"{path}, line {n}: expected two numbers (time_s, {column}), "
                              f"got {','.join(row)!r}") from None
         if not (math.isfinite(a) and math.isfinite(b)):
             raise ValueError(f"{path}, line {n}: values must be finite")
         if t and not a > t[-1]:
             raise ValueError(f"{path}, line {n}: time {a:g} s does not follow {t[-1]:g} s "
                              "(times must increase strictly)")
+        if not t and time_zero is not None and a != 0.0:
+            raise ValueError(f"{path}, line {n}: the record must start at time 0 ({time_zero}),"
+                             f" got {a:g} s")
         t.append(a)
-        u.append(b)
+        v.append(b)
     if len(t) < 2:
         raise ValueError(f"{path}: at least two rows are needed, found {len(t)}")
+    return np.array(t), np.array(v)
+
+
+def read_displacement_table(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """The rows ``(time_s, displacement_m)`` of a CSV file with that header (s, m).
+
+    Raises ValueError naming the line for: a missing or other header, a row that is not two
+    numbers, a value that is not finite, fewer than two rows, a first row other than
+    ``0, 0``, times that do not increase strictly (:func:`read_time_series`).
+    """
+    t, u = read_time_series(path, "displacement_m")
     if t[0] != 0.0 or u[0] != 0.0:
         raise ValueError(f"{path}: the first row must be time 0, displacement 0 (the beam's "
                          f"place when the horizontal stage starts), got {t[0]:g}, {u[0]:g}")
