@@ -7,6 +7,7 @@ converged, divergence), 2 invalid input (bad case file, bad option).
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 from typing import Annotated
 
@@ -28,6 +29,36 @@ def _fail(message: str, code: int) -> None:
     """Print a one-paragraph error on stderr and leave with ``code``."""
     typer.echo(f"error: {message}", err=True)
     raise typer.Exit(code)
+
+
+def _study_outdir(output: Path | None, default: Path, overwrite: bool) -> Path:
+    """A study's folder: ``output`` or ``default``; leave with code 2 if it is not empty and
+    ``overwrite`` is not given."""
+    outdir = output or default
+    if outdir.exists() and (not outdir.is_dir() or any(outdir.iterdir())) and not overwrite:
+        _fail(f"output folder {outdir} exists and is not empty: use --overwrite or another -o", 2)
+    return outdir
+
+
+@contextlib.contextmanager
+def _study_runs(param: str, runs: str, what: str):
+    """The errors of a search over one case parameter (calibrate, threshold) as exits: an
+    invalid value or a study error 2, a failed run 1, an interruption 130 (``runs``: what the
+    folder of the runs so far is called; ``what``: the study's name)."""
+    from masonry_nscd.calibrate import CalibrationError
+    from masonry_nscd.case import CaseError
+    from masonry_nscd.run import RunFailure
+
+    try:
+        yield
+    except CaseError as exc:
+        _fail(f"invalid value of {param}: {'; '.join(exc.messages)}", 2)
+    except CalibrationError as exc:
+        _fail(str(exc), 2)
+    except RunFailure as exc:
+        _fail(f"a {what} run failed: {exc}", 1)
+    except KeyboardInterrupt:
+        _fail(f"interrupted; {runs}", 130)
 
 
 def _load_case_or_exit(path: Path | str, overrides: list[str] | None = None):  # -> Case
@@ -375,8 +406,7 @@ def calibrate_cmd(
     """
     case = _load_case_or_exit(case_file, overrides)
     from masonry_nscd import calibrate as cal
-    from masonry_nscd.case import CaseError, load_case
-    from masonry_nscd.run import RunFailure
+    from masonry_nscd.case import load_case
 
     try:
         if bounds is None and param not in cal.DEFAULT_BOUNDS:
@@ -389,9 +419,7 @@ def calibrate_cmd(
             raise cal.CalibrationError("--target-stiffness and --rtol must be > 0")
     except cal.CalibrationError as exc:
         _fail(str(exc), 2)
-    outdir = output or Path("results") / f"{case.name}_calibration"
-    if outdir.exists() and (not outdir.is_dir() or any(outdir.iterdir())) and not overwrite:
-        _fail(f"output folder {outdir} exists and is not empty: use --overwrite or another -o", 2)
+    outdir = _study_outdir(output, Path("results") / f"{case.name}_calibration", overwrite)
     if overwrite and (outdir / "runs").is_dir():
         import shutil
 
@@ -405,17 +433,9 @@ def calibrate_cmd(
 
     typer.echo(f"calibrating {param} of {case.name} in [{lo_hi[0]:g}, {lo_hi[1]:g}] to "
                f"{target:g} kN/mm (short runs in {outdir / 'runs'})")
-    try:
+    with _study_runs(param, f"the short runs so far are in {outdir / 'runs'}", "calibration"):
         result = cal.calibrate(case, load, param, target, lo_hi, outdir, force_range_kN=f_range,
                                rtol=rtol, echo=typer.echo)
-    except CaseError as exc:
-        _fail(f"invalid value of {param}: {'; '.join(exc.messages)}", 2)
-    except cal.CalibrationError as exc:
-        _fail(str(exc), 2)
-    except RunFailure as exc:
-        _fail(f"a calibration run failed: {exc}", 1)
-    except KeyboardInterrupt:
-        _fail(f"interrupted; the short runs so far are in {outdir / 'runs'}", 130)
     calibrated = load(result.value, False)
     result.case_file = str(outdir / f"{calibrated.name}.yaml")
     cal.write_calibrated_case(calibrated, result, Path(result.case_file))
@@ -449,8 +469,7 @@ def threshold_cmd(
     threshold.json."""
     case = _load_case_or_exit(case_file, overrides)
     from masonry_nscd import threshold as th
-    from masonry_nscd.case import CaseError, load_case
-    from masonry_nscd.run import RunFailure
+    from masonry_nscd.case import load_case
 
     try:
         th.check_case(case)
@@ -460,9 +479,7 @@ def threshold_cmd(
             raise th.ThresholdError("--rtol must be > 0 and --max-runs at least 2")
     except th.CalibrationError as exc:
         _fail(str(exc), 2)
-    outdir = output or Path("results") / f"{case.name}_threshold"
-    if outdir.exists() and (not outdir.is_dir() or any(outdir.iterdir())) and not overwrite:
-        _fail(f"output folder {outdir} exists and is not empty: use --overwrite or another -o", 2)
+    outdir = _study_outdir(output, Path("results") / f"{case.name}_threshold", overwrite)
 
     def load(value: float):
         return load_case(case_file, [*(overrides or ()), f"{param}={float(value)!r}",
@@ -470,17 +487,9 @@ def threshold_cmd(
 
     typer.echo(f"threshold of {param} of {case.name} in [{lo_hi[0]:g}, {lo_hi[1]:g}] (runs in "
                f"{outdir / 'runs'})")
-    try:
+    with _study_runs(param, f"the runs so far are in {outdir / 'runs'}", "threshold"):
         result = th.find_threshold(case, load, param, lo_hi, outdir, rtol=rtol,
                                    max_runs=max_runs, echo=typer.echo)
-    except CaseError as exc:
-        _fail(f"invalid value of {param}: {'; '.join(exc.messages)}", 2)
-    except th.CalibrationError as exc:
-        _fail(str(exc), 2)
-    except RunFailure as exc:
-        _fail(f"a threshold run failed: {exc}", 1)
-    except KeyboardInterrupt:
-        _fail(f"interrupted; the runs so far are in {outdir / 'runs'}", 130)
     paths = th.write_outputs(result, outdir)
     for line in th.format_table(result):
         typer.echo(line)
@@ -515,8 +524,7 @@ def stress_test_cmd(
         _fail(str(exc), 2)
     if not time_limit > 0.0:
         _fail(f"--time-limit must be > 0 s, got {time_limit}", 2)
-    if output.exists() and (not output.is_dir() or any(output.iterdir())) and not overwrite:
-        _fail(f"output folder {output} exists and is not empty: use --overwrite or another -o", 2)
+    _study_outdir(output, output, overwrite)
     try:
         results = stress.stress_test(output, base=base_path, quick=quick, names=only,
                                      time_limit_s=time_limit, echo=typer.echo)
@@ -531,13 +539,6 @@ def stress_test_cmd(
     if bad:
         raise typer.Exit(1)
 
-
-def _bench_outdir(output: Path | None, default: Path, overwrite: bool) -> Path:
-    """The benchmark folder: ``output`` or ``default``; leave with code 2 if not empty."""
-    outdir = output or default
-    if outdir.exists() and (not outdir.is_dir() or any(outdir.iterdir())) and not overwrite:
-        _fail(f"output folder {outdir} exists and is not empty: use --overwrite or another -o", 2)
-    return outdir
 
 
 @app.command("bench")
@@ -580,7 +581,7 @@ def bench_cmd(
             check_history(case)
         except ValueError as exc:
             _fail(str(exc), 2)
-    outdir = _bench_outdir(output, Path("results") / "bench" / (case.name if case else "startup"),
+    outdir = _study_outdir(output, Path("results") / "bench" / (case.name if case else "startup"),
                            overwrite)
     from masonry_nscd import bench as bm
 
@@ -625,7 +626,7 @@ def bench_scaling_cmd(
     case = _load_case_or_exit(case_file, overrides)
     if steps < 2:
         _fail(f"--steps must be >= 2, got {steps}", 2)
-    outdir = _bench_outdir(output, Path("results") / "bench-scaling" / case.name, overwrite)
+    outdir = _study_outdir(output, Path("results") / "bench-scaling" / case.name, overwrite)
     from masonry_nscd import bench as bm
 
     try:
