@@ -41,6 +41,22 @@ def test_a_linear_displacement_field_gives_its_uniform_strain_and_balanced_force
     assert np.allclose(f.reshape(-1, 3).sum(axis=0), 0.0, atol=1e-9 * np.abs(f).max())
 
 
+def test_the_mean_stress_map_gives_the_uniform_stress_of_a_linear_field_and_the_gauss_mean():
+    X, conn = _distorted_block(2)
+    C = hex8.elastic_matrix(15e9, 0.2)
+    S = hex8.mean_stress_map(X, conn, C)
+    G = np.array([[1e-4, 2e-5, -3e-5], [4e-5, -2e-4, 1e-5], [0.0, 3e-5, 5e-5]])  # du_i/dx_j
+    eps = [G[0, 0], G[1, 1], G[2, 2], G[1, 2] + G[2, 1], G[0, 2] + G[2, 0], G[0, 1] + G[1, 0]]
+    sig = (S @ (X @ G.T).ravel()).reshape(-1, 6)
+    assert np.allclose(sig, C @ eps, rtol=1e-12, atol=0)
+    # any field: the mean over the Gauss points of C eps
+    u = np.random.default_rng(3).normal(scale=1e-4, size=3 * len(X))
+    e = np.empty((8 * len(conn), 6))
+    hex8.gauss_strains(X, conn, u, e)
+    assert np.allclose((S @ u).reshape(-1, 6), (e @ C.T).reshape(-1, 8, 6).mean(axis=1),
+                       rtol=1e-12, atol=1e-12 * np.abs(e @ C.T).max())
+
+
 def test_the_lumped_mass_is_the_blocks_mass():
     X, conn = hex8.box_mesh(np.zeros(3), np.array([0.4, 0.2, 0.15]), (2, 3, 2))
     _, m = hex8.assemble_block(X, conn, hex8.elastic_matrix(15e9, 0.2), 2300.0)

@@ -168,6 +168,19 @@ def gauss_strains(X: np.ndarray, conn: np.ndarray, u: np.ndarray, eps: np.ndarra
     eps[:] = np.einsum("egij,ej->egi", B, ue).reshape(-1, 6)
 
 
+def mean_stress_map(X: np.ndarray, conn: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """``S`` (6 nel, 3n): the mean stress over the 8 Gauss points of each element (Pa, rows
+    element by element in Voigt order) from the nodal displacements u (3n,) of a linear block,
+    ``sigma_e = C (1/8 sum_g B_eg) u_e``."""
+    B, _ = precompute_b(np.asarray(X, dtype=float)[conn])
+    Se = C @ B.mean(axis=1)  # (nel, 6, 24)
+    S = np.zeros((len(conn), 6, 3 * len(X)))
+    edofs = _element_dofs(conn)
+    for e in range(len(conn)):
+        S[e][:, edofs[e]] += Se[e]
+    return S.reshape(-1, 3 * len(X))
+
+
 def internal_forces(X: np.ndarray, conn: np.ndarray, sigma: np.ndarray, f: np.ndarray) -> None:
     """Nodal internal forces ``f = sum_e sum_g B^T sigma det J`` (3n,), N, from Gauss stresses."""
     B, w = precompute_b(np.asarray(X, dtype=float)[conn])

@@ -80,6 +80,16 @@ class StepFields:
         self._endo = np.concatenate(
             [np.arange(mesh.element_offsets[pos[i]], mesh.element_offsets[pos[i] + 1])
              for i in mat.index]) if mat is not None else np.zeros(0, dtype=np.int64)
+        self._stress_maps: dict[int, np.ndarray] = {}
+
+    def _stress_map(self, i: int) -> np.ndarray:
+        """The map from the nodal displacements of elastic block ``i`` to its elements' mean
+        stresses (``hex8.mean_stress_map``), built once."""
+        if i not in self._stress_maps:
+            body = self.integ.bodies[i]
+            self._stress_maps[i] = hex8.mean_stress_map(
+                body.X, body.conn, hex8.elastic_matrix(body.E, body.nu))
+        return self._stress_maps[i]
 
     def joint_damage(self) -> np.ndarray:
         """``d_coh = 1 - beta (1 - d_0)`` per contact point."""
@@ -108,12 +118,8 @@ class StepFields:
             body = integ.bodies[i]
             if not isinstance(body, Block) or i in endo:
                 continue
-            eps = np.empty((8 * len(body.conn), 6))
-            hex8.gauss_strains(body.X, body.conn,
-                               np.ascontiguousarray(integ.u[integ.body_dofs(i)]), eps)
-            C0 = hex8.elastic_matrix(body.E, body.nu)
             out[mesh.element_offsets[k]:mesh.element_offsets[k + 1]] = \
-                (eps @ C0.T).reshape(-1, 8, 6).mean(axis=1)
+                (self._stress_map(i) @ integ.u[integ.body_dofs(i)]).reshape(-1, 6)
         return out
 
     def nodal_displacement(self) -> np.ndarray:
