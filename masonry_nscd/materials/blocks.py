@@ -77,6 +77,14 @@ class Endo3dBlocks:
         self._sigma_endo3d = np.zeros((8 * nel, 6))
         self.eps_committed_all = np.zeros((8 * nel, 6))
         ne_b = [len(b.conn) for b in self.blocks]
+        # where each entry of the element stiffnesses (nel, 24, 24) goes in the blocks' dense
+        # stiffnesses, laid end to end (block k at _k_off[k], row-major (3n_k, 3n_k))
+        sizes = [3 * len(b.X) for b in self.blocks]
+        self._k_off = np.cumsum([0] + [n * n for n in sizes])
+        self._k_slot = np.concatenate([
+            (self._k_off[k] + loc[:, :, None] * n + loc[:, None, :]).ravel()
+            for k, (b, n) in enumerate(zip(self.blocks, sizes))
+            for loc in [(3 * b.conn[:, :, None] + np.arange(3)).reshape(len(b.conn), 24)]])
         self.C0 = np.concatenate([np.broadcast_to(hex8.elastic_matrix(b.E, b.nu), (8 * n, 6, 6))
                                   for b, n in zip(self.blocks, ne_b)])
         ends = np.cumsum([0] + [8 * len(b.conn) for b in self.blocks])
@@ -158,16 +166,11 @@ class Endo3dBlocks:
         if self.relax > 0.0:
             C = np.ascontiguousarray((self.C0 + self.relax * C) / (1.0 + self.relax))
         Ke = hex8.stiffness_from_b(self.B, self.w, C)
-        out = []
-        e0 = 0
-        for b in self.blocks:
-            ne = len(b.conn)
-            loc = (3 * b.conn[:, :, None] + np.arange(3)).reshape(ne, 24)
-            K = np.zeros((3 * len(b.X), 3 * len(b.X)))
-            np.add.at(K, (loc[:, :, None], loc[:, None, :]), Ke[e0:e0 + ne])
-            out.append(K)
-            e0 += ne
-        return out
+        # the element matrices summed into each block's (entries in element order, as a
+        # scatter-add per block would sum them)
+        K = np.bincount(self._k_slot, weights=Ke.ravel(), minlength=self._k_off[-1])
+        return [K[self._k_off[k]:self._k_off[k + 1]].reshape(3 * len(b.X), 3 * len(b.X))
+                for k, b in enumerate(self.blocks)]
 
     def element_fields(self) -> dict[str, np.ndarray]:
         """Per element, over its Gauss points: max d_c, max d_cpp, max d_t, max crack opening
