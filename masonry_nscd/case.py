@@ -1336,9 +1336,39 @@ class Solver(_Section):
         "them fails again (count; 0: every step tries h first)",
     )
 
+    max_time_step_s: Real | None = Field(
+        None, gt=0.0, le=1.0,
+        description="adaptive step size: the largest step (s), time_step_s times a power of two "
+        "up to 2^8; steps double after grow_after_steps easy ones and are made again smaller "
+        "when they fail (null: every step is time_step_s; docs/choices.md)",
+    )
+    grow_after_steps: Whole = Field(
+        2, ge=1, le=1000,
+        description="adaptive step size: easy steps in a row before the step doubles (count)",
+    )
+    easy_iterations: Whole = Field(
+        4, ge=1, le=50,
+        description="adaptive step size: a step is easy when Newton converged within this many "
+        "iterations; one that needs more than twice as many halves the next (count)",
+    )
+
+    @property
+    def max_growth(self) -> int:
+        """``k`` of the largest step ``time_step_s 2^k`` (0: no adaptive step size)."""
+        if self.max_time_step_s is None:
+            return 0
+        return round(math.log2(self.max_time_step_s / self.time_step_s))
+
     @model_validator(mode="after")
     def _check_iterations(self) -> Solver:
         problems: list[tuple[str, str]] = []
+        if self.max_time_step_s is not None:
+            ratio = self.max_time_step_s / self.time_step_s
+            k = round(math.log2(ratio)) if ratio > 0 else -1
+            if not 0 <= k <= 8 or abs(ratio - 2.0 ** k) > 1e-9 * ratio:
+                problems.append(("max_time_step_s", (
+                    f"got {self.max_time_step_s:g}; it must be time_step_s = "
+                    f"{self.time_step_s:g} s times 1, 2, 4, ... or 256")))
         if self.check_every > self.max_iterations:
             problems.append(
                 (
@@ -1490,6 +1520,12 @@ class Case(_Section):
                         f"{free[0]:.6g} to {free[1]:.6g} m)")))
         problems += self._ground_motion_problems()
         problems += self._builder_problems()
+        span = 1 << self.solver.max_growth
+        if self.output.every_steps % span:
+            problems.append(("output.every_steps", (
+                f"got {self.output.every_steps}; with solver.max_time_step_s = "
+                f"{self.solver.max_time_step_s:g} s ({span} steps of time_step_s) the fields "
+                f"are written at the end of a step only if every_steps is a multiple of {span}")))
         if self.supports.top_vertical == "fixed" and stress != 0.0:
             problems.append(
                 (

@@ -183,6 +183,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     every = progress_every or max(1, n_est // 40)
     unconverged, worst = (point.unconverged, point.worst_residual) if point else (0, 0.0)
     subdivided = 0  # steps made again as smaller ones (the log shows the first five)
+    spans: dict[int, int] = {}  # steps made, by their size in steps of h
     (mx, wx), (my, wy) = scene.measured_dofs(s.body_dof0)
     weights = scene.reaction_weights(s.side_body)
     holds = scene.holds_at(integ.t)
@@ -198,7 +199,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
                 holds = scene.holds_at(integ.t)
                 new = scene.integrator(integ.t)
                 restore_integrator(new, integrator_state(integ))
-                new._halve_next, new._halve_run = integ._halve_next, integ._halve_run
+                new.set_step_memory(integ.step_memory())
                 integ = new
                 fields = StepFields(scene, mesh, integ)
                 log(f"from t = {integ.t:.6g} s: " + ", ".join(
@@ -216,6 +217,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
                 raise failure(integ.step_index + 1, t1, f"the solver raised "
                               f"{type(exc).__name__}: {exc} (traceback in run.log)") from exc
             worst = max(worst, rep.residual)
+            spans[rep.span] = spans.get(rep.span, 0) + 1
             if rep.substeps > 1:
                 subdivided += 1
                 why = (f"not converged with h = {h:g} s, made again" if rep.tried_h else
@@ -252,7 +254,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
             dj, db, dcpp = fields.largest(damage)
             row = [rep.step, rep.time, 1e3 * ux, 1e-3 * top[0], 1e3 * uy, 1e-3 * top[1],
                    1e-3 * bot[0], 1e-3 * bot[1], rep.sweeps, rep.residual, int(rep.converged),
-                   dj, db, dcpp, rep.material_failures, rep.substeps]
+                   dj, db, dcpp, rep.material_failures, rep.substeps, rep.span * h]
             try:
                 rec.add_row(row)
             except RunFailure as exc:
@@ -262,7 +264,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
                 done = True  # a collapse, and its after_s have passed
             stopped = not done and stop_when is not None and bool(stop_when(curve))
             done = done or stopped
-            if rep.step % case.output.every_steps == 0 or done:
+            if round(rep.time / h) % case.output.every_steps == 0 or done:
                 sig = fields.element_stress()
                 j = integ.joints
                 step_out = StepOutput(
@@ -317,6 +319,8 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     log(f"done: {integ.step_index} steps in {secs:.1f} s, Ux {1e3 * ux:.4f} mm, "
         f"Fx {1e-3 * top[0]:.3f} kN; {unconverged} steps not converged "
         f"(worst residual {worst:.2e})")
+    if any(k > 1 for k in spans):
+        log("step sizes: " + ", ".join(f"{spans[k]} of {k * h:g} s" for k in sorted(spans)))
     if integ.energy_account is not None:
         e = integ.energy_account.balance(integ)
         log(f"energy: external work {e['external_work']:.6g} J = kinetic {e['kinetic']:.4g} "

@@ -42,7 +42,7 @@ LOG = "run.log"
 CSV_COLUMNS = [
     "step", "time_s", "ux_mm", "fx_kN", "uy_mm", "fy_kN", "fx_bottom_kN", "fy_bottom_kN",
     "iterations", "residual", "converged", "max_joint_damage", "max_block_damage", "max_d_cpp",
-    "failed_gauss_points", "substeps",
+    "failed_gauss_points", "substeps", "time_step_s",
 ]
 
 #: The VTU files of one output step: ``blocks_NNNNNN.vtu`` and ``joints_NNNNNN.vtu``.

@@ -9,6 +9,8 @@ What a checkpoint holds (SI units, as in the integrator):
 * ``halve_next``, ``halve_run``: how many of the next steps are to be made as halves at once,
   and how many after the next failure at h (the step control's memory of recent failures,
   ``Integrator.halve_after_failure``; absent in older checkpoints: no memory);
+* ``step_level``, ``step_easy``: the adaptive step size's level and its count of easy steps
+  (``nscd/step_size.py``; absent in older checkpoints: level 0);
 * ``joint_u``, ``joint_U``, ``joint_uc``, ``joint_beta``, ``joint_T``, ``joint_status``: the
   :class:`~masonry_nscd.nscd.integrator.JointState` of every contact point (m, m/s, m, -, Pa,
   status code);
@@ -117,9 +119,8 @@ def restore_integrator(integ, state: Mapping[str, ArrayLike]) -> None:
         integ.energy[...] = 0.0
     integ.t = float(arr["t"])
     integ.step_index = int(arr["step_index"])
-    if "halve_next" in state:
-        integ._halve_next = int(np.asarray(state["halve_next"]))
-        integ._halve_run = int(np.asarray(state["halve_run"]))
+    integ.set_step_memory({k: np.asarray(v) for k, v in state.items()
+                           if k in ("halve_next", "halve_run", "step_level", "step_easy")})
 
 
 def save_checkpoint(path: str | os.PathLike[str], integ,
@@ -131,8 +132,8 @@ def save_checkpoint(path: str | os.PathLike[str], integ,
     """
     arrays: dict[str, NDArray] = {
         "format": np.array(FORMAT), "format_version": np.int64(FORMAT_VERSION),
-        **integrator_state(integ), "halve_next": np.int64(integ._halve_next),
-        "halve_run": np.int64(integ._halve_run),
+        **integrator_state(integ),
+        **{k: np.int64(v) for k, v in integ.step_memory().items()},
     }
     for k, v in (extra or {}).items():
         a = np.asarray(v)

@@ -34,10 +34,17 @@ half still halved again if it fails, without that memory); if the attempt at h a
 again, the run of halved steps doubles (up to ``MAX_HALVE_RUN``), and it falls back to
 ``halve_after_failure`` when an attempt at h converges. Failures come in runs while a mechanism
 forms, and each failed attempt at h costs a full Newton budget.
+
+With ``max_growth`` > 0 the step size adapts (``nscd/step_size.py``): steps of ``h 2^k``, ``k`` up
+to ``max_growth``, made by integrators of the same scene built at those sizes on first use (the
+``_rungs``), grown while the steps stay easy and lowered when one is hard; a step of ``h 2^k``
+that does not converge is made again from its start at ``h 2^(k-1)``. This integrator holds the
+state of the run throughout: the state a rung's step ends in is put back into it.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -46,6 +53,7 @@ from masonry_nscd.contact import laws
 from masonry_nscd.loading import Loads, step_velocity
 from masonry_nscd.model import DOF_IMPOSED, ContactPoint, RigidBody
 from masonry_nscd.nscd import kernels
+from masonry_nscd.nscd.step_size import StepSizeControl
 from masonry_nscd.nscd.system import build_system
 
 NEWTON_MAX_ITERATIONS = 50  # beyond this, the step is finished by Gauss-Seidel sweeps
@@ -80,6 +88,8 @@ class StepReport:
     substeps: int = 1
     # False: made as halves at once, after an earlier step that did not converge at h
     tried_h: bool = True
+    # steps of h it covered (1, or 2^k for a step of the adaptive step size, max_growth)
+    span: int = 1
 
 
 @dataclass
@@ -116,6 +126,10 @@ class Integrator:
         max_halvings: int = 0,
         halve_after_failure: int = 0,
         energy: bool = True,
+        max_growth: int = 0,
+        grow_after: int = 2,
+        easy_iterations: int = 4,
+        step_limit=None,
     ):
         if max_halvings < 0:
             raise ValueError(f"max_halvings must be >= 0, got {max_halvings}")
@@ -135,6 +149,19 @@ class Integrator:
         self.halve_after_failure = int(halve_after_failure)
         self._halve_next = 0
         self._halve_run = self.halve_after_failure  # doubles while the failures go on
+        # the adaptive step size: the control, the integrators of steps h 2^k by k, and the
+        # level of the one whose state this integrator took last (0: its own step)
+        self.control = StepSizeControl(max_growth, grow_after, easy_iterations) \
+            if max_growth > 0 else None
+        self._rungs: dict[int, Integrator] = {}
+        self._made_by = 0
+        # ``step_limit(t)``: the latest time (s) a step starting at t may end at (the next
+        # change of the supports, the end of the loading); None: no bound
+        self.step_limit = step_limit
+        # finish a step that Newton did not converge with Gauss-Seidel sweeps (when it will not
+        # be subdivided and has no ENDO3D blocks); not in a rung, whose failed step is made
+        # again smaller
+        self.finish_by_sweeps = True
         self.bodies = bodies
         self.points = points
         self.params = np.ascontiguousarray(np.atleast_2d(params), dtype=float)
@@ -267,6 +294,82 @@ class Integrator:
         return correction
 
     def step(self) -> StepReport:
+        """Advance by one step: of h (made again as halves if it fails, ``_step_h``), or with
+        ``max_growth`` of the size the control picks, ending at or before ``step_limit(t)``."""
+        if self.control is None:
+            return self._step_h()
+        h = self.sys.h
+        until = math.inf if self.step_limit is None else self.step_limit(self.t)
+        n = round(self.t / h)
+        k = self.control.level_for(n, math.floor(until / h + 1e-6))
+        sweeps = 0  # the iterations of discarded attempts
+        while k > 0:
+            rung = self._rung(k)
+            if self._made_by != k or rung.t != self.t:
+                from masonry_nscd.nscd.checkpoint import integrator_state, restore_integrator
+
+                restore_integrator(rung, integrator_state(self))
+                if rung.newton is not None:  # predict from the run's last steps
+                    rung.newton.adopt_solutions(self.newton)
+                self._made_by = k
+            try:
+                rep = rung._step()
+            except DivergenceError:
+                rep = None
+            if rep is not None and rep.converged:
+                self._take(rung)
+                self.control.accepted(k, rep.sweeps, True)
+                return replace(rep, step=self.step_index, sweeps=rep.sweeps + sweeps,
+                               span=1 << k)
+            self._made_by = -1  # the rung's state is the failed attempt's
+            sweeps += rep.sweeps if rep is not None else 0
+            k = self.control.failed(k)
+        self._made_by = 0
+        rep = self._step_h()
+        self.control.accepted(0, rep.sweeps, rep.converged and rep.substeps == 1)
+        return replace(rep, sweeps=rep.sweeps + sweeps)
+
+    def step_memory(self) -> dict[str, int]:
+        """What the step control remembers of the last steps (the halving's run of failures,
+        the adaptive step's level and easy steps): a resumed run needs it to step the same."""
+        level, easy = self.control.memory() if self.control is not None else (0, 0)
+        return {"halve_next": self._halve_next, "halve_run": self._halve_run,
+                "step_level": level, "step_easy": easy}
+
+    def set_step_memory(self, memory) -> None:
+        """Put back what :meth:`step_memory` gave (missing keys: no memory)."""
+        if "halve_next" in memory:
+            self._halve_next = int(memory["halve_next"])
+            self._halve_run = int(memory["halve_run"])
+        if self.control is not None and "step_level" in memory:
+            self.control.level = min(int(memory["step_level"]), self.control.max_level)
+            self.control.easy = int(memory["step_easy"])
+
+    def _rung(self, k: int) -> Integrator:
+        """The integrator of steps of ``h 2^k``, built on first use (no halving of its own: a
+        step of it that fails is made again by a lower rung); its Newton solve stops at
+        ``4 easy_iterations`` iterations, a step that hard being made faster as smaller ones."""
+        if k not in self._rungs:
+            rung = Integrator(self.bodies, self.points, self.params, self.loads,
+                              h=self.sys.h * (1 << k), **{**self._half_args, "max_halvings": 0})
+            rung.finish_by_sweeps = False
+            if rung.newton is not None:
+                rung.newton.max_iterations = min(rung.newton.max_iterations,
+                                                 4 * self.control.easy_iterations)
+            self._rungs[k] = rung
+        return self._rungs[k]
+
+    def _take(self, rung: Integrator) -> None:
+        """Take the state of ``rung`` after its step (it made one step of this run)."""
+        from masonry_nscd.nscd.checkpoint import integrator_state, restore_integrator
+
+        number = self.step_index + 1
+        restore_integrator(self, integrator_state(rung))
+        self.step_index = rung.step_index = number
+        if self.newton is not None:
+            self.newton.adopt_solutions(rung.newton)
+
+    def _step_h(self) -> StepReport:
         """Advance by h; made again as two steps of h/2 if it does not converge (module
         docstring), at most ``max_halvings`` times nested."""
         if not self.max_halvings:
@@ -345,11 +448,12 @@ class Integrator:
             if self.material is not None:
                 corr = self._material_correction(fint.copy())
             v1, T, uc, beta, status, sweeps, residual = self.newton.solve(
-                v_free, j.u, j.U, self.params, j.uc, j.beta, j.T, self._dv, correction=corr)
+                v_free, j.u, j.U, self.params, j.uc, j.beta, j.T, self._dv, correction=corr,
+                t_end=t1)
             self._dv = v1 - v_free
             amb = int(np.sum(status == laws.ST_AMBIGUOUS))
         if self.newton is None or (residual > self.tolerance and self.material is None
-                                   and not self.max_halvings):
+                                   and not self.max_halvings and self.finish_by_sweeps):
             # Gauss-Seidel sweeps: the solver of the case, or the end of a step that Newton
             # did not finish and that will not be subdivided (warm-started from its last
             # tractions; not with ENDO3D blocks, whose material correction only the Newton

@@ -415,14 +415,19 @@ class NewtonSolver:
         self.slow_rate = 0.6
         # depth of the Anderson acceleration of the chord iterations (0: plain chord steps)
         self.anderson = 5
-        # the solutions (body velocities, glue impulses) of the last two steps, for the
-        # predictor of the next one
-        self._solutions: list[tuple[np.ndarray, np.ndarray]] = []
+        # the solutions of the last two steps, for the predictor of the next one: (end time s,
+        # body velocities, multipliers' impulses N s, step size s)
+        self._solutions: list[tuple[float, np.ndarray, np.ndarray, float]] = []
 
     def forget_solutions(self) -> None:
         """Drop the last steps' solutions: the next step starts from the free velocities (its
         state does not follow from them, e.g. after a step was subdivided)."""
         self._solutions = []
+
+    def adopt_solutions(self, other: NewtonSolver) -> None:
+        """Predict from the last steps of ``other``, a solver of the same scene with another
+        step size (the adaptive step size's integrators hand the run over to one another)."""
+        self._solutions = list(other._solutions)
 
     def set_iteration_mhat(self, mhat_jac: np.ndarray) -> None:
         """Use other body blocks (same layout as ``mhat``) in the Newton matrix."""
@@ -523,8 +528,11 @@ class NewtonSolver:
         return f - (np.column_stack(d_x) + DF) @ gamma
 
     def solve(self, v_free, u_old, U_old, params, uc_old, beta_old, T, dv_guess,
-              correction=None):
+              correction=None, t_end: float | None = None):
         """Solve the step. Returns (v, T, uc, beta, status, iterations, residual).
+
+        ``t_end`` (s): the time the step ends at, for the predictor when the last steps had
+        another size (None: they had this one).
 
         Each iteration: the law and its tangent at every joint point, the residual, a solve
         with the current factorisation (refactorised when the iterations slow down), and a
@@ -592,10 +600,16 @@ class NewtonSolver:
         if len(self._solutions) == 2:
             # the solution of the step extrapolated linearly from the last two: in a slow,
             # smooth loading both change at a steady rate (measured on the reference wall: the
-            # second iterate moves the tractions by 2e-5 instead of 1.3e-3, one iteration less)
-            (v1, r1), (v2, r2) = self._solutions
-            v = 2.0 * v2 - v1
-            r_glue = 2.0 * r2 - r1
+            # second iterate moves the tractions by 2e-5 instead of 1.3e-3, one iteration less);
+            # velocities and impulses per unit time, along the time when the sizes differ
+            (t1, v1, r1, h1), (t2, v2, r2, h2) = self._solutions
+            ratio = 1.0 if t_end is None else (t_end - t2) / (t2 - t1)
+            if abs(ratio - 1.0) < 1e-9 and h1 == h2 == h:
+                v = 2.0 * v2 - v1
+                r_glue = 2.0 * r2 - r1
+            else:
+                v = v2 + ratio * (v2 - v1)
+                r_glue = h * (r2 / h2 + ratio * (r2 / h2 - r1 / h1))
         else:
             v = v_free + dv_guess
             r_glue = (-h * s.area[g, None] * T[g]).ravel()
@@ -688,5 +702,6 @@ class NewtonSolver:
             c_prev = cvec
             v, r_glue, F, norm, state = v_try, r_try, F_try, norm_try, state_try
         Tn, uc, beta, status = state[:4]
-        self._solutions = [*self._solutions[-1:], (v.copy(), r_glue.copy())]
+        t_now = math.nan if t_end is None else t_end
+        self._solutions = [*self._solutions[-1:], (t_now, v.copy(), r_glue.copy(), h)]
         return v, Tn, uc, beta, status, it, res

@@ -171,7 +171,7 @@ def _box(lo, hi) -> tuple[np.ndarray, np.ndarray]:
 
 def build_arch(case) -> Scene:
     """The scene of an arch case (module docstring)."""
-    a, blk, sol, ld = case.arch, case.blocks, case.solver, case.loading
+    a, blk, ld = case.arch, case.blocks, case.loading
     R, L, t = a.centreline_radius_m, a.centreline_span_m, a.thickness_m
     n, depth, g = a.voussoirs, a.depth_m, a.joint_thickness_m
     geo = arch_geometry(a.shape, R, L, t, n, g)
@@ -311,12 +311,7 @@ def build_arch(case) -> Scene:
 
         endo = params_from_case(case)
     col = case.collapse
-    solver = SolverSettings(
-        h=sol.time_step_s, theta=sol.theta, tolerance=sol.tolerance,
-        max_iterations=sol.max_iterations, check_every=sol.check_every,
-        method=case.contact_solver, max_halvings=sol.max_step_halvings,
-        halve_after_failure=sol.halved_steps_after_failure, endo3d_params=endo,
-        endo3d_tau=blk.endo3d.relaxation_time_s)
+    solver = SolverSettings.from_case(case, endo)
     rule = CollapseRule(displacement_m=col.displacement_m, velocity_m_s=col.velocity_m_s,
                         onset_velocity_m_s=col.onset_velocity_m_s,
                         hinge_opening_m=col.hinge_opening_m, after_s=col.after_s,

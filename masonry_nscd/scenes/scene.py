@@ -31,6 +31,7 @@ scene (``scene.json``) for the summary and the plots.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -77,6 +78,23 @@ class SolverSettings:
     endo3d_params: np.ndarray | None = None
     endo3d_tau: float = 0.0  # s
     energy: bool = True  # keep the energy balance (nscd/energy.py)
+    max_growth: int = 0  # adaptive step size: steps up to h 2^max_growth (nscd/step_size.py)
+    grow_after: int = 2
+    easy_iterations: int = 4
+
+    @classmethod
+    def from_case(cls, case, endo3d_params: np.ndarray | None = None) -> SolverSettings:
+        """The settings of ``case`` (its ``solver`` section, the contact solver it resolves to,
+        the ENDO3D relaxation time and whether the energy balance is kept)."""
+        sol = case.solver
+        return cls(h=sol.time_step_s, theta=sol.theta, tolerance=sol.tolerance,
+                   max_iterations=sol.max_iterations, check_every=sol.check_every,
+                   method=case.contact_solver, max_halvings=sol.max_step_halvings,
+                   halve_after_failure=sol.halved_steps_after_failure,
+                   endo3d_params=endo3d_params,
+                   endo3d_tau=case.blocks.endo3d.relaxation_time_s,
+                   energy=case.output.energy, max_growth=sol.max_growth,
+                   grow_after=sol.grow_after_steps, easy_iterations=sol.easy_iterations)
 
 
 @dataclass
@@ -135,6 +153,17 @@ class Scene:
         ``t_before``."""
         return self.holds_at(t_before) != self.holds_at(t_after)
 
+    def step_limit_s(self, t: float) -> float:
+        """The latest time (s) a step starting at ``t`` may end at (the adaptive step size's
+        bound): the start of the first step that holds a dof not held at ``t``, and the
+        expected end of the loading (the time limit once past it)."""
+        h = self.solver.h
+        limit = self.expected_end_s if t < self.expected_end_s - 1e-9 * h else self.time_limit_s
+        for hd in self.holds:
+            if hd not in self.holds_at(t):
+                limit = min(limit, math.floor(hd.from_s / h + 1e-9) * h)
+        return limit
+
     def integrator(self, t: float = 0.0):
         """A new integrator of the scene for a step starting at ``t`` (s), with the holds active
         then (its state is the initial one: restore a state into it to continue a run)."""
@@ -152,7 +181,9 @@ class Scene:
                           check_every=s.check_every, method=s.method,
                           endo3d_params=s.endo3d_params, endo3d_tau=s.endo3d_tau,
                           max_halvings=s.max_halvings,
-                          halve_after_failure=s.halve_after_failure, energy=s.energy)
+                          halve_after_failure=s.halve_after_failure, energy=s.energy,
+                          max_growth=s.max_growth, grow_after=s.grow_after,
+                          easy_iterations=s.easy_iterations, step_limit=self.step_limit_s)
 
     # --- read-outs ------------------------------------------------------------------------
     def driven_dofs(self, body_dof0: np.ndarray) -> tuple[int, int]:

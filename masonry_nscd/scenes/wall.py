@@ -57,7 +57,7 @@ def unit_name(course: int, first: int, last: int, position: int, count: int) -> 
 
 def build_wall(case) -> Scene:
     """The scene of a wall case: units, beams, joints, loads, stages (module docstring)."""
-    w, blk, sup, sol, ld = case.wall, case.blocks, case.supports, case.solver, case.loading
+    w, blk, sup, ld = case.wall, case.blocks, case.supports, case.loading
     length, height = wall_size(w)
     t, j = w.thickness_m, w.joint_thickness_m
     levels = course_levels(w)
@@ -204,13 +204,7 @@ def build_wall(case) -> Scene:
             target, end, limit = None, history.end_s, history.end_s
         stages.append(Stage("horizontal", hz.start_s))
         push, driven, info_history, measured = "horizontal", i_up, history.info(), None
-    solver = SolverSettings(
-        h=sol.time_step_s, theta=sol.theta, tolerance=sol.tolerance,
-        max_iterations=sol.max_iterations, check_every=sol.check_every,
-        method=case.contact_solver,
-        max_halvings=sol.max_step_halvings, halve_after_failure=sol.halved_steps_after_failure,
-        endo3d_params=endo,
-        endo3d_tau=blk.endo3d.relaxation_time_s, energy=case.output.energy)
+    solver = SolverSettings.from_case(case, endo)
     reactions = {"top": i_up, "bottom": i_low} if top_beam else {"bottom": i_low}
     return Scene(
         name=case.name, builder="wall", bodies=bodies, points=points, groups=GROUPS,
