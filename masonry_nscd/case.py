@@ -16,6 +16,7 @@ cohesive joints, 0.5 MPa of vertical stress, 10 mm of imposed horizontal displac
     solver:   time step, theta, NLGS tolerance                             -> Solver
     output:   what is written and how often                                -> Output
     arch:     an arch of voussoirs instead of the wall (issue 18)          -> Arch
+    vault:    a barrel vault: the arch in staggered rings along z          -> Vault
     collapse: when an arch run has collapsed                               -> Collapse
 
 An arch case has ``arch:`` and its loads (``loading.body_force``, ``point_load``,
@@ -94,6 +95,7 @@ __all__ = [
     "Solver",
     "StressStage",
     "Supports",
+    "Vault",
     "Wall",
     "case_from_dict",
     "case_to_yaml",
@@ -851,6 +853,35 @@ class Arch(_Section):
         return self
 
 
+class Vault(Arch):
+    """A barrel vault (``masonry_nscd/scenes/vault.py``): the arch of the same fields extruded
+    along z over ``depth_m``, in ``rings`` rings of voussoirs side by side, each
+    ``depth_m / rings`` deep, instead of a wall or an arch.
+
+    With ``stagger`` the radial joints of every second ring fall in the middle of the voussoirs
+    of its neighbours (running bond along the ring): that ring has ``voussoirs - 1`` whole
+    voussoirs and a half voussoir at each springing. The joints between rings are planes
+    ``z = const``; every joint is a dry contact (``joint_thickness_m`` must be 0). The
+    abutments run along the whole depth.
+    """
+
+    depth_m: Real = Field(1.0, gt=0.0, le=100.0, description="length of the vault along z (m)")
+    rings: Whole = Field(4, ge=1, le=100, description="rings of voussoirs along z (count)")
+    stagger: bool = Field(
+        True, description="radial joints of every second ring offset by half a voussoir"
+    )
+
+    @model_validator(mode="after")
+    def _check_vault(self) -> Vault:
+        problems: list[tuple[str, str]] = []
+        if self.joint_thickness_m != 0.0:
+            problems.append(("joint_thickness_m", (
+                f"got {self.joint_thickness_m:.6g} m; a vault's joints are dry contacts: 0 (the "
+                "corners of a staggered ring would fall into a gap of its neighbour)")))
+        _problems(problems)
+        return self
+
+
 class BodyForce(_Section):
     """A body force ``lambda(t) g m`` on every block along ``direction`` (``g`` the gravity
     of ``loading.gravity``, ``m`` the block's mass): the pseudo-static seismic or tilting-table
@@ -947,7 +978,7 @@ class Collapse(_Section):
 #: Sections of a case that belong to the wall builder and to the arch builder (the other's
 #: are refused when given, and left out of the case written back).
 WALL_ONLY = ("wall", "supports", "loading.vertical_stress", "loading.horizontal")
-ARCH_ONLY = ("arch", "collapse", "loading.body_force", "loading.point_load",
+ARCH_ONLY = ("arch", "vault", "collapse", "loading.body_force", "loading.point_load",
              "loading.settlement")
 
 
@@ -1394,9 +1425,18 @@ class Case(_Section):
     arch: Arch | None = Field(
         None, description="an arch of voussoirs instead of the wall (null: the wall)"
     )
+    vault: Vault | None = Field(
+        None, description="a barrel vault instead of the wall (null: the wall or the arch)"
+    )
     collapse: Collapse = Field(
         default_factory=Collapse, description="arch: when the run has collapsed"
     )
+
+    @property
+    def arch_section(self) -> Arch | None:
+        """The arch of a limit-state case: ``arch``, or the section of a ``vault`` (None: a
+        wall)."""
+        return self.arch if self.arch is not None else self.vault
 
     @field_validator("name")
     @classmethod
@@ -1443,10 +1483,10 @@ class Case(_Section):
         impulses; on rigid blocks they put the rocking on the corners (docs/choices.md). An
         arch takes Lobatto points for every law: its joints hinge at their edges, and Gauss
         points would make a voussoir of one element 0.577 of its thickness thick."""
-        w = self.arch if self.arch is not None else self.wall
+        w = self.arch_section if self.arch_section is not None else self.wall
         if w.contact_point_rule != "auto":
             return w.contact_point_rule
-        if self.arch is not None:  # voussoirs hinge about the edges of their faces, any law
+        if self.arch_section is not None:  # voussoirs hinge about the edges of their faces, any law
             return "lobatto" if w.contact_points_per_face >= 2 else "gauss"
         if self.joint.law == "coulomb" and w.contact_points_per_face >= 2:
             return "lobatto"
@@ -1456,7 +1496,8 @@ class Case(_Section):
     def step_count(self) -> int:
         """Expected number of time steps, ``ceil(end_time_s / time_step_s)`` (an arch:
         ``collapse.end_time_s``)."""
-        end = self.collapse.end_time_s if self.arch is not None else self.loading.end_time_s
+        end = self.collapse.end_time_s if self.arch_section is not None \
+            else self.loading.end_time_s
         return max(1, math.ceil(end / self.solver.time_step_s - 1e-9))
 
     @model_validator(mode="after")
@@ -1540,29 +1581,45 @@ class Case(_Section):
 
     def _builder_problems(self) -> list[tuple[str, str]]:
         """The sections of the other builder given in the case (:data:`WALL_ONLY`,
-        :data:`ARCH_ONLY`), and a point load on a block the arch does not have."""
-        arch = self.arch is not None
-        problems = [(path, f"given with {'an arch' if arch else 'a wall'} case; it belongs to "
+        :data:`ARCH_ONLY`), both ``arch`` and ``vault``, and a point load on a block the arch
+        or the vault does not have."""
+        a = self.arch_section
+        arch = a is not None
+        kind = "a vault" if self.vault is not None else "an arch"
+        problems = [(path, f"given with {kind if arch else 'a wall'} case; it belongs to "
                      f"{'the wall' if arch else 'an arch'} (leave it out"
                      + ("" if arch else ", or give an arch: section") + ")")
                     for path in (WALL_ONLY if arch else ARCH_ONLY) if _given(self, path)]
+        if self.arch is not None and self.vault is not None:
+            problems.append(("vault", ("given with arch; a case builds one structure: give "
+                                       "arch or vault")))
+            return problems
         load = self.loading.point_load
         if arch and load is not None:
-            names = [f"voussoir {k}" for k in range(1, self.arch.voussoirs + 1)]
-            if self.arch.abutments == "blocks":
+            if self.vault is not None:
+                from masonry_nscd.scenes.vault import voussoir_names
+
+                names = voussoir_names(self.vault)
+                where = (f"ring 1 voussoir 1 to ring {self.vault.rings} voussoir "
+                         f"{len(voussoir_names(self.vault, self.vault.rings))}")
+            else:
+                names = [f"voussoir {k}" for k in range(1, a.voussoirs + 1)]
+                where = f"voussoir 1 to voussoir {a.voussoirs}"
+            extra = a.abutments == "blocks"
+            if extra:
                 names += ["left abutment", "right abutment"]
             if load.block not in names:
                 problems.append(("loading.point_load.block", (
-                    f"got {load.block!r}; the blocks are voussoir 1 to voussoir "
-                    f"{self.arch.voussoirs} (from the left springing)"
-                    + (", left abutment, right abutment" if len(names) > self.arch.voussoirs
-                       else ""))))
+                    f"got {load.block!r}; the blocks are {where} (from the left springing)"
+                    + (", left abutment, right abutment" if extra else ""))))
         return problems
 
     def unused_sections(self) -> tuple[str, ...]:
         """The dotted paths of the sections the case's builder does not read (left out of the
         case written back)."""
-        return WALL_ONLY if self.arch is not None else ARCH_ONLY
+        if self.vault is not None:
+            return (*WALL_ONLY, "arch")
+        return (*WALL_ONLY, "vault") if self.arch is not None else ARCH_ONLY
 
 
 # ---------------------------------------------------------------------------------------------

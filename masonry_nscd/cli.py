@@ -105,6 +105,10 @@ def validate(
         from masonry_nscd.scenes.arch import describe
 
         summary = describe(case)
+    elif case.vault is not None:
+        from masonry_nscd.scenes.vault import describe as describe_vault
+
+        summary = describe_vault(case)
     else:
         summary = (
             f"{case.name}: {len(unit_boxes(w))} units in {w.courses} courses "
