@@ -3,7 +3,8 @@
 ``mechanism_<run>.png`` (:func:`plot_mechanism`), two panels:
 
 * the structure at the last output step of ``results.h5`` (the collapse, or the end of a run
-  that stands), each element's front face (z-min) drawn deformed with its displacements
+  that stands), the front face (z-min) of each element on the structure's front plane (an
+  arch: all; a vault: its first ring, with the joints within its depth) drawn deformed with its displacements
   multiplied by ``magnify`` (by default so that the largest displacement shows as 4 % of the
   structure's width), over the outline of the undeformed structure and the supports; the hinges
   of the summary (:mod:`masonry_nscd.post.limit`) marked at their pivots (a red dot, labelled
@@ -63,7 +64,16 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
     summary = limit_summary(run.outdir, run.scene, fields)
     disp = fields.nodal_displacement_m if fields.nodal_displacement_m is not None \
         else np.zeros_like(fields.nodes_m)
-    front = fields.hexes[:, :4]
+    # the front: the elements whose z-min face lies on the structure's front plane (an arch's
+    # all; a vault's first ring), and the joints within their depth
+    z = fields.nodes_m[:, 2]
+    tol = 1e-9 * (1.0 + float(np.ptp(z)))
+    at_front = np.abs(z[fields.hexes[:, :4]] - z.min()).max(axis=1) <= tol
+    front = fields.hexes[at_front, :4]
+    z_back = float(z[fields.hexes[at_front]].max())
+
+    def in_front(joint) -> bool:  # not the joints on the back plane (a vault's next ring)
+        return joint["centre_m"][2] < z_back - tol
     ref = fields.nodes_m[:, :2]
     width = float(np.ptp(ref[:, 0])) or 1.0
     largest = float(np.linalg.norm(disp, axis=1).max(initial=0.0))
@@ -92,14 +102,14 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
         k = nodes[np.argmin(np.linalg.norm(fields.nodes_m[nodes] - p, axis=1))]
         return p[:2] + magnify * disp[k, :2]
 
-    for h in summary["hinges"]:
+    for h in filter(in_front, summary["hinges"]):
         p = placed(h["pivot_m"])
         ax.plot(*p, "o", color="red", markersize=9, markeredgecolor="k", zorder=5)
         label = f"joint {h['joint']}\n{h['side']}" if h.get("joint") is not None else \
             "\n".join(h["bodies"])
         ax.annotate(label, p, textcoords="offset points", xytext=(8, 6), fontsize=8,
                     color="darkred")
-    for j in summary["sliding_joints"]:
+    for j in filter(in_front, summary["sliding_joints"]):
         p = placed(j["centre_m"])
         ax.plot(*p, "x", color="blue", markersize=10, markeredgewidth=2, zorder=5)
     lo, hi = np.minimum(ref.min(axis=0), moved.min(axis=0)), np.maximum(ref.max(axis=0),
