@@ -53,14 +53,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from masonry_nscd.collapse import CollapseRule, LoadFactor
+from masonry_nscd.collapse import LoadFactor
 from masonry_nscd.contact import laws
 from masonry_nscd.fe import hex8
-from masonry_nscd.loading import Loads, Ramp, at_rest
-from masonry_nscd.loading.multiplier import GrowingMultiplier, SmoothMotion
-from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody, dof_offsets
+from masonry_nscd.loading import at_rest
+from masonry_nscd.loading.multiplier import SmoothMotion
+from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody
 from masonry_nscd.model.detection import find_joints, joint_points
-from masonry_nscd.scenes.scene import Scene, SolverSettings, Stage
+from masonry_nscd.scenes.limit_loads import limit_loads, limit_settings
+from masonry_nscd.scenes.scene import Scene, Stage
 
 X, Y, Z = 0, 1, 2
 #: Joint groups of an arch, in the order of their ids.
@@ -242,7 +243,7 @@ def voussoir_scene(case, a, voussoirs: list[Voussoir], driven: int, builder: str
     the joints, the loads and the collapse rule of the module docstring. ``driven`` is the
     voussoir whose reference point is the curve's; ``meta`` goes into ``scene.json`` under
     ``builder``, with the supports' outlines (``supports_xy_m``) added."""
-    blk, sol, ld = case.blocks, case.solver, case.loading
+    blk, ld = case.blocks, case.loading
     t, depth, g = a.thickness_m, a.depth_m, a.joint_thickness_m
     L = a.centreline_span_m
     bodies: list = []
@@ -313,56 +314,10 @@ def voussoir_scene(case, a, voussoirs: list[Voussoir], driven: int, builder: str
     params = np.atleast_2d(laws.params_from_case(case.joint))
 
     # --- loads --------------------------------------------------------------------------------
-    dof0 = dof_offsets(bodies)
-    ndof = int(dof0[-1])
-    loads = Loads()
-
-    def weight_pattern(direction) -> np.ndarray:
-        """Per unit of acceleration along ``direction``: m * direction on every block."""
-        F = np.zeros(ndof)
-        for i in structure:
-            b = bodies[i]
-            if isinstance(b, RigidBody):
-                F[dof0[i]:dof0[i + 1]] = b.weight_load(direction)
-            else:
-                m = b.lumped_mass()
-                for d in range(3):
-                    F[dof0[i] + d:dof0[i + 1]:3] = direction[d] * m[d::3]
-        return F
-
-    grav = ld.gravity
-    loads.add(weight_pattern((0.0, -1.0, 0.0)), Ramp(grav.value_m_s2, grav.start_s, grav.ramp_s))
-    stages = [Stage("gravity", 0.0)]
-    factors = []
-    bf = ld.body_force
-    if bf.active:
-        lam = GrowingMultiplier(bf.multiplier, bf.rate_per_s, bf.start_s, bf.ramp_s)
-        gval = grav.value_m_s2
-        loads.add(weight_pattern(bf.direction), lambda s, lam=lam, gval=gval: gval * lam(s))
-        stages.append(Stage("body force", bf.start_s))
-        factors.append(LoadFactor("lambda", "", lam, "body force multiplier (of g m)"))
-    pl = ld.point_load
-    if pl is not None:
-        k = next(i for i, b in enumerate(bodies) if b.name == pl.block)
-        b = bodies[k]
-        if k < n_vous:
-            at = voussoirs[k].extrados_middle()
-        else:
-            at = np.array([b.X[:, 0].mean(), b.X[:, 1].max(), 0.5 * depth])
-        F = np.zeros(ndof)
-        force = np.asarray(pl.direction, dtype=float)
-        if isinstance(b, RigidBody):
-            F[dof0[k]:dof0[k] + 3] = force
-            F[dof0[k] + 3:dof0[k] + 6] = np.cross(at - b.reference, force)
-        else:  # the nodes of the top face nearest to the point share it
-            d2 = np.linalg.norm(b.X - at, axis=1)
-            near = np.flatnonzero(d2 <= d2.min() + 1e-9 * (1.0 + d2.min()))
-            for node in near:
-                F[dof0[k] + 3 * node:dof0[k] + 3 * node + 3] = force / len(near)
-        P = GrowingMultiplier(pl.force_N, pl.rate_N_s, pl.start_s, pl.ramp_s)
-        loads.add(F, P)
-        stages.append(Stage("point load", pl.start_s))
-        factors.append(LoadFactor("point_load_N", "N", P, f"force on {pl.block}"))
+    loads, stages, factors = limit_loads(
+        case, bodies, structure,
+        lambda k: voussoirs[k].extrados_middle() if k < n_vous else
+        np.array([bodies[k].X[:, 0].mean(), bodies[k].X[:, 1].max(), 0.5 * depth]))
     if settle is not None:
         stages.append(Stage("settlement", settle.start_s))
         motion = SmoothMotion(float(np.linalg.norm(settle.displacement_m)), settle.start_s,
@@ -370,23 +325,7 @@ def voussoir_scene(case, a, voussoirs: list[Voussoir], driven: int, builder: str
         factors.append(LoadFactor("settlement_m", "m", motion.displacement,
                                   f"settlement of the {settle.support} support"))
     stages.sort(key=lambda st: st.start_s)
-
-    endo = None
-    if blk.material == "endo3d":
-        from masonry_nscd.materials.point_driver import params_from_case
-
-        endo = params_from_case(case)
-    col = case.collapse
-    solver = SolverSettings(
-        h=sol.time_step_s, theta=sol.theta, tolerance=sol.tolerance,
-        max_iterations=sol.max_iterations, check_every=sol.check_every,
-        method=case.contact_solver, max_halvings=sol.max_step_halvings,
-        halve_after_failure=sol.halved_steps_after_failure, endo3d_params=endo,
-        endo3d_tau=blk.endo3d.relaxation_time_s)
-    rule = CollapseRule(displacement_m=col.displacement_m, velocity_m_s=col.velocity_m_s,
-                        onset_velocity_m_s=col.onset_velocity_m_s,
-                        hinge_opening_m=col.hinge_opening_m, after_s=col.after_s,
-                        factors=factors)
+    solver, rule = limit_settings(case, factors)
     meta = {**meta, "supports_xy_m": [[*bodies[i].X[:, :2].min(axis=0).tolist(),
                                        *bodies[i].X[:, :2].max(axis=0).tolist()]
                                       for i in supports.values()]}
@@ -394,8 +333,8 @@ def voussoir_scene(case, a, voussoirs: list[Voussoir], driven: int, builder: str
         name=case.name, builder=builder, bodies=bodies, points=points, groups=GROUPS,
         params=params, loads=loads, solver=solver, structure=structure, body_info=info,
         driven=driven, reactions={"top": supports["left"], "bottom": supports["right"]},
-        stages=stages, push_stage="gravity", target_m=None, expected_end_s=col.end_time_s,
-        time_limit_s=col.end_time_s, history={"kind": "monotonic", "cycles": []},
+        stages=stages, push_stage="gravity", target_m=None,
+        expected_end_s=case.collapse.end_time_s, time_limit_s=case.collapse.end_time_s, history={"kind": "monotonic", "cycles": []},
         collapse=rule,
         meta={"contact_point_rule": case.contact_point_rule, "limit_state": True,
               builder: meta},
