@@ -17,6 +17,7 @@ cohesive joints, 0.5 MPa of vertical stress, 10 mm of imposed horizontal displac
     output:   what is written and how often                                -> Output
     arch:     an arch of voussoirs instead of the wall (issue 18)          -> Arch
     vault:    a barrel vault: the arch in staggered rings along z          -> Vault
+    assembly: blocks of hexahedra read from a mesh file                    -> Assembly
     collapse: when an arch run has collapsed                               -> Collapse
 
 An arch case has ``arch:`` and its loads (``loading.body_force``, ``point_load``,
@@ -74,6 +75,9 @@ from pydantic_core import PydanticCustomError
 
 __all__ = [
     "Arch",
+    "Assembly",
+    "AssemblyMaterial",
+    "AssemblySupport",
     "Blocks",
     "BodyForce",
     "Case",
@@ -882,6 +886,111 @@ class Vault(Arch):
         return self
 
 
+GroupRef = Annotated[Whole | str, Field(union_mode="left_to_right")]
+
+
+class AssemblySupport(_Section):
+    """A block of the mesh that is a support: fixed (it does not move), its joints with the
+    structure of the joint law (``fixed``) or glued (``glued``: no opening, no slip)."""
+
+    group: GroupRef = Field(..., description="the block: its physical name or its tag")
+    kind: Literal["fixed", "glued"] = Field(
+        "fixed", description="fixed (joints of the joint law) or glued (glued joints)"
+    )
+
+
+class AssemblyMaterial(_Section):
+    """The material of one block of the mesh (null fields: those of ``blocks``)."""
+
+    group: GroupRef = Field(..., description="the block: its physical name or its tag")
+    material: Literal["rigid", "elastic"] = Field("rigid", description="rigid or elastic")
+    density_kg_m3: Real | None = Field(
+        None, ge=100.0, le=1e5, description="density (kg/m^3; null: blocks.density_kg_m3)"
+    )
+    E_Pa: Real | None = Field(
+        None, ge=1e6, le=1e13, description="Young's modulus (Pa; null: blocks.E_Pa)"
+    )
+    nu: Real | None = Field(
+        None, gt=-1.0, lt=0.5, description="Poisson's ratio (null: blocks.nu)"
+    )
+
+
+class Assembly(_Section):
+    """A block assembly read from a mesh file (``masonry_nscd/scenes/assembly.py``), instead
+    of a wall, an arch or a vault.
+
+    ``mesh_file``: a mesh of 8-node hexahedra (Gmsh ``.msh``, or any format meshio reads; a
+    relative path is relative to the case file); the hexahedra of one tag (``tag_field``:
+    Gmsh's physical group) are one block, named by its physical name (or ``block <tag>``).
+    ``supports`` name the blocks that are fixed supports (at least one); ``materials`` give a
+    block's material by its name or tag, the others take ``blocks``. Joints are found by the
+    generic contact detection between facing faces at most ``joint_thickness_m`` apart (groups
+    ``joint``, ``support``, ``glue``) and follow ``joint``. y is up (gravity along -y).
+    """
+
+    mesh_file: str = Field(
+        ..., min_length=1, max_length=4096,
+        description="mesh file of hexahedra (relative to the case file)",
+    )
+    tag_field: str = Field(
+        "gmsh:physical", min_length=1, max_length=200,
+        description="cell data of the block tag of each hexahedron",
+    )
+    supports: list[AssemblySupport] = Field(
+        ..., min_length=1, max_length=1000, description="the blocks that are supports"
+    )
+    materials: list[AssemblyMaterial] = Field(
+        default_factory=list, max_length=100_000,
+        description="material of a block by name or tag (the others: blocks)",
+    )
+    driven_block: str | None = Field(
+        None, max_length=200,
+        description="block whose displacement is the curve's ux, uy (null: the highest)",
+    )
+    joint_thickness_m: Real = Field(
+        0.0, ge=0.0, le=0.5, description="largest gap between two faces of a joint (m)"
+    )
+    contact_points_per_face: Whole = Field(
+        2, ge=1, le=4,
+        description="contact points per direction on each element face in contact (count)",
+    )
+    contact_point_rule: Literal["auto", "gauss", "lobatto"] = Field(
+        "auto", description="gauss, lobatto or auto: lobatto with 2 or more points"
+    )
+
+    @field_validator("mesh_file")
+    @classmethod
+    def _resolve_file(cls, value: str, info: ValidationInfo) -> str:
+        """A relative path is made absolute from the case file's folder, as
+        ``loading.ground_motion.file``."""
+        base = (info.context or {}).get("case_dir")
+        if base is None or Path(value).is_absolute():
+            return value
+        return str((Path(base) / value).resolve())
+
+    @model_validator(mode="after")
+    def _check_mesh(self, info: ValidationInfo) -> Assembly:
+        problems: list[tuple[str, str]] = []
+        seen: dict[str, str] = {}
+        for table in ("supports", "materials"):
+            for i, entry in enumerate(getattr(self, table)):
+                key = str(entry.group)
+                if key in seen and (table == "supports" or seen[key] == table):
+                    problems.append((f"{table}[{i}].group", (
+                        f"got {entry.group!r} again; a block is named once in {table}"
+                        + (" and once in materials" if table == "supports" else ""))))
+                seen.setdefault(key, table)
+        if not problems and (info.context or {}).get("check_files"):
+            from masonry_nscd.scenes.assembly import AssemblyError, read_assembly
+
+            try:  # read and checked only: nothing is kept in the case
+                read_assembly(self)
+            except AssemblyError as exc:
+                problems += exc.problems
+        _problems(problems)
+        return self
+
+
 class BodyForce(_Section):
     """A body force ``lambda(t) g m`` on every block along ``direction`` (``g`` the gravity
     of ``loading.gravity``, ``m`` the block's mass): the pseudo-static seismic or tilting-table
@@ -978,7 +1087,7 @@ class Collapse(_Section):
 #: Sections of a case that belong to the wall builder and to the arch builder (the other's
 #: are refused when given, and left out of the case written back).
 WALL_ONLY = ("wall", "supports", "loading.vertical_stress", "loading.horizontal")
-ARCH_ONLY = ("arch", "vault", "collapse", "loading.body_force", "loading.point_load",
+ARCH_ONLY = ("arch", "vault", "assembly", "collapse", "loading.body_force", "loading.point_load",
              "loading.settlement")
 
 
@@ -1428,9 +1537,18 @@ class Case(_Section):
     vault: Vault | None = Field(
         None, description="a barrel vault instead of the wall (null: the wall or the arch)"
     )
+    assembly: Assembly | None = Field(
+        None, description="blocks from a mesh file instead of the wall (null: the wall)"
+    )
     collapse: Collapse = Field(
         default_factory=Collapse, description="arch: when the run has collapsed"
     )
+
+    @property
+    def limit_state(self) -> Arch | Assembly | None:
+        """The section of a limit-state case's builder: ``arch``, ``vault`` or ``assembly``
+        (None: a wall)."""
+        return self.arch_section if self.arch_section is not None else self.assembly
 
     @property
     def arch_section(self) -> Arch | None:
@@ -1483,10 +1601,10 @@ class Case(_Section):
         impulses; on rigid blocks they put the rocking on the corners (docs/choices.md). An
         arch takes Lobatto points for every law: its joints hinge at their edges, and Gauss
         points would make a voussoir of one element 0.577 of its thickness thick."""
-        w = self.arch_section if self.arch_section is not None else self.wall
+        w = self.limit_state if self.limit_state is not None else self.wall
         if w.contact_point_rule != "auto":
             return w.contact_point_rule
-        if self.arch_section is not None:  # voussoirs hinge about the edges of their faces, any law
+        if self.limit_state is not None:  # voussoirs hinge about the edges of their faces, any law
             return "lobatto" if w.contact_points_per_face >= 2 else "gauss"
         if self.joint.law == "coulomb" and w.contact_points_per_face >= 2:
             return "lobatto"
@@ -1496,7 +1614,7 @@ class Case(_Section):
     def step_count(self) -> int:
         """Expected number of time steps, ``ceil(end_time_s / time_step_s)`` (an arch:
         ``collapse.end_time_s``)."""
-        end = self.collapse.end_time_s if self.arch_section is not None \
+        end = self.collapse.end_time_s if self.limit_state is not None \
             else self.loading.end_time_s
         return max(1, math.ceil(end / self.solver.time_step_s - 1e-9))
 
@@ -1584,18 +1702,24 @@ class Case(_Section):
         :data:`ARCH_ONLY`), both ``arch`` and ``vault``, and a point load on a block the arch
         or the vault does not have."""
         a = self.arch_section
-        arch = a is not None
-        kind = "a vault" if self.vault is not None else "an arch"
+        arch = self.limit_state is not None
+        kind = ("a vault" if self.vault is not None else "an arch" if self.arch is not None
+                else "an assembly")
         problems = [(path, f"given with {kind if arch else 'a wall'} case; it belongs to "
                      f"{'the wall' if arch else 'an arch'} (leave it out"
                      + ("" if arch else ", or give an arch: section") + ")")
                     for path in (WALL_ONLY if arch else ARCH_ONLY) if _given(self, path)]
-        if self.arch is not None and self.vault is not None:
-            problems.append(("vault", ("given with arch; a case builds one structure: give "
-                                       "arch or vault")))
+        given = [k for k in ("arch", "vault", "assembly") if getattr(self, k) is not None]
+        if len(given) > 1:
+            problems.append((given[1], (f"given with {given[0]}; a case builds one structure: "
+                                        "give one of arch, vault, assembly")))
             return problems
+        if self.assembly is not None and self.loading.settlement is not None:
+            problems.append(("loading.settlement", (
+                "given with an assembly case; the settlement of a support is the arch's and "
+                "the vault's (an assembly's supports are fixed)")))
         load = self.loading.point_load
-        if arch and load is not None:
+        if a is not None and load is not None:
             if self.vault is not None:
                 from masonry_nscd.scenes.vault import voussoir_names
 
@@ -1617,9 +1741,8 @@ class Case(_Section):
     def unused_sections(self) -> tuple[str, ...]:
         """The dotted paths of the sections the case's builder does not read (left out of the
         case written back)."""
-        if self.vault is not None:
-            return (*WALL_ONLY, "arch")
-        return (*WALL_ONLY, "vault") if self.arch is not None else ARCH_ONLY
+        others = [k for k in ("arch", "vault", "assembly") if getattr(self, k) is None]
+        return (*WALL_ONLY, *others) if self.limit_state is not None else ARCH_ONLY
 
 
 # ---------------------------------------------------------------------------------------------

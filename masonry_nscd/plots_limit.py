@@ -82,7 +82,7 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
     moved = ref + magnify * disp[:, :2]
     fig = Figure(figsize=(14, 6), layout="constrained")
     ax, bx = fig.subplots(1, 2, width_ratios=(1.4, 1.0))
-    builder = run.scene.get("arch") or run.scene.get("vault") or {}
+    builder = run.scene.get(run.scene.get("builder", "arch")) or {}
     for box in builder.get("supports_xy_m", []):
         x0, y0, x1, y1 = box
         ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, facecolor="0.8", edgecolor="0.5",

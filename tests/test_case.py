@@ -321,8 +321,8 @@ def test_shipped_cases_let_auto_pick_newton():
         case = load_case(path)
         assert case.solver.method == "auto", path.name
         assert case.contact_solver == "newton", path.name
-        # an arch's or a vault's voussoirs hinge at the edges of their joints: Lobatto points
-        assert case.contact_point_rule == ("gauss" if case.arch_section is None
+        # limit-state blocks (arch, vault, assembly) hinge at the edges of their joints: Lobatto
+        assert case.contact_point_rule == ("gauss" if case.limit_state is None
                                            else "lobatto"), path.name
 
 
