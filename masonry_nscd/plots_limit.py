@@ -8,7 +8,8 @@
   multiplied by ``magnify`` (by default so that the largest displacement shows as 4 % of the
   structure's width), over the outline of the undeformed structure and the supports; the hinges
   of the summary (:mod:`masonry_nscd.post.limit`) marked at their pivots (a red dot, labelled
-  with the joint and the face), sliding joints with a blue cross;
+  with the joint and the face), sliding joints with a blue cross, joints open over their whole
+  face (separated) with an orange square at their centre;
 * the growing load (the first of the scene's load factors: the body-force multiplier ``lambda``,
   the force on a block) against the largest displacement of a block point (``limit.csv``), with
   the onset of the mechanism and its detection marked; without a growing load, the largest
@@ -112,6 +113,9 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
     for j in filter(in_front, summary["sliding_joints"]):
         p = placed(j["centre_m"])
         ax.plot(*p, "x", color="blue", markersize=10, markeredgewidth=2, zorder=5)
+    for j in filter(in_front, summary["open_joints"]):
+        p = placed(j["centre_m"])
+        ax.plot(*p, "s", color="orange", markersize=7, markeredgecolor="k", zorder=5)
     lo, hi = np.minimum(ref.min(axis=0), moved.min(axis=0)), np.maximum(ref.max(axis=0),
                                                                          moved.max(axis=0))
     pad = 0.08 * float(max(hi - lo))
@@ -126,7 +130,8 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
                  + (f" ({', '.join(f'{k} = {v:.4g}' for k, v in loads.items())} at the onset)"
                     if loads else "")
                  + f"\nstep {fields.step}, t = {fields.time_s:.3f} s, displacements x "
-                 f"{magnify:.3g}; hinges (red) at their pivots")
+                 f"{magnify:.3g}; hinges (red) at their pivots, sliding (blue x), open "
+                 "(orange)")
 
     table = _read_limit_csv(run.outdir / LIMIT_CSV)
     factors = [f["name"] for f in summary.get("load_factors", []) if f["name"] in table]
