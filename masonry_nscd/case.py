@@ -866,7 +866,8 @@ class Vault(Arch):
     of its neighbours (running bond along the ring): that ring has ``voussoirs - 1`` whole
     voussoirs and a half voussoir at each springing. The joints between rings are planes
     ``z = const``; every joint is a dry contact (``joint_thickness_m`` must be 0). The
-    abutments run along the whole depth.
+    abutments run along the whole depth. A voussoir is made of two half voussoirs (one at a
+    staggered ring's springings), each meshed with ``elements_per_voussoir`` hexahedra.
     """
 
     depth_m: Real = Field(1.0, gt=0.0, le=100.0, description="length of the vault along z (m)")
