@@ -16,6 +16,8 @@ cohesive joints, 0.5 MPa of vertical stress, 10 mm of imposed horizontal displac
     solver:   time step, theta, NLGS tolerance                             -> Solver
     output:   what is written and how often                                -> Output
     arch:     an arch of voussoirs instead of the wall (issue 18)          -> Arch
+    vault:    a barrel vault: the arch in staggered rings along z          -> Vault
+    assembly: blocks of hexahedra read from a mesh file                    -> Assembly
     collapse: when an arch run has collapsed                               -> Collapse
 
 An arch case has ``arch:`` and its loads (``loading.body_force``, ``point_load``,
@@ -73,6 +75,9 @@ from pydantic_core import PydanticCustomError
 
 __all__ = [
     "Arch",
+    "Assembly",
+    "AssemblyMaterial",
+    "AssemblySupport",
     "Blocks",
     "BodyForce",
     "Case",
@@ -94,6 +99,7 @@ __all__ = [
     "Solver",
     "StressStage",
     "Supports",
+    "Vault",
     "Wall",
     "case_from_dict",
     "case_to_yaml",
@@ -851,6 +857,141 @@ class Arch(_Section):
         return self
 
 
+class Vault(Arch):
+    """A barrel vault (``masonry_nscd/scenes/vault.py``): the arch of the same fields extruded
+    along z over ``depth_m``, in ``rings`` rings of voussoirs side by side, each
+    ``depth_m / rings`` deep, instead of a wall or an arch.
+
+    With ``stagger`` the radial joints of every second ring fall in the middle of the voussoirs
+    of its neighbours (running bond along the ring): that ring has ``voussoirs - 1`` whole
+    voussoirs and a half voussoir at each springing. The joints between rings are planes
+    ``z = const``; every joint is a dry contact (``joint_thickness_m`` must be 0). The
+    abutments run along the whole depth. A voussoir is made of two half voussoirs (one at a
+    staggered ring's springings), each meshed with ``elements_per_voussoir`` hexahedra.
+    """
+
+    depth_m: Real = Field(1.0, gt=0.0, le=100.0, description="length of the vault along z (m)")
+    rings: Whole = Field(4, ge=1, le=100, description="rings of voussoirs along z (count)")
+    stagger: bool = Field(
+        True, description="radial joints of every second ring offset by half a voussoir"
+    )
+
+    @model_validator(mode="after")
+    def _check_vault(self) -> Vault:
+        problems: list[tuple[str, str]] = []
+        if self.joint_thickness_m != 0.0:
+            problems.append(("joint_thickness_m", (
+                f"got {self.joint_thickness_m:.6g} m; a vault's joints are dry contacts: 0 (the "
+                "corners of a staggered ring would fall into a gap of its neighbour)")))
+        _problems(problems)
+        return self
+
+
+GroupRef = Annotated[Whole | str, Field(union_mode="left_to_right")]
+
+
+class AssemblySupport(_Section):
+    """A block of the mesh that is a support: fixed (it does not move), its joints with the
+    structure of the joint law (``fixed``) or glued (``glued``: no opening, no slip)."""
+
+    group: GroupRef = Field(..., description="the block: its physical name or its tag")
+    kind: Literal["fixed", "glued"] = Field(
+        "fixed", description="fixed (joints of the joint law) or glued (glued joints)"
+    )
+
+
+class AssemblyMaterial(_Section):
+    """The material of one block of the mesh (null fields: those of ``blocks``)."""
+
+    group: GroupRef = Field(..., description="the block: its physical name or its tag")
+    material: Literal["rigid", "elastic"] = Field("rigid", description="rigid or elastic")
+    density_kg_m3: Real | None = Field(
+        None, ge=100.0, le=1e5, description="density (kg/m^3; null: blocks.density_kg_m3)"
+    )
+    E_Pa: Real | None = Field(
+        None, ge=1e6, le=1e13, description="Young's modulus (Pa; null: blocks.E_Pa)"
+    )
+    nu: Real | None = Field(
+        None, gt=-1.0, lt=0.5, description="Poisson's ratio (null: blocks.nu)"
+    )
+
+
+class Assembly(_Section):
+    """A block assembly read from a mesh file (``masonry_nscd/scenes/assembly.py``), instead
+    of a wall, an arch or a vault.
+
+    ``mesh_file``: a mesh of 8-node hexahedra (Gmsh ``.msh``, or any format meshio reads; a
+    relative path is relative to the case file); the hexahedra of one tag (``tag_field``:
+    Gmsh's physical group) are one block, named by its physical name (or ``block <tag>``).
+    ``supports`` name the blocks that are fixed supports (at least one); ``materials`` give a
+    block's material by its name or tag, the others take ``blocks``. Joints are found by the
+    generic contact detection between facing faces at most ``joint_thickness_m`` apart (groups
+    ``joint``, ``support``, ``glue``) and follow ``joint``. y is up (gravity along -y).
+    """
+
+    mesh_file: str = Field(
+        ..., min_length=1, max_length=4096,
+        description="mesh file of hexahedra (relative to the case file)",
+    )
+    tag_field: str = Field(
+        "gmsh:physical", min_length=1, max_length=200,
+        description="cell data of the block tag of each hexahedron",
+    )
+    supports: list[AssemblySupport] = Field(
+        ..., min_length=1, max_length=1000, description="the blocks that are supports"
+    )
+    materials: list[AssemblyMaterial] = Field(
+        default_factory=list, max_length=100_000,
+        description="material of a block by name or tag (the others: blocks)",
+    )
+    driven_block: str | None = Field(
+        None, max_length=200,
+        description="block whose displacement is the curve's ux, uy (null: the highest)",
+    )
+    joint_thickness_m: Real = Field(
+        0.0, ge=0.0, le=0.5, description="largest gap between two faces of a joint (m)"
+    )
+    contact_points_per_face: Whole = Field(
+        2, ge=1, le=4,
+        description="contact points per direction on each element face in contact (count)",
+    )
+    contact_point_rule: Literal["auto", "gauss", "lobatto"] = Field(
+        "auto", description="gauss, lobatto or auto: lobatto with 2 or more points"
+    )
+
+    @field_validator("mesh_file")
+    @classmethod
+    def _resolve_file(cls, value: str, info: ValidationInfo) -> str:
+        """A relative path is made absolute from the case file's folder, as
+        ``loading.ground_motion.file``."""
+        base = (info.context or {}).get("case_dir")
+        if base is None or Path(value).is_absolute():
+            return value
+        return str((Path(base) / value).resolve())
+
+    @model_validator(mode="after")
+    def _check_mesh(self, info: ValidationInfo) -> Assembly:
+        problems: list[tuple[str, str]] = []
+        seen: dict[str, str] = {}
+        for table in ("supports", "materials"):
+            for i, entry in enumerate(getattr(self, table)):
+                key = str(entry.group)
+                if key in seen and (table == "supports" or seen[key] == table):
+                    problems.append((f"{table}[{i}].group", (
+                        f"got {entry.group!r} again; a block is named once in {table}"
+                        + (" and once in materials" if table == "supports" else ""))))
+                seen.setdefault(key, table)
+        if not problems and (info.context or {}).get("check_files"):
+            from masonry_nscd.scenes.assembly import AssemblyError, read_assembly
+
+            try:  # read and checked only: nothing is kept in the case
+                read_assembly(self)
+            except AssemblyError as exc:
+                problems += exc.problems
+        _problems(problems)
+        return self
+
+
 class BodyForce(_Section):
     """A body force ``lambda(t) g m`` on every block along ``direction`` (``g`` the gravity
     of ``loading.gravity``, ``m`` the block's mass): the pseudo-static seismic or tilting-table
@@ -947,7 +1088,7 @@ class Collapse(_Section):
 #: Sections of a case that belong to the wall builder and to the arch builder (the other's
 #: are refused when given, and left out of the case written back).
 WALL_ONLY = ("wall", "supports", "loading.vertical_stress", "loading.horizontal")
-ARCH_ONLY = ("arch", "collapse", "loading.body_force", "loading.point_load",
+ARCH_ONLY = ("arch", "vault", "assembly", "collapse", "loading.body_force", "loading.point_load",
              "loading.settlement")
 
 
@@ -1424,9 +1565,27 @@ class Case(_Section):
     arch: Arch | None = Field(
         None, description="an arch of voussoirs instead of the wall (null: the wall)"
     )
+    vault: Vault | None = Field(
+        None, description="a barrel vault instead of the wall (null: the wall or the arch)"
+    )
+    assembly: Assembly | None = Field(
+        None, description="blocks from a mesh file instead of the wall (null: the wall)"
+    )
     collapse: Collapse = Field(
         default_factory=Collapse, description="arch: when the run has collapsed"
     )
+
+    @property
+    def limit_state(self) -> Arch | Assembly | None:
+        """The section of a limit-state case's builder: ``arch``, ``vault`` or ``assembly``
+        (None: a wall)."""
+        return self.arch_section if self.arch_section is not None else self.assembly
+
+    @property
+    def arch_section(self) -> Arch | None:
+        """The arch of a limit-state case: ``arch``, or the section of a ``vault`` (None: a
+        wall)."""
+        return self.arch if self.arch is not None else self.vault
 
     @field_validator("name")
     @classmethod
@@ -1473,10 +1632,10 @@ class Case(_Section):
         impulses; on rigid blocks they put the rocking on the corners (docs/choices.md). An
         arch takes Lobatto points for every law: its joints hinge at their edges, and Gauss
         points would make a voussoir of one element 0.577 of its thickness thick."""
-        w = self.arch if self.arch is not None else self.wall
+        w = self.limit_state if self.limit_state is not None else self.wall
         if w.contact_point_rule != "auto":
             return w.contact_point_rule
-        if self.arch is not None:  # voussoirs hinge about the edges of their faces, any law
+        if self.limit_state is not None:  # voussoirs hinge about the edges of their faces, any law
             return "lobatto" if w.contact_points_per_face >= 2 else "gauss"
         if self.joint.law == "coulomb" and w.contact_points_per_face >= 2:
             return "lobatto"
@@ -1486,7 +1645,8 @@ class Case(_Section):
     def step_count(self) -> int:
         """Expected number of time steps, ``ceil(end_time_s / time_step_s)`` (an arch:
         ``collapse.end_time_s``)."""
-        end = self.collapse.end_time_s if self.arch is not None else self.loading.end_time_s
+        end = self.collapse.end_time_s if self.limit_state is not None \
+            else self.loading.end_time_s
         return max(1, math.ceil(end / self.solver.time_step_s - 1e-9))
 
     @model_validator(mode="after")
@@ -1576,29 +1736,50 @@ class Case(_Section):
 
     def _builder_problems(self) -> list[tuple[str, str]]:
         """The sections of the other builder given in the case (:data:`WALL_ONLY`,
-        :data:`ARCH_ONLY`), and a point load on a block the arch does not have."""
-        arch = self.arch is not None
-        problems = [(path, f"given with {'an arch' if arch else 'a wall'} case; it belongs to "
+        :data:`ARCH_ONLY`), both ``arch`` and ``vault``, and a point load on a block the arch
+        or the vault does not have."""
+        a = self.arch_section
+        arch = self.limit_state is not None
+        kind = ("a vault" if self.vault is not None else "an arch" if self.arch is not None
+                else "an assembly")
+        problems = [(path, f"given with {kind if arch else 'a wall'} case; it belongs to "
                      f"{'the wall' if arch else 'an arch'} (leave it out"
                      + ("" if arch else ", or give an arch: section") + ")")
                     for path in (WALL_ONLY if arch else ARCH_ONLY) if _given(self, path)]
+        given = [k for k in ("arch", "vault", "assembly") if getattr(self, k) is not None]
+        if len(given) > 1:
+            problems.append((given[1], (f"given with {given[0]}; a case builds one structure: "
+                                        "give one of arch, vault, assembly")))
+            return problems
+        if self.assembly is not None and self.loading.settlement is not None:
+            problems.append(("loading.settlement", (
+                "given with an assembly case; the settlement of a support is the arch's and "
+                "the vault's (an assembly's supports are fixed)")))
         load = self.loading.point_load
-        if arch and load is not None:
-            names = [f"voussoir {k}" for k in range(1, self.arch.voussoirs + 1)]
-            if self.arch.abutments == "blocks":
+        if a is not None and load is not None:
+            if self.vault is not None:
+                from masonry_nscd.scenes.vault import voussoir_names
+
+                names = voussoir_names(self.vault)
+                where = (f"ring 1 voussoir 1 to ring {self.vault.rings} voussoir "
+                         f"{len(voussoir_names(self.vault, self.vault.rings))}")
+            else:
+                names = [f"voussoir {k}" for k in range(1, a.voussoirs + 1)]
+                where = f"voussoir 1 to voussoir {a.voussoirs}"
+            extra = a.abutments == "blocks"
+            if extra:
                 names += ["left abutment", "right abutment"]
             if load.block not in names:
                 problems.append(("loading.point_load.block", (
-                    f"got {load.block!r}; the blocks are voussoir 1 to voussoir "
-                    f"{self.arch.voussoirs} (from the left springing)"
-                    + (", left abutment, right abutment" if len(names) > self.arch.voussoirs
-                       else ""))))
+                    f"got {load.block!r}; the blocks are {where} (from the left springing)"
+                    + (", left abutment, right abutment" if extra else ""))))
         return problems
 
     def unused_sections(self) -> tuple[str, ...]:
         """The dotted paths of the sections the case's builder does not read (left out of the
         case written back)."""
-        return WALL_ONLY if self.arch is not None else ARCH_ONLY
+        others = [k for k in ("arch", "vault", "assembly") if getattr(self, k) is None]
+        return (*WALL_ONLY, *others) if self.limit_state is not None else ARCH_ONLY
 
 
 # ---------------------------------------------------------------------------------------------

@@ -105,6 +105,17 @@ def validate(
         from masonry_nscd.scenes.arch import describe
 
         summary = describe(case)
+    elif case.vault is not None:
+        from masonry_nscd.scenes.vault import describe as describe_vault
+
+        summary = describe_vault(case)
+    elif case.assembly is not None:
+        from masonry_nscd.scenes.assembly import describe as describe_assembly
+
+        try:
+            summary = describe_assembly(case)
+        except ValueError as exc:
+            _fail(f"invalid case {case_file}: {exc}", 2)
     else:
         summary = (
             f"{case.name}: {len(unit_boxes(w))} units in {w.courses} courses "

@@ -3,11 +3,13 @@
 ``mechanism_<run>.png`` (:func:`plot_mechanism`), two panels:
 
 * the structure at the last output step of ``results.h5`` (the collapse, or the end of a run
-  that stands), each element's front face (z-min) drawn deformed with its displacements
+  that stands), the front face (z-min) of each element on the structure's front plane (an
+  arch: all; a vault: its first ring, with the joints within its depth) drawn deformed with its displacements
   multiplied by ``magnify`` (by default so that the largest displacement shows as 4 % of the
   structure's width), over the outline of the undeformed structure and the supports; the hinges
   of the summary (:mod:`masonry_nscd.post.limit`) marked at their pivots (a red dot, labelled
-  with the joint and the face), sliding joints with a blue cross;
+  with the joint and the face), sliding joints with a blue cross, joints open over their whole
+  face (separated) with an orange square at their centre;
 * the growing load (the first of the scene's load factors: the body-force multiplier ``lambda``,
   the force on a block) against the largest displacement of a block point (``limit.csv``), with
   the onset of the mechanism and its detection marked; without a growing load, the largest
@@ -63,7 +65,16 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
     summary = limit_summary(run.outdir, run.scene, fields)
     disp = fields.nodal_displacement_m if fields.nodal_displacement_m is not None \
         else np.zeros_like(fields.nodes_m)
-    front = fields.hexes[:, :4]
+    # the front: the elements whose z-min face lies on the structure's front plane (an arch's
+    # all; a vault's first ring), and the joints within their depth
+    z = fields.nodes_m[:, 2]
+    tol = 1e-9 * (1.0 + float(np.ptp(z)))
+    at_front = np.abs(z[fields.hexes[:, :4]] - z.min()).max(axis=1) <= tol
+    front = fields.hexes[at_front, :4]
+    z_back = float(z[fields.hexes[at_front]].max())
+
+    def in_front(joint) -> bool:  # not the joints on the back plane (a vault's next ring)
+        return joint["centre_m"][2] < z_back - tol
     ref = fields.nodes_m[:, :2]
     width = float(np.ptp(ref[:, 0])) or 1.0
     largest = float(np.linalg.norm(disp, axis=1).max(initial=0.0))
@@ -72,7 +83,8 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
     moved = ref + magnify * disp[:, :2]
     fig = Figure(figsize=(14, 6), layout="constrained")
     ax, bx = fig.subplots(1, 2, width_ratios=(1.4, 1.0))
-    for box in (run.scene.get("arch") or {}).get("supports_xy_m", []):
+    builder = run.scene.get(run.scene.get("builder", "arch")) or {}
+    for box in builder.get("supports_xy_m", []):
         x0, y0, x1, y1 = box
         ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, facecolor="0.8", edgecolor="0.5",
                                hatch="//", linewidth=0.5))
@@ -91,16 +103,19 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
         k = nodes[np.argmin(np.linalg.norm(fields.nodes_m[nodes] - p, axis=1))]
         return p[:2] + magnify * disp[k, :2]
 
-    for h in summary["hinges"]:
+    for h in filter(in_front, summary["hinges"]):
         p = placed(h["pivot_m"])
         ax.plot(*p, "o", color="red", markersize=9, markeredgecolor="k", zorder=5)
         label = f"joint {h['joint']}\n{h['side']}" if h.get("joint") is not None else \
             "\n".join(h["bodies"])
         ax.annotate(label, p, textcoords="offset points", xytext=(8, 6), fontsize=8,
                     color="darkred")
-    for j in summary["sliding_joints"]:
+    for j in filter(in_front, summary["sliding_joints"]):
         p = placed(j["centre_m"])
         ax.plot(*p, "x", color="blue", markersize=10, markeredgewidth=2, zorder=5)
+    for j in filter(in_front, summary["open_joints"]):
+        p = placed(j["centre_m"])
+        ax.plot(*p, "s", color="orange", markersize=7, markeredgecolor="k", zorder=5)
     lo, hi = np.minimum(ref.min(axis=0), moved.min(axis=0)), np.maximum(ref.max(axis=0),
                                                                          moved.max(axis=0))
     pad = 0.08 * float(max(hi - lo))
@@ -115,7 +130,8 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
                  + (f" ({', '.join(f'{k} = {v:.4g}' for k, v in loads.items())} at the onset)"
                     if loads else "")
                  + f"\nstep {fields.step}, t = {fields.time_s:.3f} s, displacements x "
-                 f"{magnify:.3g}; hinges (red) at their pivots")
+                 f"{magnify:.3g}; hinges (red) at their pivots, sliding (blue x), open "
+                 "(orange)")
 
     table = _read_limit_csv(run.outdir / LIMIT_CSV)
     factors = [f["name"] for f in summary.get("load_factors", []) if f["name"] in table]

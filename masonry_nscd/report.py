@@ -582,12 +582,13 @@ def summarize_run(outdir: Path | str,
                 "max_iterations_per_step", "steps_with_failed_gauss_points", "steps_subdivided",
                 "largest_damage")
         last = {k: _num(list(v)[-1]) for k, v in curve.items() if len(v)}
+        reaction = scene.get("reaction_names") or ["left", "right"]  # an arch's supports
         return {"case_name": case.name, "builder": scene.get("builder"),
                 "block_material": case.blocks.material, "joint_law": case.joint.law,
                 **limit_summary(outdir, scene, fields),
                 "support_forces_last_kN": {  # the force of each support on the structure
-                    "left": [last.get("fx_kN"), last.get("fy_kN")],
-                    "right": [last.get("fx_bottom_kN"), last.get("fy_bottom_kN")]},
+                    reaction[0]: [last.get("fx_kN"), last.get("fy_kN")],
+                    reaction[1]: [last.get("fx_bottom_kN"), last.get("fy_bottom_kN")]},
                 **{k: summary[k] for k in keep if k in summary}}
     head = {"case_name": case.name, "block_material": case.blocks.material,
             "vertical_stress_MPa": case.loading.vertical_stress.value_Pa / 1e6,

@@ -44,7 +44,10 @@ fields (named by their path, values as validated, SI units), then ``initial_stif
 ``peak_force_kN``, ``ux_at_peak_mm``, ``force_at_target_kN``, ``target_ux_mm``, and for cyclic
 and tabulated histories ``peak_force_neg_kN``, ``ux_at_peak_neg_mm``, ``dissipated_energy_J``,
 for ground motion ``peak_drift_mm``, ``residual_drift_mm``, ``peak_base_shear_kN`` (empty
-otherwise; definitions in :mod:`masonry_nscd.report`), ``unconverged_steps``,
+otherwise; definitions in :mod:`masonry_nscd.report`), ``unconverged_steps``, the failure
+modes, for limit-state cases (arch, vault, assembly) ``collapse`` (true or false: standing),
+``collapse_load_name`` and ``collapse_load`` (the first growing load, e.g. ``lambda``, at the
+onset of the mechanism) and ``collapse_time_s`` (the onset; empty otherwise),
 ``run_time_s`` (wall-clock time of the run on its worker, s), ``status``, ``message`` and
 ``run`` (the folder name). A run that was skipped keeps the numbers and the run time of the
 sweep that made it. ``force_displacement.png``: the
@@ -75,7 +78,8 @@ from typing import Any
 #: Summary values (masonry_nscd.report) kept per run, in the order of the table.
 OUTPUT_KEYS = ("initial_stiffness_kN_mm", "peak_force_kN", "ux_at_peak_mm", "force_at_target_kN",
                "target_ux_mm", "peak_force_neg_kN", "ux_at_peak_neg_mm", "dissipated_energy_J",
-               "peak_drift_mm", "residual_drift_mm", "peak_base_shear_kN", "unconverged_steps", "failure_mode_at_peak", "failure_mode")
+               "peak_drift_mm", "residual_drift_mm", "peak_base_shear_kN", "unconverged_steps", "failure_mode_at_peak", "failure_mode",
+               "collapse", "collapse_load_name", "collapse_load", "collapse_time_s")
 #: Columns of the table after the swept fields.
 TAIL_COLUMNS = (*OUTPUT_KEYS, "run_time_s", "status", "message", "run")
 STATUSES = ("ok", "failed", "invalid", "error")
@@ -347,6 +351,14 @@ def _outputs(run_dir: Path) -> dict[str, Any]:
     out = {k: summary.get(k) for k in OUTPUT_KEYS}
     for k in ("failure_mode_at_peak", "failure_mode"):  # the name of the mechanism
         out[k] = (out[k] or {}).get("mode")
+    # a limit-state run: whether it collapsed, the first growing load and the time at the onset
+    limit = summary.get("status") if summary.get("load_factors") is not None else None
+    collapse = summary.get("collapse") if limit is not None else None
+    loads = (collapse or {}).get("loads_at_onset") or {}
+    name = next(iter(loads), None)
+    out.update({"collapse": None if limit is None else limit == "collapse",
+                "collapse_load_name": name, "collapse_load": loads.get(name),
+                "collapse_time_s": (collapse or {}).get("onset_time_s")})
     return out
 
 

@@ -89,9 +89,9 @@ class Threshold:
 
 def check_case(case) -> None:
     """Refuse a case without a collapse rule (a wall): nothing tells its runs apart."""
-    if getattr(case, "arch", None) is None:
+    if getattr(case, "limit_state", None) is None:
         raise ThresholdError(
-            "the case has no arch: section; threshold runs limit-state cases, whose runs end "
+            "the case has no arch:, vault: or assembly: section; threshold runs limit-state cases, whose runs end "
             "in collapse or standing (collapse: section), and a wall has none")
 
 

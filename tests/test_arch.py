@@ -414,3 +414,32 @@ def test_interrupted_arch_resumes_to_the_same_collapse(tmp_path, monkeypatch):
     rows, ref_rows = ((tmp_path / d / "limit.csv").read_text().splitlines()
                       for d in ("run", "ref"))
     assert [r.split(",")[0] for r in rows] == [r.split(",")[0] for r in ref_rows]
+
+
+def test_hinges_are_marked_in_the_vtu_output(tmp_path):
+    """An arch 10 % thinner than the minimum, under its own weight: in the joints' VTU file of
+    the last output step, the points marked ``joint_state`` = 5 (hinge) lie on the joints where
+    limit analysis puts the five hinges (within a voussoir), four points each, and no other
+    point is marked a hinge."""
+    import meshio
+
+    from masonry_nscd.post.limit import STATE_CODES
+    from masonry_nscd.run import run_case
+
+    ratio = min_thickness_ratio(N)
+    case = load_case(CASE, [f"arch.thickness_m={0.9 * ratio * R!r}",
+                            "loading.body_force.rate_per_s=0", "collapse.end_time_s=1"])
+    run_case(case, tmp_path / "run", echo=lambda _m: None)
+    last = max((tmp_path / "run" / "vtu").glob("joints_*.vtu"))  # zero-padded steps
+    m = meshio.read(last)
+    state = np.asarray(m.point_data["joint_state"])
+    x = np.asarray(m.points)
+    assert set(np.unique(state).tolist()) <= set(STATE_CODES.values())
+    hinge = x[state == STATE_CODES["hinge"]]
+    joints = np.rint(np.arctan2(hinge[:, 1], -hinge[:, 0]) / (np.pi / N)).astype(int)
+    found, counts = np.unique(joints, return_counts=True)
+    reference = limit_hinges(N, 1.000001 * ratio * R, False)
+    assert len(found) == len(reference) == 5
+    for j in reference:
+        assert {j - 1, j, j + 1} & set(found.tolist()), (j, found)
+    assert (counts == 4).all()

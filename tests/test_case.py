@@ -321,9 +321,9 @@ def test_shipped_cases_let_auto_pick_newton():
         case = load_case(path)
         assert case.solver.method == "auto", path.name
         assert case.contact_solver == "newton", path.name
-        # an arch's voussoirs hinge at the edges of their joints: Lobatto points
-        assert case.contact_point_rule == ("gauss" if case.arch is None else "lobatto"), \
-            path.name
+        # limit-state blocks (arch, vault, assembly) hinge at the edges of their joints: Lobatto
+        assert case.contact_point_rule == ("gauss" if case.limit_state is None
+                                           else "lobatto"), path.name
 
 
 @pytest.mark.parametrize("label", sorted(BAD_FILES))

@@ -175,3 +175,20 @@ def test_the_cli_does_not_import_dask_or_salib():
             "print([m for m in ('distributed', 'dask', 'SALib') if m in sys.modules])")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_a_sweep_of_an_arch_has_collapse_columns(tmp_path):
+    """The shipped arch at t/R = 0.09 (below the minimum 0.1071 of limit analysis) collapses
+    under its own weight, before the body force starts (0.2 s); at 0.15 its collapse multiplier
+    (0.1467) is above the lambda = 0.125 that 0.1 /s reaches by 1.5 s: it stands."""
+    out = tmp_path / "arch"
+    res = CliRunner().invoke(app, [
+        "sweep", "cases/arch_semicircular.yaml", "--set", "arch.thickness_m=0.15,0.09",
+        "--set", "output.vtu=false", "--set", "loading.body_force.rate_per_s=0.1",
+        "--set", "collapse.end_time_s=1.5", "--workers", "1", "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    thick, thin = _table(out / "sweep.csv")
+    assert (thick["collapse"], thin["collapse"]) == ("false", "true")
+    assert thick["collapse_load"] == "" and thick["collapse_time_s"] == ""
+    assert thin["collapse_load_name"] == "lambda" and float(thin["collapse_load"]) == 0.0
+    assert float(thin["collapse_time_s"]) < 0.2

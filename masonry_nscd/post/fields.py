@@ -74,6 +74,12 @@ class StepFields:
         self.joint = s.kind == laws.KIND_JOINT
         self.d0 = point_initial_damage(integ.params, s.kind, s.law)
         self.group = np.array([p.group for p in integ.points], dtype=np.int64)
+        # a limit-state scene marks the state of each point's joint (post/limit.py)
+        rule = scene.collapse
+        self._states = None if rule is None or not integ.points else (
+            np.array([p.x for p in integ.points]), np.array([p.frame[0] for p in integ.points]),
+            np.array([p.bodies for p in integ.points], dtype=np.int64),
+            [scene.groups.index(g) for g in scene.joint_groups], rule.hinge_opening_m)
         mat = integ.material
         # output elements of the ENDO3D blocks, in the order of ``mat.index``
         pos = {b: k for k, b in enumerate(mesh.bodies)}
@@ -135,12 +141,21 @@ class StepFields:
         return d
 
     def joint_fields(self) -> dict[str, np.ndarray]:
-        """Per contact point: damage, opening and slip (m), tractions (Pa), status, group."""
+        """Per contact point: damage, opening and slip (m), tractions (Pa), status, group;
+        in a limit-state scene the state of its joint (``joint_state``: closed, partly open,
+        open, sliding, hinge, :data:`masonry_nscd.post.limit.STATE_CODES`)."""
         j = self.integ.joints
-        return {"d_coh": self.joint_damage(), "opening_m": j.u[:, 0],
-                "slip_m": np.hypot(j.u[:, 1], j.u[:, 2]), "T_n_Pa": j.T[:, 0],
-                "T_t_Pa": np.hypot(j.T[:, 1], j.T[:, 2]), "status": j.status.astype(float),
-                "group": self.group.astype(float), **self.point_fields}
+        out = {"d_coh": self.joint_damage(), "opening_m": j.u[:, 0],
+               "slip_m": np.hypot(j.u[:, 1], j.u[:, 2]), "T_n_Pa": j.T[:, 0],
+               "T_t_Pa": np.hypot(j.T[:, 1], j.T[:, 2]), "status": j.status.astype(float),
+               "group": self.group.astype(float), **self.point_fields}
+        if self._states is not None:
+            from masonry_nscd.post.limit import classify_joints, state_codes
+
+            x, normal, bodies, ids, opening = self._states
+            joints = classify_joints(x, normal, bodies, self.group, ids, j.u, opening)
+            out["joint_state"] = state_codes(joints, len(x))
+        return out
 
     def largest(self, damage: dict[str, np.ndarray]) -> tuple[float, float, float]:
         """The curve's damage columns: largest joint ``d_coh`` (joint points only), largest

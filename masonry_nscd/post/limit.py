@@ -27,6 +27,11 @@ has none).
 The mechanism is named from the count: ``four-hinge`` (a fixed arch's one degree of freedom),
 ``three-hinge``, ``five-hinge`` (the symmetric mechanism of a symmetric arch and load), ...,
 ``sliding``, or ``hinges and sliding``; ``none`` when no joint has moved.
+
+Every output step of a limit-state run marks the state of each contact point's joint in the
+field ``joint_state`` of the joints' VTU files (``vtu/joints_*.vtu``; :data:`STATE_CODES`: 1
+closed, 2 partly open, 3 open, 4 sliding, 5 hinge; 0 off the joint groups), computed by the
+same :func:`classify_joints` from the step's relative displacements.
 """
 
 from __future__ import annotations
@@ -45,30 +50,33 @@ _COUNT_NAMES = {1: "one-hinge", 2: "two-hinge", 3: "three-hinge", 4: "four-hinge
                 5: "five-hinge", 6: "six-hinge"}
 
 
-def joint_states(fields, scene: Mapping[str, Any], opening_m: float) -> list[dict[str, Any]]:
-    """Every joint of the scene's joint groups at the output step of ``fields`` (module
-    docstring), in the order of their first point."""
-    groups = list(scene["groups"])
-    joint_ids = [groups.index(g) for g in scene["joint_groups"]]
-    names = dict(enumerate(scene["bodies"]))
-    u = fields.joint_u_m
-    if u is None:
-        return []
-    idx = np.flatnonzero(np.isin(fields.contact_group, joint_ids))
+#: The code of each joint state in the ``joint_state`` field of the contact points (VTU output
+#: of a limit-state run, results.h5): 0 for a point of no joint group (the glue).
+STATE_CODES = {"closed": 1, "partly open": 2, "open": 3, "sliding": 4, "hinge": 5}
+
+
+def classify_joints(x: np.ndarray, normal: np.ndarray, bodies: np.ndarray, group: np.ndarray,
+                    joint_ids, u: np.ndarray, opening_m: float) -> list[dict[str, Any]]:
+    """The joints (the points of one pair of bodies in the groups ``joint_ids``) and their
+    state (module docstring), in the order of their first point; plain arrays per contact
+    point: positions ``x`` (p, 3) m, joint normals (p, 3), bodies (p, 2), group ids (p,),
+    relative displacements ``u`` (p, 3) m (n, t, s). Each joint: ``members`` (its points),
+    ``pair``, ``kind``, ``open_fraction``, ``max_opening_m``, ``rotation_rad``, ``slip_m``,
+    ``pivot`` (m), ``centre`` (m)."""
+    idx = np.flatnonzero(np.isin(group, list(joint_ids)))
     pairs: dict[tuple[int, int], list[int]] = {}
     for a in idx:
-        cand, ant = (int(b) for b in fields.contact_bodies[a])
+        cand, ant = (int(b) for b in bodies[a])
         pairs.setdefault((min(cand, ant), max(cand, ant)), []).append(int(a))
-    arch = scene.get("arch")
     out = []
-    for (b0, b1), members in pairs.items():
+    for pair, members in pairs.items():
         pts = np.asarray(members)
-        x = fields.contact_points_m[pts]
-        n = fields.contact_frame[pts[0], 0]
+        xp = x[pts]
+        n = normal[pts[0]]
         un = u[pts, 0]
         slip = float(np.linalg.norm(u[pts, 1:], axis=1).max())
-        xc = x.mean(axis=0)
-        d = x - xc
+        xc = xp.mean(axis=0)
+        d = xp - xc
         d = d - np.outer(d @ n, n)  # in the face's plane
         # least squares u_n = a + g . d, g in the plane (the normal component has no data)
         A = np.column_stack([np.ones(len(pts)), d])
@@ -77,8 +85,8 @@ def joint_states(fields, scene: Mapping[str, Any], opening_m: float) -> list[dic
         gnorm = float(np.linalg.norm(g))
         if gnorm > 0.0:
             e = g / gnorm
-            s = d @ e
-            s_lo, s_hi = float(s.min()), float(s.max())
+            sp = d @ e
+            s_lo, s_hi = float(sp.min()), float(sp.max())
         else:
             e, s_lo, s_hi = np.zeros(3), 0.0, 0.0
         low, high = a0 + gnorm * s_lo, a0 + gnorm * s_hi
@@ -98,13 +106,44 @@ def joint_states(fields, scene: Mapping[str, Any], opening_m: float) -> list[dic
             kind = "partly open"
         else:
             kind = "closed"
-        pivot = xc + s_lo * e
+        out.append({"members": pts, "pair": pair, "kind": kind, "open_fraction": fraction,
+                    "max_opening_m": float(max(high, un.max())), "rotation_rad": gnorm,
+                    "slip_m": slip, "pivot": xc + s_lo * e, "centre": xc})
+    return out
+
+
+def state_codes(joints: list[dict[str, Any]], count: int) -> np.ndarray:
+    """Per contact point (``count``), the code (:data:`STATE_CODES`) of its joint's state."""
+    codes = np.zeros(count)
+    for j in joints:
+        codes[j["members"]] = STATE_CODES[j["kind"]]
+    return codes
+
+
+def joint_states(fields, scene: Mapping[str, Any], opening_m: float) -> list[dict[str, Any]]:
+    """Every joint of the scene's joint groups at the output step of ``fields`` (module
+    docstring), in the order of their first point."""
+    groups = list(scene["groups"])
+    joint_ids = [groups.index(g) for g in scene["joint_groups"]]
+    names = dict(enumerate(scene["bodies"]))
+    u = fields.joint_u_m
+    if u is None:
+        return []
+    arch = scene.get("arch")
+    out = []
+    for j in classify_joints(fields.contact_points_m, fields.contact_frame[:, 0],
+                             fields.contact_bodies, fields.contact_group, joint_ids, u,
+                             opening_m):
+        b0, b1 = j["pair"]
+        kind, pivot = j["kind"], j["pivot"]
         entry: dict[str, Any] = {
-            "bodies": [names[b0], names[b1]], "group": groups[int(fields.contact_group[pts[0]])],
-            "kind": kind, "open_fraction": fraction, "max_opening_m": float(max(high, un.max())),
-            "rotation_rad": gnorm, "slip_m": slip,
+            "bodies": [names[b0], names[b1]],
+            "group": groups[int(fields.contact_group[j["members"][0]])],
+            "kind": kind, "open_fraction": j["open_fraction"],
+            "max_opening_m": j["max_opening_m"], "rotation_rad": j["rotation_rad"],
+            "slip_m": j["slip_m"],
             "pivot_m": [float(v) for v in pivot] if kind == "hinge" else None,
-            "centre_m": [float(v) for v in xc]}
+            "centre_m": [float(v) for v in j["centre"]]}
         if arch is not None:
             entry.update(_arch_place(arch, names[b0], names[b1], pivot if kind == "hinge"
                                      else None))

@@ -49,22 +49,23 @@ at collapse or at ``collapse.end_time_s`` (:mod:`masonry_nscd.collapse`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from masonry_nscd.collapse import CollapseRule, LoadFactor
+from masonry_nscd.collapse import LoadFactor
 from masonry_nscd.contact import laws
 from masonry_nscd.fe import hex8
-from masonry_nscd.loading import Loads, Ramp, at_rest
-from masonry_nscd.loading.multiplier import GrowingMultiplier, SmoothMotion
-from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody, dof_offsets
+from masonry_nscd.loading import at_rest
+from masonry_nscd.loading.multiplier import SmoothMotion
+from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody
 from masonry_nscd.model.detection import find_joints, joint_points
-from masonry_nscd.scenes.scene import Scene, SolverSettings, Stage
+from masonry_nscd.scenes.limit_loads import limit_loads, limit_settings
+from masonry_nscd.scenes.scene import Scene, Stage
 
 X, Y, Z = 0, 1, 2
 #: Joint groups of an arch, in the order of their ids.
-GROUPS = ("voussoir", "springing", "base")
+GROUPS = ("voussoir", "springing", "base", "ring")
 GROUND_HEIGHT_FRACTION = 0.25  # a ground plate is this fraction of the abutment's height
 
 
@@ -144,6 +145,47 @@ def prism_mesh(quad: np.ndarray, depth: float, divisions=(1, 1, 1)
     return np.column_stack([xy, depth * U[:, 2]]), conn
 
 
+@dataclass
+class Voussoir:
+    """One voussoir of an arch or of a vault: its name, its role, the quadrilaterals of its
+    cross-section (one per piece along the ring, in order, counter-clockwise; an arch's
+    voussoir has one, a vault's whole voussoir two halves) and its extent along z (m)."""
+
+    name: str
+    role: str
+    quads: np.ndarray  # (p, 4, 2)
+    z: tuple[float, float]
+    place: dict = field(default_factory=dict)  # the builder's place keys (voussoir, ring)
+
+    def extrados_middle(self) -> np.ndarray:
+        """The middle of the extrados face (m): the middle of the extrados chord of the middle
+        piece, or the extrados corner between the two middle pieces."""
+        q, p = self.quads, len(self.quads)
+        xy = 0.5 * (q[p // 2][2] + q[p // 2][3]) if p % 2 else q[p // 2][3]
+        return np.array([*xy, 0.5 * (self.z[0] + self.z[1])])
+
+    def mesh(self, divisions=(1, 1, 1)) -> tuple[np.ndarray, np.ndarray]:
+        """Hexahedral mesh (nodes, cells) of the voussoir: :func:`prism_mesh` of each piece,
+        the nodes the pieces share merged (they are computed from the same joint line)."""
+        z0, z1 = self.z
+        nodes, cells, count = [], [], 0
+        for q in self.quads:
+            Xp, cp = prism_mesh(q, z1 - z0, divisions)
+            Xp[:, 2] += z0
+            nodes.append(Xp)
+            cells.append(cp + count)
+            count += len(Xp)
+        X = np.concatenate(nodes)
+        if len(self.quads) == 1:
+            return X, cells[0]
+        _, first, inverse = np.unique(X.round(12), axis=0, return_index=True,
+                                      return_inverse=True)
+        order = np.argsort(first)  # keep the nodes in their first order
+        rank = np.empty_like(order)
+        rank[order] = np.arange(len(order))
+        return X[first[order]], rank[inverse.ravel()][np.concatenate(cells)]
+
+
 def describe(case) -> str:
     """One line on an arch case (``masonry validate``)."""
     a, ld = case.arch, case.loading
@@ -169,26 +211,52 @@ def _box(lo, hi) -> tuple[np.ndarray, np.ndarray]:
     return hex8.box_mesh(lo, np.asarray(hi, dtype=float) - lo, (1, 1, 1))
 
 
+def arch_voussoirs(a, geo: ArchGeometry) -> list[Voussoir]:
+    """The voussoirs of an arch: one prism each on its quadrilateral, over the whole depth."""
+    n = geo.count
+    return [Voussoir(f"voussoir {k + 1}",
+                     "left springer" if k == 0 else "right springer" if k == n - 1 else
+                     "keystone" if k == geo.keystone and geo.crown_joint is None else "",
+                     geo.quads[k:k + 1], (0.0, a.depth_m), {"voussoir": k + 1})
+            for k in range(n)]
+
+
 def build_arch(case) -> Scene:
     """The scene of an arch case (module docstring)."""
-    a, blk, ld = case.arch, case.blocks, case.loading
-    R, L, t = a.centreline_radius_m, a.centreline_span_m, a.thickness_m
-    n, depth, g = a.voussoirs, a.depth_m, a.joint_thickness_m
-    geo = arch_geometry(a.shape, R, L, t, n, g)
+    a = case.arch
+    geo = arch_geometry(a.shape, a.centreline_radius_m, a.centreline_span_m, a.thickness_m,
+                        a.voussoirs, a.joint_thickness_m)
+    meta = {"shape": a.shape, "radius_m": geo.radius, "span_m": geo.span,
+            "thickness_m": geo.thickness, "depth_m": a.depth_m, "voussoirs": geo.count,
+            "abutments": a.abutments, "crown_voussoir": geo.keystone + 1,
+            "joint_centres_m": [None if not np.isfinite(c).all() else [float(c[0]), float(c[1])]
+                                for c in geo.centres],
+            "joints_intrados_m": geo.joints_in.tolist(),
+            "joints_extrados_m": geo.joints_out.tolist()}
+    return voussoir_scene(case, a, arch_voussoirs(a, geo), geo.keystone, "arch", meta)
+
+
+def voussoir_scene(case, a, voussoirs: list[Voussoir], driven: int, builder: str,
+                   meta: dict) -> Scene:
+    """The scene of voussoirs (an arch's, a vault's) on the two abutments of the section ``a``
+    (an ``Arch``: abutments, depth, joint thickness, mesh and contact points): the supports,
+    the joints, the loads and the collapse rule of the module docstring. ``driven`` is the
+    voussoir whose reference point is the curve's; ``meta`` goes into ``scene.json`` under
+    ``builder``, with the supports' outlines (``supports_xy_m``) added."""
+    blk, ld = case.blocks, case.loading
+    t, depth, g = a.thickness_m, a.depth_m, a.joint_thickness_m
+    L = a.centreline_span_m
     bodies: list = []
     info = []
     material = MAT_ENDO3D if blk.material == "endo3d" else MAT_ELASTIC
-    for k in range(n):
-        name = f"voussoir {k + 1}"
-        role = ("left springer" if k == 0 else "right springer" if k == n - 1 else
-                "keystone" if k == geo.keystone and geo.crown_joint is None else "")
-        Xv, cv = prism_mesh(geo.quads[k], depth, a.elements_per_voussoir)
+    for k, v in enumerate(voussoirs):
+        Xv, cv = v.mesh(a.elements_per_voussoir)
         if blk.material == "rigid":
-            bodies.append(RigidBody.from_mesh(Xv, cv, blk.density_kg_m3, name=name))
+            bodies.append(RigidBody.from_mesh(Xv, cv, blk.density_kg_m3, name=v.name))
         else:
             bodies.append(Block(X=Xv, conn=cv, E=blk.E_Pa, nu=blk.nu, density=blk.density_kg_m3,
-                                material=material, name=name))
-        info.append({"name": name, "voussoir": k + 1, "role": role})
+                                material=material, name=v.name))
+        info.append({"name": v.name, **v.place, "role": v.role})
     n_vous = len(bodies)
 
     # --- abutments ----------------------------------------------------------------------------
@@ -235,7 +303,7 @@ def build_arch(case) -> Scene:
         if pair & fixed and not pair & set(range(n_vous)):
             name = "base"
         elif pair <= set(range(n_vous)):
-            name = "voussoir"
+            name = "ring" if abs(joint.normal[Z]) > 0.5 else "voussoir"
         else:
             name = "springing"
         return GROUPS.index(name), laws.KIND_JOINT, 0
@@ -246,57 +314,10 @@ def build_arch(case) -> Scene:
     params = np.atleast_2d(laws.params_from_case(case.joint))
 
     # --- loads --------------------------------------------------------------------------------
-    dof0 = dof_offsets(bodies)
-    ndof = int(dof0[-1])
-    loads = Loads()
-
-    def weight_pattern(direction) -> np.ndarray:
-        """Per unit of acceleration along ``direction``: m * direction on every block."""
-        F = np.zeros(ndof)
-        for i in structure:
-            b = bodies[i]
-            if isinstance(b, RigidBody):
-                F[dof0[i]:dof0[i + 1]] = b.weight_load(direction)
-            else:
-                m = b.lumped_mass()
-                for d in range(3):
-                    F[dof0[i] + d:dof0[i + 1]:3] = direction[d] * m[d::3]
-        return F
-
-    grav = ld.gravity
-    loads.add(weight_pattern((0.0, -1.0, 0.0)), Ramp(grav.value_m_s2, grav.start_s, grav.ramp_s))
-    stages = [Stage("gravity", 0.0)]
-    factors = []
-    bf = ld.body_force
-    if bf.active:
-        lam = GrowingMultiplier(bf.multiplier, bf.rate_per_s, bf.start_s, bf.ramp_s)
-        gval = grav.value_m_s2
-        loads.add(weight_pattern(bf.direction), lambda s, lam=lam, gval=gval: gval * lam(s))
-        stages.append(Stage("body force", bf.start_s))
-        factors.append(LoadFactor("lambda", "", lam, "body force multiplier (of g m)"))
-    pl = ld.point_load
-    if pl is not None:
-        k = next(i for i, b in enumerate(bodies) if b.name == pl.block)
-        b = bodies[k]
-        if k < n_vous:
-            q = geo.quads[k]
-            at = np.array([*(0.5 * (q[2] + q[3])), 0.5 * depth])  # the extrados chord's middle
-        else:
-            at = np.array([b.X[:, 0].mean(), b.X[:, 1].max(), 0.5 * depth])
-        F = np.zeros(ndof)
-        force = np.asarray(pl.direction, dtype=float)
-        if isinstance(b, RigidBody):
-            F[dof0[k]:dof0[k] + 3] = force
-            F[dof0[k] + 3:dof0[k] + 6] = np.cross(at - b.reference, force)
-        else:  # the nodes of the top face nearest to the point share it
-            d2 = np.linalg.norm(b.X - at, axis=1)
-            near = np.flatnonzero(d2 <= d2.min() + 1e-9 * (1.0 + d2.min()))
-            for node in near:
-                F[dof0[k] + 3 * node:dof0[k] + 3 * node + 3] = force / len(near)
-        P = GrowingMultiplier(pl.force_N, pl.rate_N_s, pl.start_s, pl.ramp_s)
-        loads.add(F, P)
-        stages.append(Stage("point load", pl.start_s))
-        factors.append(LoadFactor("point_load_N", "N", P, f"force on {pl.block}"))
+    loads, stages, factors = limit_loads(
+        case, bodies, structure,
+        lambda k: voussoirs[k].extrados_middle() if k < n_vous else
+        np.array([bodies[k].X[:, 0].mean(), bodies[k].X[:, 1].max(), 0.5 * depth]))
     if settle is not None:
         stages.append(Stage("settlement", settle.start_s))
         motion = SmoothMotion(float(np.linalg.norm(settle.displacement_m)), settle.start_s,
@@ -304,35 +325,17 @@ def build_arch(case) -> Scene:
         factors.append(LoadFactor("settlement_m", "m", motion.displacement,
                                   f"settlement of the {settle.support} support"))
     stages.sort(key=lambda st: st.start_s)
-
-    endo = None
-    if blk.material == "endo3d":
-        from masonry_nscd.materials.point_driver import params_from_case
-
-        endo = params_from_case(case)
-    col = case.collapse
-    solver = SolverSettings.from_case(case, endo)
-    rule = CollapseRule(displacement_m=col.displacement_m, velocity_m_s=col.velocity_m_s,
-                        onset_velocity_m_s=col.onset_velocity_m_s,
-                        hinge_opening_m=col.hinge_opening_m, after_s=col.after_s,
-                        factors=factors)
-    centres = [None if not np.isfinite(c).all() else [float(c[0]), float(c[1])]
-               for c in geo.centres]
+    solver, rule = limit_settings(case, factors)
+    meta = {**meta, "supports_xy_m": [[*bodies[i].X[:, :2].min(axis=0).tolist(),
+                                       *bodies[i].X[:, :2].max(axis=0).tolist()]
+                                      for i in supports.values()]}
     return Scene(
-        name=case.name, builder="arch", bodies=bodies, points=points, groups=GROUPS,
+        name=case.name, builder=builder, bodies=bodies, points=points, groups=GROUPS,
         params=params, loads=loads, solver=solver, structure=structure, body_info=info,
-        driven=geo.keystone, reactions={"top": supports["left"], "bottom": supports["right"]},
-        stages=stages, push_stage="gravity", target_m=None, expected_end_s=col.end_time_s,
-        time_limit_s=col.end_time_s, history={"kind": "monotonic", "cycles": []},
+        driven=driven, reactions={"top": supports["left"], "bottom": supports["right"]},
+        stages=stages, push_stage="gravity", target_m=None,
+        expected_end_s=case.collapse.end_time_s, time_limit_s=case.collapse.end_time_s, history={"kind": "monotonic", "cycles": []},
         collapse=rule,
         meta={"contact_point_rule": case.contact_point_rule, "limit_state": True,
-              "arch": {"shape": a.shape, "radius_m": R, "span_m": L, "thickness_m": t,
-                       "depth_m": depth, "voussoirs": n, "abutments": a.abutments,
-                       "crown_voussoir": geo.keystone + 1,
-                       "supports_xy_m": [[*bodies[i].X[:, :2].min(axis=0).tolist(),
-                                          *bodies[i].X[:, :2].max(axis=0).tolist()]
-                                         for i in supports.values()],
-                       "joint_centres_m": centres,
-                       "joints_intrados_m": geo.joints_in.tolist(),
-                       "joints_extrados_m": geo.joints_out.tolist()}},
+              builder: meta},
     )

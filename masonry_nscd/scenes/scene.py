@@ -111,7 +111,8 @@ class Scene:
     structure: list[int]  # bodies drawn and reported, in output order
     body_info: list[dict[str, Any]]  # per structure body: "name" and the builder's place keys
     driven: int  # body whose reference point moves by (U_x, U_y)
-    reactions: dict[str, int]  # "top", "bottom" -> body whose force on the others is reported
+    # "top", "bottom" -> body (or bodies: their sum) whose force on the others is reported
+    reactions: dict[str, int | tuple[int, ...]]
     stages: list[Stage]
     push_stage: str  # the stage whose F_x - U_x curve is summarised
     target_m: float | None  # the run stops when U_x reaches it (m; None: on time only)
@@ -202,9 +203,9 @@ class Scene:
 
     def reaction_weights(self, side_body: np.ndarray) -> dict[str, np.ndarray]:
         """Per reaction, the weight (+1, -1, 0) of each point's force on its candidate body in
-        the force of that body on the others: +1 where it is the antagonist, -1 where it is
-        the candidate."""
-        return {k: (side_body[:, 1] == b).astype(float) - (side_body[:, 0] == b)
+        the force of that body (of those bodies) on the others: +1 where it is the antagonist,
+        -1 where it is the candidate (0 between two of the bodies)."""
+        return {k: np.isin(side_body[:, 1], b).astype(float) - np.isin(side_body[:, 0], b)
                 for k, b in self.reactions.items()}
 
     @property
@@ -230,7 +231,9 @@ class Scene:
             "driven": {"body": name(self.driven),
                        "reference_m": [float(v) for v in getattr(  # a block: its first node
                            self.bodies[self.driven], "reference", self.bodies[self.driven].X[0])]},
-            "reactions": {k: name(b) for k, b in self.reactions.items()},
+            "reactions": {k: name(b) if isinstance(b, int | np.integer)
+                          else " + ".join(name(i) for i in b)
+                          for k, b in self.reactions.items()},
             "holds": [{"body": name(hd.body), "dof": DOF_NAMES[hd.dof], "from_s": hd.from_s}
                       for hd in self.holds],
             "bodies": [name(i) for i in range(len(self.bodies))],

@@ -1,0 +1,116 @@
+r"""Checks of a block assembly read from a mesh: inverted elements, overlapping blocks, blocks
+that nothing holds. Kernels on plain arrays (m); :mod:`masonry_nscd.scenes.assembly` names the
+blocks in its messages.
+
+* **Inverted or flat element**: the Jacobian ``J = dx / dxi`` of the trilinear map of an 8-node
+  hexahedron (:mod:`masonry_nscd.fe.hex8`, VTK node order) at its eight corners,
+  ``det J = (dx/dxi x dx/deta) . dx/dzeta``; an element whose smallest corner determinant is
+  at most ``1e-12`` times its volume / 8 (the mean determinant) is inverted (nodes listed
+  clockwise), flat or tangled.
+* **Overlap**: a point of block A strictly inside an element of block B. The points tried are
+  A's nodes, the centres of its elements, of their faces and of their edges; "strictly inside"
+  is more than ``tol`` (m) inside each of the six face planes of B's element (planes through
+  the face centres, normals from the face diagonals: exact for planar faces). Two blocks that
+  only touch (a joint) have no point inside each other. Overlaps in which none of those points
+  of either block lies inside the other (two long bars crossing mid-edge) are not seen.
+* **Held**: the graph whose nodes are the blocks and whose edges are the joints found by the
+  contact detection; a block in a connected part without a support floats (a block with no
+  joint at all is the simplest case).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+
+import numpy as np
+
+from masonry_nscd.fe.hex8 import NODE_SIGNS, shape_at
+from masonry_nscd.model.faces import HEX_FACES
+
+#: An element whose smallest corner determinant is at most this times its mean is inverted.
+FLAT_RATIO = 1e-12
+_EDGES = np.array([[0, 1], [1, 2], [2, 3], [3, 0], [4, 5], [5, 6], [6, 7], [7, 4], [0, 4],
+                   [1, 5], [2, 6], [3, 7]])
+
+
+def corner_jacobians(X: np.ndarray, conn: np.ndarray) -> np.ndarray:
+    """``det J`` (e, 8) of each hexahedron at its eight corners (m^3 per unit reference
+    volume)."""
+    _, dN = shape_at(NODE_SIGNS)  # (8 corners, 8 nodes, 3)
+    J = np.einsum("eai,gak->egik", X[conn], dN)
+    return np.linalg.det(J)
+
+
+def inverted_elements(X: np.ndarray, conn: np.ndarray) -> np.ndarray:
+    """Indices of the inverted, flat or tangled hexahedra (module docstring)."""
+    det = corner_jacobians(X, conn)
+    scale = np.abs(det).mean(axis=1)
+    return np.flatnonzero(det.min(axis=1) <= FLAT_RATIO * scale)
+
+
+def probe_points(X: np.ndarray, conn: np.ndarray) -> np.ndarray:
+    """The points of a block tried against the others (module docstring), (p, 3)."""
+    xe = X[conn]
+    faces = xe[:, HEX_FACES].mean(axis=2).reshape(-1, 3)
+    edges = xe[:, _EDGES].mean(axis=2).reshape(-1, 3)
+    return np.concatenate([X[np.unique(conn)], xe.mean(axis=1), faces, edges])
+
+
+def _face_planes(X: np.ndarray, conn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Outward unit normals and centres (e, 6, 3) of the faces of each hexahedron."""
+    P = X[conn][:, HEX_FACES]  # (e, 6, 4, 3)
+    n = np.cross(P[..., 2, :] - P[..., 0, :], P[..., 3, :] - P[..., 1, :])
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    return n, P.mean(axis=2)
+
+
+def points_inside(points: np.ndarray, X: np.ndarray, conn: np.ndarray,
+                  tol: float) -> np.ndarray:
+    """Whether each point (p, 3) lies more than ``tol`` (m) inside some hexahedron of the mesh
+    ``(X, conn)``, (p,) bool."""
+    if not len(points):
+        return np.zeros(0, dtype=bool)
+    n, c = _face_planes(X, conn)
+    # signed distance of every point to every face plane: (p, e, 6), negative inside
+    d = np.einsum("efk,pefk->pef", n, points[:, None, None, :] - c[None])
+    return (d < -tol).all(axis=2).any(axis=1)
+
+
+def overlapping_pairs(meshes: Sequence[tuple[np.ndarray, np.ndarray]],
+                      tol: float) -> list[tuple[int, int]]:
+    """Pairs ``(i, j)``, i < j, of blocks ``meshes[k] = (X, conn)`` that overlap (module
+    docstring); only blocks whose bounding boxes overlap by more than ``tol`` are tried."""
+    lo = np.array([X[np.unique(c)].min(axis=0) for X, c in meshes])
+    hi = np.array([X[np.unique(c)].max(axis=0) for X, c in meshes])
+    out = []
+    for i in range(len(meshes)):
+        for j in range(i + 1, len(meshes)):
+            if np.any(np.minimum(hi[i], hi[j]) - np.maximum(lo[i], lo[j]) <= tol):
+                continue
+            (Xi, ci), (Xj, cj) = meshes[i], meshes[j]
+            if points_inside(probe_points(Xi, ci), Xj, cj, tol).any() or \
+                    points_inside(probe_points(Xj, cj), Xi, ci, tol).any():
+                out.append((i, j))
+    return out
+
+
+def unheld_blocks(count: int, joints: Iterable[tuple[int, int]],
+                  supports: Iterable[int]) -> tuple[list[int], list[int]]:
+    """Blocks ``0..count-1`` joined by ``joints`` (pairs of blocks): those with no joint at
+    all, and those (with joints) in a connected part that holds no support."""
+    parent = list(range(count))
+
+    def root(k: int) -> int:
+        while parent[k] != k:
+            parent[k] = parent[parent[k]]
+            k = parent[k]
+        return k
+
+    touched = np.zeros(count, dtype=bool)
+    for a, b in joints:
+        touched[a] = touched[b] = True
+        parent[root(a)] = root(b)
+    held = {root(s) for s in supports}
+    alone = [k for k in range(count) if not touched[k] and root(k) not in held]
+    floating = [k for k in range(count) if touched[k] and root(k) not in held]
+    return alone, floating
