@@ -149,7 +149,8 @@ def reference_setting(case) -> Setting:
     return Setting("reference", "reference",
                    f"time step x{REFERENCE_TIME_STEP_FACTOR:g} ({h:.3g} s), tolerance "
                    f"x{REFERENCE_TOLERANCE_FACTOR:g} ({tol:.3g})",
-                   (f"solver.time_step_s={h!r}", f"solver.tolerance={tol!r}"))
+                   (f"solver.time_step_s={h!r}", f"solver.tolerance={tol!r}",
+                    "solver.max_time_step_s=null"))
 
 
 def _scaled(name: str, group: str, what: str, path: str, base: float, factor: float,
@@ -189,6 +190,12 @@ def ladder(case, quick: bool = False) -> list[Setting]:
     steps = (2.0,) if quick else (0.5, 2.0, 4.0)
     out += [_scaled(f"time_step_x{f:g}", "time_step", "time step", "solver.time_step_s", h, f,
                     " s") for f in steps]
+    if s.max_time_step_s is not None:  # the adaptive step size against every step at h
+        out.append(Setting("fixed_step", "time_step", f"every step {h:.3g} s (not adaptive)",
+                           ("solver.max_time_step_s=null",)))
+    elif not quick:
+        out.append(Setting("adaptive_x8", "time_step", f"adaptive steps up to {8 * h:.3g} s",
+                           (f"solver.max_time_step_s={8 * h!r}",)))
     rates = (2.0,) if quick else (0.5, 2.0, 5.0)
     if hz.history == "cyclic":  # a faster rate must leave every reversal its ramp
         rates = tuple(f for f in rates if min(hz.amplitudes_m) >= f * rate * hz.ramp_s)

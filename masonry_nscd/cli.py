@@ -124,6 +124,8 @@ def validate(
             f"sigma_N = {loading.vertical_stress.value_Pa / 1e6:g} MPa "
             f"({case.vertical_force_N / 1e3:g} kN), {_history_text(loading.horizontal, loading.ground_motion)}, "
             f"about {case.step_count} steps of {case.solver.time_step_s:g} s"
+            + (f" (fewer: adaptive up to {case.solver.time_step_s * (1 << case.step_growth):g} s)"
+               if case.step_growth else "")
         )
     if print_case:
         typer.echo(f"# {summary}\n{case_to_yaml(case)}", nl=False)

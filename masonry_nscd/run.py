@@ -153,6 +153,8 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
         + (f", sigma_N {case.loading.vertical_stress.value_Pa:.4g} Pa" if scene.builder == "wall"
            else f", {scene.builder}")
         + f", contact solver {scene.solver.method}"
+        + (f", steps of {scene.solver.h:g} s to {scene.solver.h * (1 << scene.solver.max_growth):g} "
+           "s (adaptive)" if scene.solver.max_growth else "")
         + (" (auto)" if case.solver.method == "auto" else "")
         + (f", contact points at {scene.meta['contact_point_rule']} points"
            if "contact_point_rule" in scene.meta else ""))

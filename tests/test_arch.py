@@ -384,24 +384,15 @@ def test_block_on_a_tilting_base(mu, mode):
         assert abs(u[5]) < 1e-6 and u[0] > 0.005 and abs(u[1]) < 1e-6
 
 
-def test_interrupted_arch_resumes_to_the_same_collapse(tmp_path, monkeypatch):
+def test_interrupted_arch_resumes_to_the_same_collapse(tmp_path, interrupt_before_step):
     """``limit.csv`` is cut back to the checkpoint and the onset kept: a resumed run reports
     the collapse of an uninterrupted one."""
-    from masonry_nscd.nscd.integrator import Integrator
     from masonry_nscd.run import run_case
 
     sets = ["output.vtu=false", "arch.thickness_m=0.1", "loading.body_force.rate_per_s=0",
             "collapse.end_time_s=1"]
     run_case(load_case(CASE, sets), tmp_path / "ref", echo=lambda _m: None)
-    orig, fired = Integrator.step, []
-
-    def step_once(self):
-        if self.step_index + 1 == 100 and not fired:
-            fired.append(True)
-            raise KeyboardInterrupt
-        return orig(self)
-
-    monkeypatch.setattr(Integrator, "step", step_once)
+    interrupt_before_step(100)
     with pytest.raises(KeyboardInterrupt):
         run_case(load_case(CASE, sets), tmp_path / "run", echo=lambda _m: None)
     assert json.loads((tmp_path / "run" / "limit.json").read_text())["status"] == "interrupted"

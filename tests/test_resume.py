@@ -20,6 +20,7 @@ import xml.etree.ElementTree as ET
 import h5py
 import numpy as np
 import pytest
+from conftest import interrupt_at as _interrupt_at
 from typer.testing import CliRunner
 
 from masonry_nscd.case import load_case
@@ -50,20 +51,6 @@ def _curve(out):
 
 def _pvd_files(out):
     return [d.get("file") for d in ET.parse(out / "wall.pvd").getroot().iter("DataSet")]
-
-
-def _interrupt_at(monkeypatch, step: int, exc: BaseException | None = None) -> None:
-    """Make the integrator raise ``exc`` (KeyboardInterrupt) once, instead of step ``step``."""
-    orig = Integrator.step
-    fired = []
-
-    def step_once(self):
-        if self.step_index + 1 == step and not fired:
-            fired.append(True)
-            raise exc or KeyboardInterrupt
-        return orig(self)
-
-    monkeypatch.setattr(Integrator, "step", step_once)
 
 
 def _reference_and_interrupted(tmp_path, monkeypatch, sets: list[str], step: int):

@@ -93,7 +93,7 @@ class SolverSettings:
                    halve_after_failure=sol.halved_steps_after_failure,
                    endo3d_params=endo3d_params,
                    endo3d_tau=case.blocks.endo3d.relaxation_time_s,
-                   energy=case.output.energy, max_growth=sol.max_growth,
+                   energy=case.output.energy, max_growth=case.step_growth,
                    grow_after=sol.grow_after_steps, easy_iterations=sol.easy_iterations)
 
 
