@@ -1492,6 +1492,12 @@ class Solver(_Section):
         description="adaptive step size: a step is easy when Newton converged within this many "
         "iterations; one that needs more than twice as many halves the next (count)",
     )
+    easy_damage: Real = Field(
+        0.02, gt=0.0, le=1.0,
+        description="adaptive step size: ... and no joint lost more than this of its integrity "
+        "and no ENDO3D Gauss point gained more than this of damage in it; twice as much halves "
+        "the next step (dimensionless)",
+    )
 
     @property
     def max_growth(self) -> int:

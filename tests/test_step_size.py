@@ -51,6 +51,16 @@ def test_the_step_doubles_after_easy_steps_and_falls_back_when_hard_or_failed():
     assert c.level == 0 and c.easy == 0
 
 
+def test_a_step_in_which_a_damage_grows_is_not_easy():
+    c = StepSizeControl(max_level=2, grow_after=1, easy_iterations=4, easy_damage=0.02)
+    c.accepted(0, 2, True, damage=0.03)  # few iterations, but a joint lost 3 % of integrity
+    assert c.level == 0
+    c.accepted(0, 2, True, damage=0.01)
+    assert c.level == 1
+    c.accepted(1, 2, True, damage=0.05)  # more than twice easy_damage: one level down
+    assert c.level == 0
+
+
 def test_the_control_refuses_meaningless_settings():
     with pytest.raises(ValueError, match="max_level"):
         StepSizeControl(max_level=-1)
@@ -198,3 +208,21 @@ def test_a_resumed_adaptive_run_reaches_the_same_curve(tmp_path, interrupt_befor
     f_ref = np.interp(a["time_s"], b["time_s"], b["fx_kN"])
     assert np.abs(a["fx_kN"] - f_ref).max() <= 1e-4 * peak
     assert abs(a["ux_mm"][-1] - b["ux_mm"][-1]) < 1e-3 * b["ux_mm"][-1] + 1e-9
+
+
+def test_the_step_report_gives_the_largest_loss_of_integrity():
+    """``damage_growth`` of a step is ``max(beta_n - beta_n+1)`` over the joint points (the
+    smoke wall's elastic blocks have no ENDO3D damage), pushed to 2 mm with no vertical stress
+    so that its joints crack."""
+    from masonry_nscd.scenes import build_scene
+
+    integ = build_scene(load_case(SMOKE, ["loading.vertical_stress.value_Pa=0",
+                                          "loading.horizontal.target_m=2e-3"])).integrator()
+    seen = 0.0
+    for _ in range(500):
+        beta0 = integ.joints.beta.copy()
+        rep = integ.step()
+        assert rep.damage_growth == pytest.approx(max(0.0, np.max(beta0 - integ.joints.beta)),
+                                                  rel=0, abs=1e-15)
+        seen = max(seen, rep.damage_growth)
+    assert seen > 0.0  # the push cracks joints: the check did see a loss

@@ -90,6 +90,9 @@ class StepReport:
     tried_h: bool = True
     # steps of h it covered (1, or 2^k for a step of the adaptive step size, max_growth)
     span: int = 1
+    # the largest loss of integrity of a joint point (beta_n - beta_n+1) or growth of an ENDO3D
+    # damage (d_t, d_c) of a Gauss point in the step (dimensionless)
+    damage_growth: float = 0.0
 
 
 @dataclass
@@ -129,6 +132,7 @@ class Integrator:
         max_growth: int = 0,
         grow_after: int = 2,
         easy_iterations: int = 4,
+        easy_damage: float = math.inf,
         step_limit=None,
     ):
         if max_halvings < 0:
@@ -151,7 +155,7 @@ class Integrator:
         self._halve_run = self.halve_after_failure  # doubles while the failures go on
         # the adaptive step size: the control, the integrators of steps h 2^k by k, and the
         # level of the one whose state this integrator took last (0: its own step)
-        self.control = StepSizeControl(max_growth, grow_after, easy_iterations) \
+        self.control = StepSizeControl(max_growth, grow_after, easy_iterations, easy_damage) \
             if max_growth > 0 else None
         self._rungs: dict[int, Integrator] = {}
         self._made_by = 0
@@ -318,7 +322,7 @@ class Integrator:
                 rep = None
             if rep is not None and rep.converged:
                 self._take(rung)
-                self.control.accepted(k, rep.sweeps, True)
+                self.control.accepted(k, rep.sweeps, True, rep.damage_growth)
                 return replace(rep, step=self.step_index, sweeps=rep.sweeps + sweeps,
                                span=1 << k)
             self._made_by = -1  # the rung's state is the failed attempt's
@@ -326,7 +330,8 @@ class Integrator:
             k = self.control.failed(k)
         self._made_by = 0
         rep = self._step_h()
-        self.control.accepted(0, rep.sweeps, rep.converged and rep.substeps == 1)
+        self.control.accepted(0, rep.sweeps, rep.converged and rep.substeps == 1,
+                              rep.damage_growth)
         return replace(rep, sweeps=rep.sweeps + sweeps)
 
     def step_memory(self) -> dict[str, int]:
@@ -422,7 +427,8 @@ class Integrator:
             (failed.sweeps if failed is not None else 0) + sum(r.sweeps for r in reps),
             max(r.residual for r in reps), all(r.converged for r in reps),
             max(r.ambiguous for r in reps), sum(r.material_failures for r in reps),
-            bad[0].material_failure_at if bad else None, sum(r.substeps for r in reps))
+            bad[0].material_failure_at if bad else None, sum(r.substeps for r in reps),
+            damage_growth=self._damage_growth(start["joint_beta"], start.get("material_state")))
 
     def _step(self) -> StepReport:
         """One step of h (the module docstring's items 1 to 5), not subdivided."""
@@ -489,15 +495,25 @@ class Integrator:
                 bad = self.material.failed_points()
                 if len(bad):
                     failure_at = tuple(float(x) for x in self.material.point_centre(bad[0]))
+            state0 = self.material.state_all.copy()
             self.material.commit()
         self.joints = JointState(u=ul1, U=U1, uc=uc, beta=beta, T=T, status=status)
+        growth = self._damage_growth(j.beta, state0 if self.material is not None else None)
         if self.energy_account is not None:
             self.energy_account.step(self.energy, u0=u0, v0=v0, u1=u1, v1=v1, F0=F0, F1=F1,
                                      fint0=fint, fint1=self.internal_forces(), j0=j0,
                                      j1=self.joints)
         return StepReport(self.step_index, t1, int(sweeps), float(residual),
                           bool(residual <= self.tolerance and failures == 0), int(amb),
-                          failures, failure_at)
+                          failures, failure_at, damage_growth=growth)
+
+    def _damage_growth(self, beta0: np.ndarray, material_state0: np.ndarray | None) -> float:
+        """The largest loss of integrity of a joint point and growth of an ENDO3D damage of a
+        Gauss point (``Endo3dBlocks.damage_growth``) from the given start of a step to now."""
+        growth = float(np.max(beta0 - self.joints.beta, initial=0.0))
+        if self.material is not None and material_state0 is not None:
+            growth = max(growth, self.material.damage_growth(material_state0))
+        return growth
 
     # --- read-outs ----------------------------------------------------------------------
     def point_forces(self) -> np.ndarray:

@@ -7,10 +7,14 @@ the step grow by doublings, ``h_k = h 2^k`` with ``0 <= k <= max_level``, and fa
 step is hard:
 
 * a step is *easy* when it converged (tolerance met, no failed material point) within
-  ``easy_iterations`` Newton iterations and was not subdivided;
+  ``easy_iterations`` Newton iterations, was not subdivided, and no joint lost more than
+  ``easy_damage`` of its integrity and no ENDO3D Gauss point gained more than ``easy_damage``
+  of damage in it (a softening path is followed in steps that resolve it: a joint breaking
+  earlier or later moves the rest of the curve);
 * after ``grow_after`` easy steps in a row, the level rises by one (the step doubles);
-* a step that converged but needed more than ``2 easy_iterations`` iterations lowers the level
-  by one for the next step (a joint opening, a crack forming: the path is bending);
+* a step that converged but needed more than ``2 easy_iterations`` iterations, or in which a
+  damage grew by more than ``2 easy_damage``, lowers the level by one for the next step (a
+  joint opening, a crack forming: the path is bending);
 * a step of level ``k > 0`` that does not converge (or diverges) is discarded and made again
   from its start at level ``k - 1``, down to level 0, where the halving of the integrator
   (``Integrator.max_halvings``) takes over.
@@ -24,6 +28,7 @@ limit (the next change of the supports, the end of the loading).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 
@@ -34,6 +39,7 @@ class StepSizeControl:
     max_level: int  # the largest step is h 2^max_level
     grow_after: int = 2  # easy steps in a row before the level rises (count)
     easy_iterations: int = 4  # an easy step converged within this many iterations (count)
+    easy_damage: float = math.inf  # ... and no damage grew by more than this (dimensionless)
     level: int = 0  # the level the next step tries (before alignment)
     easy: int = 0  # easy steps in a row at the current level
 
@@ -59,17 +65,19 @@ class StepSizeControl:
         self.easy = 0
         return k - 1
 
-    def accepted(self, k: int, iterations: int, easy: bool) -> None:
-        """A step of level ``k`` was kept, after ``iterations`` Newton iterations; ``easy``: it
-        converged at once (not subdivided, no material failure)."""
-        if easy and iterations <= self.easy_iterations:
+    def accepted(self, k: int, iterations: int, easy: bool, damage: float = 0.0) -> None:
+        """A step of level ``k`` was kept, after ``iterations`` Newton iterations, the largest
+        damage growth ``damage`` in it; ``easy``: it converged at once (not subdivided, no
+        material failure)."""
+        if easy and iterations <= self.easy_iterations and damage <= self.easy_damage:
             self.easy += 1
             if self.easy >= self.grow_after and self.level < self.max_level:
                 self.level += 1
                 self.easy = 0
         else:
             self.easy = 0
-            if not easy or iterations > 2 * self.easy_iterations:
+            if not easy or iterations > 2 * self.easy_iterations \
+                    or damage > 2 * self.easy_damage:
                 self.level = max(0, min(self.level, k) - 1)
 
     def memory(self) -> tuple[int, int]:
