@@ -1,8 +1,9 @@
 """Adaptive step size of the time loop: steps of ``h 2^k``, grown while they stay easy.
 
 The loading of the study's walls is quasi-static: over most of a run (the elastic branch, the
-residual plateau) the Newton solve of a step of ``h`` converges in two to five iterations, and a
-step of ``2 h`` carries the same state change at the cost of one step. The control below lets
+residual plateau) the Newton solve of a step of ``h`` converges in a few iterations, and a step
+of ``2 h`` carries the same state change at the cost of one step (measurements:
+docs/choices.md, docs/performance.md). The control below lets
 the step grow by doublings, ``h_k = h 2^k`` with ``0 <= k <= max_level``, and falls back when a
 step is hard:
 
