@@ -303,6 +303,8 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
                 monitor.finish("failed", str(exc))
         if not isinstance(exc, RunOutputError):  # the summary of what was computed
             report_run(outdir, log, curve)  # never raises
+        with contextlib.suppress(OSError):
+            log.close()
         raise
     except KeyboardInterrupt:
         with contextlib.suppress(RunOutputError):
@@ -312,6 +314,8 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
             with contextlib.suppress(OSError):
                 monitor.finish("interrupted")
         report_run(outdir, log, curve)
+        with contextlib.suppress(OSError):
+            log.close()
         raise
     finally:
         rec.close()

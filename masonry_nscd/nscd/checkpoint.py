@@ -153,7 +153,7 @@ def load_checkpoint(path: str | os.PathLike[str]) -> tuple[dict[str, NDArray],
     """Read a checkpoint: ``(integrator state, extra arrays)``. :class:`CheckpointError` when
     the file is not a checkpoint of this format (``FileNotFoundError`` when it is missing)."""
     try:
-        with np.load(path, allow_pickle=False) as z:
+        with open(path, "rb") as f, np.load(f, allow_pickle=False) as z:
             data = {k: z[k] for k in z.files}
     except FileNotFoundError:
         raise
