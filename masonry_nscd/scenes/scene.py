@@ -81,6 +81,7 @@ class SolverSettings:
     max_growth: int = 0  # adaptive step size: steps up to h 2^max_growth (nscd/step_size.py)
     grow_after: int = 2
     easy_iterations: int = 4
+    linear: str = "lu"  # the Newton matrix's solver: auto, lu, krylov (nscd/linear.py)
 
     @classmethod
     def from_case(cls, case, endo3d_params: np.ndarray | None = None) -> SolverSettings:
@@ -94,7 +95,8 @@ class SolverSettings:
                    endo3d_params=endo3d_params,
                    endo3d_tau=case.blocks.endo3d.relaxation_time_s,
                    energy=case.output.energy, max_growth=sol.max_growth,
-                   grow_after=sol.grow_after_steps, easy_iterations=sol.easy_iterations)
+                   grow_after=sol.grow_after_steps, easy_iterations=sol.easy_iterations,
+                   linear=sol.linear)
 
 
 @dataclass
@@ -184,7 +186,8 @@ class Scene:
                           max_halvings=s.max_halvings,
                           halve_after_failure=s.halve_after_failure, energy=s.energy,
                           max_growth=s.max_growth, grow_after=s.grow_after,
-                          easy_iterations=s.easy_iterations, step_limit=self.step_limit_s)
+                          easy_iterations=s.easy_iterations, step_limit=self.step_limit_s,
+                          linear=s.linear)
 
     # --- read-outs ------------------------------------------------------------------------
     def driven_dofs(self, body_dof0: np.ndarray) -> tuple[int, int]:
