@@ -1030,19 +1030,20 @@ def _scaling_row(name: str, courses: int, units: int, res: Mapping[str, Any],
 
 
 def bench_scaling(case_path: Path | str, outdir: Path | str, *, overrides: Sequence[str] = (),
-                  steps: int = 40, largest: int = 8, time_limit_s: float | None = None,
+                  steps: int = 40, largest: int = 8, smallest: int = 1,
+                  time_limit_s: float | None = None,
                   memory_limit_gib: float | None = None, echo: Callable[[str], None] = print
                   ) -> tuple[list[ScalingRow], list[str]]:
-    """Step walls of 1, 2, 4, ... ``largest`` times the units of the case ``steps`` times each,
-    in fresh subprocesses, after a one-unit baseline; write ``scaling.csv`` and ``scaling.png``
+    """Step walls of ``smallest``, ..., 4, ... ``largest`` times the units of the case (powers
+    of two) ``steps`` times each, in fresh subprocesses, after a one-unit baseline; write ``scaling.csv`` and ``scaling.png``
     in ``outdir``. Returns the rows (baseline first) and the fit statements
     (:func:`scaling_statements`).
 
     ``time_limit_s``: per wall, no step starts after that long (s, build included), and a step
     still going a minute later is killed with its process; the wall is reported with status
     ``timeout`` and the steps it made. ``memory_limit_gib``: the address space of each wall's
-    process (GiB); a wall that needs more is reported with status ``memory``. The walls after
-    one stopped by a limit are not tried (they are larger)."""
+    process (GiB); a wall that needs more is reported with status ``memory``, and the larger
+    walls are not tried."""
     from masonry_nscd.case import load_case
 
     case_path, outdir = Path(case_path), Path(outdir)
@@ -1050,7 +1051,7 @@ def bench_scaling(case_path: Path | str, outdir: Path | str, *, overrides: Seque
     sizes = scaling_sizes(case.wall.courses, case.wall.units_per_course, largest)
     outdir.mkdir(parents=True, exist_ok=True)
     skip = min(5, steps // 4)
-    walls = [("baseline", 1, 1)] + [(f"{k}x", c, n) for k, c, n in sizes]
+    walls = [("baseline", 1, 1)] + [(f"{k}x", c, n) for k, c, n in sizes if k >= smallest]
 
     def spec(c: int, n: int) -> dict[str, Any]:
         return {"kind": "steps", "case": str(case_path), "steps": steps,
@@ -1061,7 +1062,7 @@ def bench_scaling(case_path: Path | str, outdir: Path | str, *, overrides: Seque
     kill_s = None if time_limit_s is None else float(time_limit_s) + 60.0
     rows: list[ScalingRow] = []
     for name, c, n in walls:
-        if rows and rows[-1].wall != "baseline" and rows[-1].status in ("timeout", "memory"):
+        if rows and rows[-1].status in ("memory", "skipped"):
             rows.append(ScalingRow(name, c, n, status="skipped",
                                    message=f"not tried: {rows[-1].wall} hit its limit"))
             echo(f"{name}: skipped ({rows[-1].message})")

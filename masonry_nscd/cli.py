@@ -632,11 +632,15 @@ def bench_scaling_cmd(
         "--largest", metavar="K",
         help="The largest wall, K times the units of the case (a power of two, 1 to 256; the "
         "walls are 1x, 2x, 4x, ... Kx).")] = 8,
+    smallest: Annotated[int, typer.Option(
+        "--smallest", metavar="K",
+        help="The smallest wall (a power of two, at most --largest): the walls are Kx ... "
+        "(the one-unit baseline is always made).")] = 1,
     time_limit: Annotated[float | None, typer.Option(
         "--time-limit", metavar="S",
         help="Per wall: no step starts after S seconds (build included), a step still going a "
-        "minute later is killed; the wall is reported as 'timeout' with the steps it made and "
-        "the larger walls are skipped (default: no limit).")] = None,
+        "minute later is killed; the wall is reported as 'timeout' with the steps it made "
+        "(default: no limit).")] = None,
     memory_limit: Annotated[float | None, typer.Option(
         "--memory-limit", metavar="GIB",
         help="Per wall: the process's address space in GiB; a wall that needs more is reported "
@@ -653,6 +657,9 @@ def bench_scaling_cmd(
         _fail(f"--steps must be >= 2, got {steps}", 2)
     if largest < 1 or largest > 256 or largest & (largest - 1):
         _fail(f"--largest must be a power of two from 1 to 256, got {largest}", 2)
+    if smallest < 1 or smallest > largest or smallest & (smallest - 1):
+        _fail(f"--smallest must be a power of two from 1 to --largest = {largest}, got "
+              f"{smallest}", 2)
     if time_limit is not None and not time_limit > 0:
         _fail(f"--time-limit must be > 0 s, got {time_limit:g}", 2)
     if memory_limit is not None and not memory_limit >= 0.5:
@@ -662,7 +669,7 @@ def bench_scaling_cmd(
 
     try:
         rows, statements = bm.bench_scaling(case_file, outdir, overrides=list(overrides or ()),
-                                            steps=steps, largest=largest,
+                                            steps=steps, largest=largest, smallest=smallest,
                                             time_limit_s=time_limit,
                                             memory_limit_gib=memory_limit, echo=typer.echo)
     except KeyboardInterrupt:

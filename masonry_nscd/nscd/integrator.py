@@ -347,6 +347,14 @@ class Integrator:
                 out[key] += n
         return out
 
+    def linear_notes(self) -> list[str]:
+        """Why the Krylov solves that were made again by LU failed, oldest first (this
+        integrator's Newton solver, then those of its halves and rungs)."""
+        out = list(self.newton.linear_notes) if self.newton is not None else []
+        for sub in [*self._rungs.values(), *([self._half] if self._half is not None else [])]:
+            out += sub.linear_notes()
+        return out
+
     def step_memory(self) -> dict[str, int]:
         """What the step control remembers of the last steps (the halving's run of failures,
         the adaptive step's level and easy steps): a resumed run needs it to step the same."""
