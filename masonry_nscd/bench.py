@@ -61,9 +61,10 @@ measured, gets ``REFERENCE_TIME_FACTOR`` times that limit.
 Scaling (:func:`bench_scaling`, ``masonry bench-scaling CASE.yaml``)
 --------------------------------------------------------------------
 Walls with about 1, 2, 4 and 8 times the units of the case (courses and units per course
-doubled in turn), each built and stepped a fixed number of steps in a fresh subprocess: build
-time, median time per step over the steps after the first few, peak memory, against the number
-of contact points. A one-unit wall stepped the same way gives the baseline (interpreter,
+doubled in turn; up to 256 times with ``largest``), each built and stepped a fixed number of
+steps in a fresh subprocess, under a time and an address-space limit when given: build time,
+median time per step over the steps after the first few, factorisations and Krylov iterations
+per step, peak memory, against the number of contact points. A one-unit wall stepped the same way gives the baseline (interpreter,
 libraries, compiled kernels); the growth of memory is the log-log slope of the increments above
 that baseline against the number of contact points (1: linear).
 
