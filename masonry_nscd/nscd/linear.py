@@ -91,8 +91,8 @@ def rigid_body_modes(body_dof0: np.ndarray, deformable: np.ndarray,
 
 
 class KrylovFailure(RuntimeError):
-    """A Krylov solve that did not reach its tolerance: ``iterations``, ``residual`` (|b - J x|
-    / |b|)."""
+    """A Krylov solve that did not reach its tolerance: ``iterations``, ``residual`` (the body
+    system's ``|rhs - S v| / |rhs|``)."""
 
     def __init__(self, iterations: int, residual: float, rtol: float):
         super().__init__(f"GMRES not converged: relative residual {residual:.2e} > {rtol:.0e} "
