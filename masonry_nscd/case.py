@@ -1454,7 +1454,7 @@ class Solver(_Section):
         "auto",
         description="solver of the Newton matrix: lu (sparse LU, SuperLU), krylov (GMRES with a "
         "two-level preconditioner over the blocks: each block's own matrix and the blocks as "
-        "rigid bodies; docs/scaling.md), or auto: lu below 200,000 unknowns, krylov from there",
+        "rigid bodies; docs/scaling.md), or auto: lu below 100,000 unknowns, krylov from there",
     )
     tolerance: Real = Field(
         1e-6,

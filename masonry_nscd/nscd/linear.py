@@ -51,7 +51,7 @@ import scipy.sparse.linalg as spla
 LINEAR_SOLVERS = ("auto", "lu", "krylov")
 #: ``auto`` picks krylov from this many unknowns of the Newton matrix (free dofs and three per
 #: multiplier point); below, lu (docs/scaling.md)
-KRYLOV_MIN_UNKNOWNS = 200_000
+KRYLOV_MIN_UNKNOWNS = 100_000
 
 
 def choose(linear: str, unknowns: int) -> str:
@@ -105,9 +105,13 @@ class KrylovSolver:
 
     ``body_of``: the body of each free dof (``(nf,)``, sorted: a body's dofs are contiguous);
     ``modes``: the rigid-body modes of the free dofs (``(nf, 6)``); ``rtol``: relative
-    residual of a solve; ``max_iterations``: GMRES iterations before a solve is failed."""
+    residual of a solve; ``max_iterations``: GMRES iterations before a solve is failed.
 
-    def __init__(self, body_of: np.ndarray, modes: np.ndarray, rtol: float = 1e-7,
+    ``rtol`` is the forcing term of an inexact Newton method: the Newton iterations judge
+    their own convergence on the residual of the step, so a direction good to 1 % is enough
+    (measured in docs/scaling.md)."""
+
+    def __init__(self, body_of: np.ndarray, modes: np.ndarray, rtol: float = 1e-2,
                  max_iterations: int = 300, restart: int = 40):
         body_of = np.asarray(body_of, dtype=np.int64)
         self.nf = nf = len(body_of)
@@ -233,7 +237,7 @@ class _KrylovOperator:
             res = float(np.linalg.norm(rhs - self.S @ v)) / rnorm
             o.iterations += count
             o.last_iterations, o.last_residual = count, res
-            if not (res <= 10.0 * o.rtol and np.all(np.isfinite(v))):
+            if not (res <= 2.0 * o.rtol and np.all(np.isfinite(v))):
                 raise KrylovFailure(count, res, o.rtol)
             o._x = v
         if self.B is None:
