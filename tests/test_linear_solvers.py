@@ -6,6 +6,7 @@ independent calculations and physics.
 * ``rigid_body_modes``: the elastic stiffness of a block does no work on them (K R = 0).
 * the two-level preconditioner: the solution of the Newton matrix of the smoke wall matches
   SuperLU's, and a step made with ``krylov`` the step made with ``lu`` to the Newton tolerance.
+* a Krylov solve that cannot converge is detected and made by LU, to the same steps.
 * ``auto``: LU at the study's size, from the unknowns counted from the scene.
 * the case field and the bench options: errors that name the field and its range.
 """
@@ -200,3 +201,26 @@ def test_a_wall_stopped_by_its_limit_keeps_its_build_and_steps():
     assert row.step_ms_median == pytest.approx(300.0)  # median of 0.2, 0.3, 0.4 s
     assert row.factorisations_per_step == pytest.approx((7 - 3) / 3)
     assert row.linear_iterations_per_step == pytest.approx((70 - 30) / 3)
+
+
+def test_a_krylov_solve_that_does_not_converge_is_made_by_lu():
+    """GMRES allowed one iteration to a relative residual of 1e-14 cannot converge: every
+    such solve is detected, made again by an LU of the same matrix and recorded, and the steps
+    are those of the LU run to the Newton tolerance."""
+    T = {}
+    for lin in ("lu", "krylov"):
+        integ = build_scene(load_case(SMOKE, [*QUIET, f"solver.linear={lin}"])).integrator()
+        if lin == "krylov":
+            integ.newton._krylov.max_iterations = 1
+            integ.newton._krylov.rtol = 1e-14
+        for _ in range(3):
+            integ.step()
+        T[lin] = integ.joints.T.copy()
+        if lin == "krylov":
+            counts = integ.solver_counts()
+            assert counts["linear_fallbacks"] >= 1
+            notes = integ.linear_notes()
+            assert len(notes) == counts["linear_fallbacks"]
+            assert all("GMRES not converged" in n and "by LU" in n for n in notes)
+    tol = load_case(SMOKE, QUIET).solver.tolerance
+    assert np.linalg.norm(T["krylov"] - T["lu"]) <= 100.0 * tol * np.linalg.norm(T["lu"])
