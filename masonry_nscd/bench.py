@@ -1083,10 +1083,17 @@ def bench_scaling(case_path: Path | str, outdir: Path | str, *, overrides: Seque
     return rows, scaling_statements(rows)
 
 
+def _measured_walls(rows: Sequence[ScalingRow]) -> list[ScalingRow]:
+    """The walls that made steps: finished, or stopped by their time limit after some steps
+    (their peak memory and time per step are measured; a wall out of memory is not)."""
+    return [r for r in rows if r.wall != "baseline" and r.steps > 0
+            and r.status in ("ok", "timeout")]
+
+
 def scaling_statements(rows: Sequence[ScalingRow]) -> list[str]:
     """The linear fit of peak memory against contact points, the log-log slope of the memory
     increments above the baseline, and the log-log slope of the time per step."""
-    walls = [r for r in rows if r.wall != "baseline" and r.status == "ok"]
+    walls = _measured_walls(rows)
     npt = [float(r.contact_points) for r in walls]
     timed = [r for r in rows if r.wall != "baseline" and math.isfinite(r.step_ms_median)]
     slope, intercept = linear_fit(npt, [r.peak_rss_MiB for r in walls])
@@ -1135,7 +1142,7 @@ def plot_scaling(rows: Sequence[ScalingRow], path: Path, title: str) -> Path | N
 
     from masonry_nscd.plots import _save
 
-    walls = [r for r in rows if r.wall != "baseline" and r.status == "ok"]
+    walls = _measured_walls(rows)
     if not walls:
         return None
     fig = Figure(figsize=(12, 5), layout="constrained")
