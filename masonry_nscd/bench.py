@@ -61,9 +61,10 @@ measured, gets ``REFERENCE_TIME_FACTOR`` times that limit.
 Scaling (:func:`bench_scaling`, ``masonry bench-scaling CASE.yaml``)
 --------------------------------------------------------------------
 Walls with about 1, 2, 4 and 8 times the units of the case (courses and units per course
-doubled in turn), each built and stepped a fixed number of steps in a fresh subprocess: build
-time, median time per step over the steps after the first few, peak memory, against the number
-of contact points. A one-unit wall stepped the same way gives the baseline (interpreter,
+doubled in turn; up to 256 times with ``largest``), each built and stepped a fixed number of
+steps in a fresh subprocess, under a time and an address-space limit when given: build time,
+median time per step over the steps after the first few, factorisations and Krylov iterations
+per step, peak memory, against the number of contact points. A one-unit wall stepped the same way gives the baseline (interpreter,
 libraries, compiled kernels); the growth of memory is the log-log slope of the increments above
 that baseline against the number of contact points (1: linear).
 
@@ -502,38 +503,86 @@ def _child_run(spec: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def _child_steps(spec: Mapping[str, Any]) -> dict[str, Any]:
-    """Build a wall and step it ``steps`` times (``kind: steps``); see :func:`run_in_child`."""
+    """Build a wall and step it ``steps`` times (``kind: steps``); see :func:`run_in_child`.
+
+    With ``time_limit_s``, no step starts after that many seconds from the start of the build
+    (status ``timeout``, the steps made so far reported). The result so far is written to
+    ``result`` after the build and after every step, so that a parent that has to kill a step
+    that never ends still reads the build time and the steps before it."""
     from masonry_nscd.case import load_case
     from masonry_nscd.scenes import build_scene
 
     case = load_case(spec["case"], spec["overrides"])
+    limit = spec.get("time_limit_s")
     t0 = time.perf_counter()
     scene = build_scene(case)
     scene_s = time.perf_counter() - t0
     integ = scene.integrator()
     build_s = time.perf_counter() - t0
-    step_s, sweeps = [], []
+    out: dict[str, Any] = {
+        "status": "ok", "message": "", "scene_s": scene_s, "build_s": build_s, "step_s": [],
+        "sweeps": [], "counts": [integ.solver_counts()], "units": len(scene.structure),
+        "contact_points": int(integ.sys.npt), "dofs": int(integ.sys.ndof)}
+    _write_partial(spec, out)
     for _ in range(int(spec["steps"])):
+        if limit is not None and time.perf_counter() - t0 > float(limit):
+            out.update(status="timeout", message=f"stopped after {float(limit):g} s at step "
+                       f"{len(out['step_s'])}")
+            break
         t1 = time.perf_counter()
         rep = integ.step()
-        step_s.append(time.perf_counter() - t1)
-        sweeps.append(rep.sweeps)
-    return {"status": "ok", "message": "", "scene_s": scene_s, "build_s": build_s,
-            "step_s": step_s,
-            "sweeps": sweeps, "units": len(scene.structure), "contact_points": int(integ.sys.npt),
-            "dofs": int(integ.sys.ndof)}
+        out["step_s"].append(time.perf_counter() - t1)
+        out["sweeps"].append(rep.sweeps)
+        out["counts"].append(integ.solver_counts())
+        _write_partial(spec, out)
+    return out
+
+
+def _write_partial(spec: Mapping[str, Any], out: Mapping[str, Any]) -> None:
+    """The result so far, with the peak memory so far, written atomically to ``result``."""
+    if "result" not in spec:
+        return
+    path = Path(spec["result"])
+    tmp = path.with_suffix(".part")
+    tmp.write_text(json.dumps({**out, "status": "partial", "peak_rss_MiB": peak_rss_mib()}))
+    tmp.replace(path)
+
+
+def _limit_memory(gib: float | None) -> None:
+    """Cap this process's address space at ``gib`` GiB (``RLIMIT_AS``): an allocation beyond it
+    fails with MemoryError instead of pushing a shared machine into swap."""
+    if gib is None:
+        return
+    import resource
+
+    cap = int(float(gib) * 2**30)
+    resource.setrlimit(resource.RLIMIT_AS, (cap, cap))
 
 
 def _child_main(spec_path: str) -> int:
     """Entry point of a child process: read the spec, run it, write the result JSON."""
     spec = json.loads(Path(spec_path).read_text())
     try:
+        _limit_memory(spec.get("memory_limit_gib"))
         out = (_child_run if spec["kind"] == "run" else _child_steps)(spec)
+    except MemoryError as exc:
+        out = _partial_result(spec)
+        out.update(status="memory", message=f"out of the {spec.get('memory_limit_gib')} GiB "
+                   f"address space: MemoryError {exc}")
     except Exception as exc:  # noqa: BLE001 - reported to the parent as the run's outcome
         out = {"status": "error", "message": f"{type(exc).__name__}: {exc}"}
     out["peak_rss_MiB"] = peak_rss_mib()
     Path(spec["result"]).write_text(json.dumps(out))
     return 0
+
+
+def _partial_result(spec: Mapping[str, Any]) -> dict[str, Any]:
+    """What a child wrote to ``result`` so far (an empty dict if nothing)."""
+    path = Path(spec.get("result", ""))
+    try:
+        return json.loads(path.read_text()) if path.is_file() else {}
+    except (OSError, ValueError):
+        return {}
 
 
 def run_in_child(spec: Mapping[str, Any], timeout_s: float | None = None) -> dict[str, Any]:
@@ -552,7 +601,9 @@ def run_in_child(spec: Mapping[str, Any], timeout_s: float | None = None) -> dic
             proc = subprocess.run([sys.executable, "-m", "masonry_nscd.bench", str(spec_path)],
                                   check=False, capture_output=True, text=True, timeout=timeout_s)
         except subprocess.TimeoutExpired:
-            return {"status": "error", "message": f"child process killed after {timeout_s:g} s",
+            # a step that never ended: what the child wrote before it (``_write_partial``)
+            return {**_partial_result({"result": str(result)}), "status": "timeout",
+                    "message": f"child process killed after {timeout_s:g} s",
                     "process_s": time.perf_counter() - t0}
         process_s = time.perf_counter() - t0
         if not result.exists():
@@ -891,18 +942,26 @@ def plot_bench(rows: Sequence[BenchRow], path: Path, title: str) -> Path | None:
 # ---------------------------------------------------------------------------------------------
 
 
-def scaling_sizes(courses: int, units_per_course: int) -> list[tuple[int, int, int]]:
-    """``(factor, courses, units_per_course)`` of walls with about 1, 2, 4 and 8 times the
-    units: the courses and the units per course doubled in turn."""
+def scaling_sizes(courses: int, units_per_course: int, largest: int = 8
+                  ) -> list[tuple[int, int, int]]:
+    """``(factor, courses, units_per_course)`` of walls with about 1, 2, 4, ... ``largest``
+    times the units: the courses and the units per course doubled in turn (``largest`` a power
+    of two, 1 to 256)."""
+    if largest < 1 or largest > 256 or largest & (largest - 1):
+        raise ValueError(f"largest must be a power of two from 1 to 256, got {largest}")
     c, n = courses, units_per_course
-    return [(1, c, n), (2, 2 * c, n), (4, 2 * c, 2 * n), (8, 4 * c, 2 * n)]
+    out = [(1, c, n)]
+    while out[-1][0] < largest:
+        k, c, n = out[-1]
+        out.append((2 * k, 2 * c, n) if len(out) % 2 else (2 * k, c, 2 * n))
+    return out
 
 
 @dataclass
 class ScalingRow:
     """One row of ``scaling.csv`` (times in s or ms, memory in MiB)."""
 
-    wall: str  # baseline, 1x, 2x, 4x, 8x
+    wall: str  # baseline, 1x, 2x, 4x, 8x, ...
     courses: int
     units_per_course: int
     units: int = 0
@@ -914,6 +973,11 @@ class ScalingRow:
     step_ms_median: float = math.nan  # over the steps after the first ``skip``
     median_iterations: float = math.nan
     ms_per_iteration: float = math.nan  # median over the same steps of step time / iterations
+    # over the same steps: factorisations of the Newton matrix (or of its preconditioner),
+    # Krylov iterations, and Krylov solves made again by LU, per step
+    factorisations_per_step: float = math.nan
+    linear_iterations_per_step: float = math.nan
+    linear_fallbacks: int = 0
     peak_rss_MiB: float = math.nan
     rss_above_baseline_MiB: float = math.nan
     process_s: float = math.nan
@@ -946,49 +1010,77 @@ def linear_fit(x: Sequence[float], y: Sequence[float]) -> tuple[float, float]:
 
 def _scaling_row(name: str, courses: int, units: int, res: Mapping[str, Any],
                  skip: int) -> ScalingRow:
+    """The row of one wall from its child's result; a wall stopped by its time or memory limit
+    keeps its build time and the steps it made."""
     row = ScalingRow(name, courses, units, status=res["status"], message=res.get("message", ""),
                      process_s=res["process_s"], peak_rss_MiB=_num(res.get("peak_rss_MiB")))
-    if res["status"] == "ok":
-        step_s, sweeps = res["step_s"], res["sweeps"]
+    if "build_s" in res:
         row.units, row.contact_points, row.dofs = res["units"], res["contact_points"], res["dofs"]
-        row.steps, row.scene_s, row.build_s = len(step_s), res["scene_s"], res["build_s"]
+        row.scene_s, row.build_s = res["scene_s"], res["build_s"]
+    step_s, sweeps = res.get("step_s", []), res.get("sweeps", [])
+    row.steps = len(step_s)
+    if step_s:
         kept = slice(skip, None) if len(step_s) > skip else slice(None)
         t = np.asarray(step_s[kept], dtype=float)
         its = np.maximum(1.0, np.asarray(sweeps[kept], dtype=float))
         row.step_ms_median = 1e3 * float(np.median(t))
         row.median_iterations = float(np.median(its))
         row.ms_per_iteration = 1e3 * float(np.median(t / its))
+        counts = res.get("counts", [])
+        if len(counts) == len(step_s) + 1:  # cumulative, before the first step and after each
+            first = counts[0 if kept.start is None else kept.start]
+            last, n = counts[-1], len(t)
+            row.factorisations_per_step = (last["factorisations"] - first["factorisations"]) / n
+            row.linear_iterations_per_step = (last["linear_iterations"]
+                                              - first["linear_iterations"]) / n
+            row.linear_fallbacks = int(last["linear_fallbacks"])
     return row
 
 
 def bench_scaling(case_path: Path | str, outdir: Path | str, *, overrides: Sequence[str] = (),
-                  steps: int = 40, echo: Callable[[str], None] = print
+                  steps: int = 40, largest: int = 8, smallest: int = 1,
+                  time_limit_s: float | None = None,
+                  memory_limit_gib: float | None = None, echo: Callable[[str], None] = print
                   ) -> tuple[list[ScalingRow], list[str]]:
-    """Step walls of 1, 2, 4 and 8 times the units of the case ``steps`` times each, in fresh
-    subprocesses, after a one-unit baseline; write ``scaling.csv`` and ``scaling.png`` in
-    ``outdir``. Returns the rows (baseline first) and the fit statements
-    (:func:`scaling_statements`)."""
+    """Step walls of ``smallest``, ..., 4, ... ``largest`` times the units of the case (powers
+    of two) ``steps`` times each, in fresh subprocesses, after a one-unit baseline; write ``scaling.csv`` and ``scaling.png``
+    in ``outdir``. Returns the rows (baseline first) and the fit statements
+    (:func:`scaling_statements`).
+
+    ``time_limit_s``: per wall, no step starts after that long (s, build included), and a step
+    still going a minute later is killed with its process; the wall is reported with status
+    ``timeout`` and the steps it made. ``memory_limit_gib``: the address space of each wall's
+    process (GiB); a wall that needs more is reported with status ``memory``, and the larger
+    walls are not tried."""
     from masonry_nscd.case import load_case
 
     case_path, outdir = Path(case_path), Path(outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
     case = load_case(case_path, list(overrides))
+    sizes = scaling_sizes(case.wall.courses, case.wall.units_per_course, largest)
+    outdir.mkdir(parents=True, exist_ok=True)
     skip = min(5, steps // 4)
-    walls = [("baseline", 1, 1)] + [(f"{k}x", c, n) for k, c, n in
-                                    scaling_sizes(case.wall.courses, case.wall.units_per_course)]
+    walls = [("baseline", 1, 1)] + [(f"{k}x", c, n) for k, c, n in sizes if k >= smallest]
 
     def spec(c: int, n: int) -> dict[str, Any]:
         return {"kind": "steps", "case": str(case_path), "steps": steps,
+                "time_limit_s": time_limit_s, "memory_limit_gib": memory_limit_gib,
                 "overrides": [*overrides, f"wall.courses={c}", f"wall.units_per_course={n}"]}
 
     run_in_child(spec(1, 1))  # warms the numba cache: no compilation in the measured runs
+    kill_s = None if time_limit_s is None else float(time_limit_s) + 60.0
     rows: list[ScalingRow] = []
     for name, c, n in walls:
-        row = _scaling_row(name, c, n, run_in_child(spec(c, n)), skip)
+        if rows and rows[-1].status in ("memory", "skipped"):
+            rows.append(ScalingRow(name, c, n, status="skipped",
+                                   message=f"not tried: {rows[-1].wall} hit its limit"))
+            echo(f"{name}: skipped ({rows[-1].message})")
+            continue
+        row = _scaling_row(name, c, n, run_in_child(spec(c, n), timeout_s=kill_s), skip)
         rows.append(row)
         echo(f"{name}: {c} courses x {n} units per course, {row.units} units, "
-             f"{row.contact_points} contact points: {row.status}, "
-             f"{row.step_ms_median:.3g} ms per step, {row.peak_rss_MiB:.0f} MiB"
+             f"{row.contact_points} contact points: {row.status}, build {row.build_s:.3g} s, "
+             f"{row.step_ms_median:.3g} ms per step, {row.factorisations_per_step:.2g} "
+             f"factorisations per step, {row.peak_rss_MiB:.0f} MiB"
              + (f": {row.message}" if row.message else ""))
     base = rows[0].peak_rss_MiB
     for r in rows[1:]:
@@ -998,16 +1090,25 @@ def bench_scaling(case_path: Path | str, outdir: Path | str, *, overrides: Seque
     return rows, scaling_statements(rows)
 
 
+def _measured_walls(rows: Sequence[ScalingRow]) -> list[ScalingRow]:
+    """The walls that made steps: finished, or stopped by their time limit after some steps
+    (their peak memory and time per step are measured; a wall out of memory is not)."""
+    return [r for r in rows if r.wall != "baseline" and r.steps > 0
+            and r.status in ("ok", "timeout")]
+
+
 def scaling_statements(rows: Sequence[ScalingRow]) -> list[str]:
     """The linear fit of peak memory against contact points, the log-log slope of the memory
     increments above the baseline, and the log-log slope of the time per step."""
-    walls = [r for r in rows if r.wall != "baseline" and r.status == "ok"]
+    walls = _measured_walls(rows)
     npt = [float(r.contact_points) for r in walls]
+    timed = [r for r in rows if r.wall != "baseline" and math.isfinite(r.step_ms_median)]
     slope, intercept = linear_fit(npt, [r.peak_rss_MiB for r in walls])
     above = [r.rss_above_baseline_MiB for r in walls]
     s_mem = loglog_slope(npt, above)
     s_last = loglog_slope(npt[-2:], above[-2:])
-    s_time = loglog_slope(npt, [r.step_ms_median for r in walls])
+    s_time = loglog_slope([float(r.contact_points) for r in timed],
+                          [r.step_ms_median for r in timed])
     if math.isnan(s_mem):
         growth = "not measurable (fewer than two walls above the baseline)"
     else:
@@ -1029,14 +1130,15 @@ def format_scaling_table(rows: Sequence[ScalingRow]) -> str:
     """The scaling rows as a fixed-width text table."""
     lines = [(f"{'wall':8s} {'courses':>7s} {'upc':>4s} {'units':>6s} {'points':>7s} "
               f"{'dofs':>7s} {'scene s':>8s} {'build s':>8s} {'ms/step':>8s} {'it/step':>7s} "
-              f"{'ms/it':>7s} "
-              f"{'RSS MiB':>8s} {'above base':>10s}")]
+              f"{'ms/it':>7s} {'LU/step':>7s} {'kry/st':>6s} "
+              f"{'RSS MiB':>8s} {'above base':>10s} status")]
     for r in rows:
         lines.append(f"{r.wall:8s} {r.courses:7d} {r.units_per_course:4d} {r.units:6d} "
                      f"{r.contact_points:7d} {r.dofs:7d} {r.scene_s:8.3g} {r.build_s:8.3g} "
                      f"{r.step_ms_median:8.3g} {r.median_iterations:7.3g} "
-                     f"{r.ms_per_iteration:7.3g} {r.peak_rss_MiB:8.1f} "
-                     f"{r.rss_above_baseline_MiB:10.1f}")
+                     f"{r.ms_per_iteration:7.3g} {r.factorisations_per_step:7.2g} "
+                     f"{r.linear_iterations_per_step:6.3g} {r.peak_rss_MiB:8.1f} "
+                     f"{r.rss_above_baseline_MiB:10.1f} {r.status}")
     return "\n".join(lines)
 
 
@@ -1047,7 +1149,7 @@ def plot_scaling(rows: Sequence[ScalingRow], path: Path, title: str) -> Path | N
 
     from masonry_nscd.plots import _save
 
-    walls = [r for r in rows if r.wall != "baseline" and r.status == "ok"]
+    walls = _measured_walls(rows)
     if not walls:
         return None
     fig = Figure(figsize=(12, 5), layout="constrained")

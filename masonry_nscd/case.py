@@ -1450,6 +1450,12 @@ class Solver(_Section):
         "Gauss-Seidel), or auto: the faster for the case's blocks and joints (nlgs when every "
         "block is rigid and every joint rigid Signorini-Coulomb, newton otherwise)",
     )
+    linear: Literal["auto", "lu", "krylov"] = Field(
+        "auto",
+        description="solver of the Newton matrix: lu (sparse LU, SuperLU), krylov (GMRES with a "
+        "two-level preconditioner over the blocks: each block's own matrix and the blocks as "
+        "rigid bodies; docs/scaling.md), or auto: lu below 100,000 unknowns, krylov from there",
+    )
     tolerance: Real = Field(
         1e-5,
         ge=1e-14,

@@ -630,21 +630,50 @@ def bench_scaling_cmd(
     )] = None,
     steps: Annotated[int, typer.Option("--steps", metavar="N", help="Time steps per wall.")
                      ] = 40,
+    largest: Annotated[int, typer.Option(
+        "--largest", metavar="K",
+        help="The largest wall, K times the units of the case (a power of two, 1 to 256; the "
+        "walls are 1x, 2x, 4x, ... Kx).")] = 8,
+    smallest: Annotated[int, typer.Option(
+        "--smallest", metavar="K",
+        help="The smallest wall (a power of two, at most --largest): the walls are Kx ... "
+        "(the one-unit baseline is always made).")] = 1,
+    time_limit: Annotated[float | None, typer.Option(
+        "--time-limit", metavar="S",
+        help="Per wall: no step starts after S seconds (build included), a step still going a "
+        "minute later is killed; the wall is reported as 'timeout' with the steps it made "
+        "(default: no limit).")] = None,
+    memory_limit: Annotated[float | None, typer.Option(
+        "--memory-limit", metavar="GIB",
+        help="Per wall: the process's address space in GiB; a wall that needs more is reported "
+        "as 'memory' and the larger walls are skipped (default: no limit).")] = None,
     overrides: SetOption = None,
     overwrite: Annotated[bool, typer.Option("--overwrite",
                          help="Write into a folder that is not empty.")] = False,
 ) -> None:
-    """Time per step and peak memory of walls with 1, 2, 4 and 8 times the units of the case,
-    against the number of contact points; each wall stepped N times in a fresh process."""
+    """Time per step, factorisations per step and peak memory of walls with 1, 2, 4, ... K
+    times the units of the case, against the number of contact points; each wall stepped N
+    times in a fresh process."""
     case = _load_case_or_exit(case_file, overrides)
     if steps < 2:
         _fail(f"--steps must be >= 2, got {steps}", 2)
+    if largest < 1 or largest > 256 or largest & (largest - 1):
+        _fail(f"--largest must be a power of two from 1 to 256, got {largest}", 2)
+    if smallest < 1 or smallest > largest or smallest & (smallest - 1):
+        _fail(f"--smallest must be a power of two from 1 to --largest = {largest}, got "
+              f"{smallest}", 2)
+    if time_limit is not None and not time_limit > 0:
+        _fail(f"--time-limit must be > 0 s, got {time_limit:g}", 2)
+    if memory_limit is not None and not memory_limit >= 0.5:
+        _fail(f"--memory-limit must be >= 0.5 GiB, got {memory_limit:g}", 2)
     outdir = _study_outdir(output, Path("results") / "bench-scaling" / case.name, overwrite)
     from masonry_nscd import bench as bm
 
     try:
         rows, statements = bm.bench_scaling(case_file, outdir, overrides=list(overrides or ()),
-                                            steps=steps, echo=typer.echo)
+                                            steps=steps, largest=largest, smallest=smallest,
+                                            time_limit_s=time_limit,
+                                            memory_limit_gib=memory_limit, echo=typer.echo)
     except KeyboardInterrupt:
         _fail("interrupted", 130)
     typer.echo(bm.format_scaling_table(rows))

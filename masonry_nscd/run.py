@@ -156,6 +156,9 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
         + (f", steps of {scene.solver.h:g} s to {scene.solver.h * (1 << scene.solver.max_growth):g} "
            "s (adaptive)" if scene.solver.max_growth else "")
         + (" (auto)" if case.solver.method == "auto" else "")
+        + (f", linear solver {integ.newton.linear}"
+           + (" (auto)" if case.solver.linear == "auto" else "")
+           if integ.newton is not None else "")
         + (f", contact points at {scene.meta['contact_point_rule']} points"
            if "contact_point_rule" in scene.meta else ""))
     if point is not None:
@@ -185,6 +188,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     every = progress_every or max(1, n_est // 40)
     unconverged, worst = (point.unconverged, point.worst_residual) if point else (0, 0.0)
     subdivided = 0  # steps made again as smaller ones (the log shows the first five)
+    linear_fallbacks = 0  # steps with a Krylov solve made again by LU (the first five shown)
     spans: dict[int, int] = {}  # steps made, by their size in steps of h
     (mx, wx), (my, wy) = scene.measured_dofs(s.body_dof0)
     weights = scene.reaction_weights(s.side_body)
@@ -207,6 +211,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
                 log(f"from t = {integ.t:.6g} s: " + ", ".join(
                     f"{scene.bodies[hd.body].name} held in {DOF_NAMES[hd.dof]}" for hd in holds))
             t1 = integ.t + h
+            fallbacks = integ.solver_counts()["linear_fallbacks"]
             try:
                 rep = integ.step()
             except DivergenceError as exc:
@@ -218,6 +223,10 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
                     log(traceback.format_exc(), show=False)
                 raise failure(integ.step_index + 1, t1, f"the solver raised "
                               f"{type(exc).__name__}: {exc} (traceback in run.log)") from exc
+            if integ.solver_counts()["linear_fallbacks"] > fallbacks:
+                linear_fallbacks += 1
+                log(f"step {rep.step} (t = {rep.time:.4f} s): Krylov solve not converged, made "
+                    f"by LU ({(integ.linear_notes() or ['no reason recorded'])[-1]})", show=linear_fallbacks <= 5)
             worst = max(worst, rep.residual)
             spans[rep.span] = spans.get(rep.span, 0) + 1
             if rep.substeps > 1:
@@ -325,6 +334,11 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     log(f"done: {integ.step_index} steps in {secs:.1f} s, Ux {1e3 * ux:.4f} mm, "
         f"Fx {1e-3 * top[0]:.3f} kN; {unconverged} steps not converged "
         f"(worst residual {worst:.2e})")
+    counts = integ.solver_counts()
+    if integ.newton is not None and integ.newton.linear == "krylov":
+        log(f"linear solver krylov: {counts['factorisations']} preconditioner set-ups, "
+            f"{counts['linear_iterations']} GMRES iterations, {counts['linear_fallbacks']} "
+            "solves made by LU")
     if any(k > 1 for k in spans):
         log("step sizes: " + ", ".join(f"{spans[k]} of {k * h:g} s" for k in sorted(spans)))
     if integ.energy_account is not None:

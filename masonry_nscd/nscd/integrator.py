@@ -134,6 +134,7 @@ class Integrator:
         easy_iterations: int = 4,
         easy_damage: float = math.inf,
         step_limit=None,
+        linear: str = "lu",
     ):
         if max_halvings < 0:
             raise ValueError(f"max_halvings must be >= 0, got {max_halvings}")
@@ -143,7 +144,8 @@ class Integrator:
                            "max_iterations": max_iterations, "check_every": check_every,
                            "method": method, "endo3d_params": endo3d_params,
                            "endo3d_tau": endo3d_tau,
-                           "max_halvings": max_halvings - 1, "energy": energy}
+                           "max_halvings": max_halvings - 1, "energy": energy,
+                           "linear": linear}
         self._half: Integrator | None = None
         # after a step of h that did not converge, the next ``halve_after_failure`` steps are
         # made straight away as two halves: the failed attempt costs a full Newton budget, and
@@ -224,8 +226,10 @@ class Integrator:
             if not all(laws.newton_ready(P) for P in used):
                 raise ValueError("the Newton solver needs joints with a spring in series or "
                                  "rigid Signorini-Coulomb contacts: use method 'nlgs'")
+            node_xyz = [b.X if s.body_deformable[i] else None for i, b in enumerate(bodies)]
             self.newton = NewtonSolver(s, s.minv_off, s.mhat, tolerance,
-                                       min(max_iterations, NEWTON_MAX_ITERATIONS), self.params)
+                                       min(max_iterations, NEWTON_MAX_ITERATIONS), self.params,
+                                       linear=linear, node_xyz=node_xyz)
             self.newton.on_slow = self._on_slow
         # the energy balance (nscd/energy.py): its accumulated terms are part of the state
         from masonry_nscd.nscd.energy import ACCUMULATED, EnergyAccount
@@ -333,6 +337,28 @@ class Integrator:
         self.control.accepted(0, rep.sweeps, rep.converged and rep.substeps == 1,
                               rep.damage_growth)
         return replace(rep, sweeps=rep.sweeps + sweeps)
+
+    def solver_counts(self) -> dict[str, int]:
+        """Work of the Newton linear solves so far, summed over this integrator and the ones it
+        made steps with (halves, adaptive rungs): ``factorisations`` (of the Newton matrix or
+        its preconditioner), ``linear_iterations`` (Krylov iterations; 0 for LU) and
+        ``linear_fallbacks`` (Krylov solves that did not converge and were made by LU)."""
+        out = {"factorisations": 0, "linear_iterations": 0, "linear_fallbacks": 0}
+        if self.newton is not None:
+            for key in out:
+                out[key] += int(getattr(self.newton, key))
+        for sub in [*self._rungs.values(), *([self._half] if self._half is not None else [])]:
+            for key, n in sub.solver_counts().items():
+                out[key] += n
+        return out
+
+    def linear_notes(self) -> list[str]:
+        """Why the Krylov solves that were made again by LU failed, oldest first (this
+        integrator's Newton solver, then those of its halves and rungs)."""
+        out = list(self.newton.linear_notes) if self.newton is not None else []
+        for sub in [*self._rungs.values(), *([self._half] if self._half is not None else [])]:
+            out += sub.linear_notes()
+        return out
 
     def step_memory(self) -> dict[str, int]:
         """What the step control remembers of the last steps (the halving's run of failures,

@@ -76,6 +76,7 @@ import scipy.sparse.linalg as spla
 from numba import njit
 
 from masonry_nscd.contact import alart_curnier, laws
+from masonry_nscd.nscd import linear as linear_solvers
 
 
 @njit(cache=True)
@@ -357,7 +358,11 @@ class NewtonSolver:
     """Semi-smooth Newton (chord) solver of one step; keeps its factorisation between steps."""
 
     def __init__(self, sys, mhat_off, mhat, tolerance: float, max_iterations: int = 50,
-                 params: np.ndarray | None = None):
+                 params: np.ndarray | None = None, linear: str = "lu",
+                 node_xyz: list[np.ndarray | None] | None = None):
+        """``linear``: the solver of the Newton matrix (``linear.LINEAR_SOLVERS``; ``auto``
+        picks by the number of unknowns); ``node_xyz``: each body's node coordinates (m; None
+        for a rigid body), for the rigid-body modes of the Krylov solver's coarse space."""
         self.sys = sys
         self.mhat_off = mhat_off
         self.mhat = mhat
@@ -397,6 +402,19 @@ class NewtonSolver:
         self.eps = 1e-9 * trace / 3.0
         self.lu = None
         self.factorisations = 0
+        # the linear solver, resolved by size; Krylov solves made again by LU, and why
+        self.linear = linear_solvers.choose(linear, len(self.free) + 3 * len(self.mult))
+        self.linear_fallbacks = 0
+        self.linear_notes: list[str] = []
+        self._krylov = None
+        self._krylov_pattern: _Pattern | None = None
+        if self.linear == "krylov":
+            if node_xyz is None:
+                raise ValueError("the krylov linear solver needs the bodies' node coordinates")
+            modes = linear_solvers.rigid_body_modes(sys.body_dof0, sys.body_deformable,
+                                                    node_xyz)[self.free]
+            body_of = np.searchsorted(sys.body_dof0, self.free, side="right") - 1
+            self._krylov = linear_solvers.KrylovSolver(body_of, modes)
         self._K_factorised = None
         # fixed pattern and order of the Newton matrix, found at the first factorisation
         self._pattern: _Pattern | None = None
@@ -419,6 +437,25 @@ class NewtonSolver:
         # body velocities, multipliers' impulses N s, step size s)
         self._solutions: list[tuple[float, np.ndarray, np.ndarray, float]] = []
 
+    @property
+    def linear_iterations(self) -> int:
+        """Krylov iterations of all the linear solves so far (0 with LU)."""
+        return 0 if self._krylov is None else self._krylov.iterations
+
+    def _linear_solve(self, b: np.ndarray) -> np.ndarray:
+        """``J0^-1 b`` with the matrix in place; a Krylov solve that does not converge is made
+        again by an LU factorisation of the same matrix (counted in ``linear_fallbacks``, the
+        reason in ``linear_notes``)."""
+        try:
+            return self.lu.solve(b)
+        except linear_solvers.KrylovFailure as exc:
+            self.linear_fallbacks += 1
+            self.linear_notes.append(f"{exc}: the Newton matrix factorised by LU instead")
+            tangents, self._K_factorised = self._K_factorised, None
+            self.lu = None
+            self._factorise(tangents, direct=True)
+            return self.lu.solve(b)
+
     def forget_solutions(self) -> None:
         """Drop the last steps' solutions: the next step starts from the free velocities (its
         state does not follow from them, e.g. after a step was subdivided)."""
@@ -434,11 +471,12 @@ class NewtonSolver:
         self.mhat_jac = mhat_jac
         self.lu = None
 
-    def _factorise(self, tangents, pivoting: bool = False):
+    def _factorise(self, tangents, pivoting: bool = False, direct: bool = False):
         """Factorise the Newton matrix with the joint tangents and the multipliers' derivatives
         ``tangents = (K, Gu, Gr)`` (sparse LU), unless the factorisation in place is already of
         that matrix; ``pivoting``: partial pivoting (the robust, slower factorisation) instead
-        of diagonal pivots."""
+        of diagonal pivots; ``direct``: by LU whatever ``linear`` says (the Krylov solver's
+        fallback)."""
         K, Gu, Gr = tangents
         if self.lu is not None and self._K_factorised is not None and \
                 all(np.array_equal(x, y) for x, y in zip(tangents, self._K_factorised,
@@ -451,6 +489,17 @@ class NewtonSolver:
         r, c, v = jacobian_coo(s.body_dof0, self.mhat_off, self.mhat_jac, self.free_index, nf,
                                s.side_dofs, s.side_coef, self.mult_of, s.area, K, Gu, Gr,
                                self.mu >= 0.0, s.h, s.theta, True)
+        if self._krylov is not None and not (pivoting or direct):
+            # the Krylov solver's own pattern, never reordered (the LU's is, at its first
+            # factorisation)
+            if self._krylov_pattern is None or len(self._krylov_pattern.slot) != len(v):
+                self._krylov_pattern = _Pattern(r, c, n)
+                # kept for the reordering at an LU's first factorisation, which this pattern
+                # never has (16 bytes per triplet: 0.8 GB at 64 times the study's wall)
+                self._krylov_pattern._rows = self._krylov_pattern._cols = None
+            self.lu = self._krylov.factorise(self._krylov_pattern.matrix(v))
+            self.factorisations += 1
+            return
         if self._pattern is None or len(self._pattern.slot) != len(v):
             self._pattern = _Pattern(r, c, n)
         pat = self._pattern
@@ -656,7 +705,7 @@ class NewtonSolver:
             prev2, prev = prev, res
             pivoted = False
             while True:
-                dx = self.lu.solve(-F)
+                dx = self._linear_solve(-F)
                 if not np.all(np.isfinite(dx)) and not pivoted:
                     # an unstable factorisation (diagonal pivots): refresh, with pivoting if
                     # the matrix was fresh already

@@ -82,6 +82,7 @@ class SolverSettings:
     grow_after: int = 2
     easy_iterations: int = 4
     easy_damage: float = 0.02
+    linear: str = "lu"  # the Newton matrix's solver: auto, lu, krylov (nscd/linear.py)
 
     @classmethod
     def from_case(cls, case, endo3d_params: np.ndarray | None = None) -> SolverSettings:
@@ -96,7 +97,7 @@ class SolverSettings:
                    endo3d_tau=case.blocks.endo3d.relaxation_time_s,
                    energy=case.output.energy, max_growth=case.step_growth,
                    grow_after=sol.grow_after_steps, easy_iterations=sol.easy_iterations,
-                   easy_damage=sol.easy_damage)
+                   easy_damage=sol.easy_damage, linear=sol.linear)
 
 
 @dataclass
@@ -187,7 +188,7 @@ class Scene:
                           halve_after_failure=s.halve_after_failure, energy=s.energy,
                           max_growth=s.max_growth, grow_after=s.grow_after,
                           easy_iterations=s.easy_iterations, easy_damage=s.easy_damage,
-                          step_limit=self.step_limit_s)
+                          step_limit=self.step_limit_s, linear=s.linear)
 
     # --- read-outs ------------------------------------------------------------------------
     def driven_dofs(self, body_dof0: np.ndarray) -> tuple[int, int]:

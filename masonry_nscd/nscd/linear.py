@@ -1,0 +1,299 @@
+r"""Linear solves of the Newton matrix: sparse LU, or GMRES with a two-level block preconditioner.
+
+The Newton matrix of a step (``newton.py``) has the body part and the rows of the points whose
+impulses are unknowns (glue, rigid contacts), ``m`` of them with three rows each::
+
+    J = [[ A , -B ],      A = M_hat + h^2 theta sum_a S_a H_a K_a H_a^T   (kg, free dofs)
+         [ C ,  D ]]      B = H_g,  C = H_g^T (glue) or Gu H_g^T,  D = eps I (glue) or Gr
+
+``D`` is block diagonal (3 x 3 per point, never singular: the compliance ``eps``). Both
+solvers answer ``J x = b`` for the matrix last given to ``factorise``; the Newton iterations
+call ``solve`` on whatever ``factorise`` returned and do not care which one it is.
+
+``lu``: SuperLU in a fixed order (``newton._Pattern``): exact, its fill (and so its memory and
+time) growing faster than the matrix.
+
+``krylov``: the multipliers are eliminated exactly (``D`` is block diagonal), which leaves the
+body system
+
+    S v = b_v + B D^-1 b_g,   S = A + B D^-1 C,   then r = D^-1 (b_g - C v)
+
+(the glue as the penalty ``1 / eps`` it is), solved by restarted GMRES with a two-level
+additive-multiplicative preconditioner over the bodies::
+
+    y = R S_0^-1 R^T b,   z = y + S_loc^-1 (b - S y),   P^-1 b = z + R S_0^-1 R^T (b - S z)
+
+``S_loc``: the diagonal blocks of ``S``, one per body (its own ``M_hat``, the springs of its
+joints and its glue), inverted densely; ``R`` (dofs x 6 bodies): the six rigid-body motions of
+every body (``rigid_body_modes``); ``S_0 = R^T S R``: the wall as rigid blocks on the joints'
+springs, 6 unknowns per body, factorised by sparse LU. The local solves take the deformation
+inside each block, the coarse one the motion of the blocks against one another, which a
+one-level (block-Jacobi) method would need about as many iterations as there are blocks across
+the wall to carry. Each iteration costs two products with ``S``, one with ``S_loc^-1`` and two
+coarse solves: all linear in the bodies for a wall (the coarse LU has 6 unknowns per block and
+the two-dimensional connectivity of a wall). The setup (``factorise``) is redone only where
+the LU would be refactorised. The solution of the previous solve (the iteration or the step
+before) starts GMRES when its residual is below that of zero. A solve whose relative residual
+``|rhs - S v| / |rhs|`` stays above ``rtol`` after ``max_iterations`` is reported
+(``KrylovFailure``): the Newton solver then factorises the same matrix by LU and says so.
+
+``auto`` picks ``lu`` below ``KRYLOV_MIN_UNKNOWNS`` unknowns, ``krylov`` from there.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+LINEAR_SOLVERS = ("auto", "lu", "krylov")
+#: ``auto`` picks krylov from this many unknowns of the Newton matrix (free dofs and three per
+#: multiplier point); below, lu (docs/scaling.md)
+KRYLOV_MIN_UNKNOWNS = 100_000
+
+
+def choose(linear: str, unknowns: int) -> str:
+    """The linear solver ``linear`` (``auto``, ``lu``, ``krylov``) resolved for a Newton
+    matrix of ``unknowns`` rows."""
+    if linear not in LINEAR_SOLVERS:
+        raise ValueError(f"linear solver must be one of {', '.join(LINEAR_SOLVERS)}, got "
+                         f"{linear!r}")
+    if linear == "auto":
+        return "krylov" if unknowns >= KRYLOV_MIN_UNKNOWNS else "lu"
+    return linear
+
+
+def rigid_body_modes(body_dof0: np.ndarray, deformable: np.ndarray,
+                     node_xyz: list[np.ndarray | None]) -> np.ndarray:
+    """The six rigid-body motions of every body as columns, one row per dof (``(ndof, 6)``).
+
+    For a block with nodes ``x_i`` (m, three dofs per node, x y z) the translations ``e_k``
+    and the rotations ``omega_k x (x_i - x_c)`` about its centroid ``x_c`` (m per rad); for a
+    rigid body (three translations, then three rotations as its dofs) the identity."""
+    modes = np.zeros((int(body_dof0[-1]), 6))
+    for b in range(len(body_dof0) - 1):
+        d0, d1 = int(body_dof0[b]), int(body_dof0[b + 1])
+        if not deformable[b]:
+            modes[d0:d1] = np.eye(d1 - d0, 6)
+            continue
+        x = np.asarray(node_xyz[b], dtype=float)
+        x = x - x.mean(axis=0)
+        block = modes[d0:d1].reshape(len(x), 3, 6)
+        for k in range(3):
+            block[:, k, k] = 1.0
+        # omega_x: (0, -z, y); omega_y: (z, 0, -x); omega_z: (-y, x, 0)
+        block[:, 1, 3], block[:, 2, 3] = -x[:, 2], x[:, 1]
+        block[:, 0, 4], block[:, 2, 4] = x[:, 2], -x[:, 0]
+        block[:, 0, 5], block[:, 1, 5] = -x[:, 1], x[:, 0]
+    return modes
+
+
+class KrylovFailure(RuntimeError):
+    """A Krylov solve that did not reach its tolerance: ``iterations``, ``residual`` (the body
+    system's ``|rhs - S v| / |rhs|``)."""
+
+    def __init__(self, iterations: int, residual: float, rtol: float):
+        super().__init__(f"GMRES not converged: relative residual {residual:.2e} > {rtol:.0e} "
+                         f"after {iterations} iterations")
+        self.iterations, self.residual = iterations, residual
+
+
+class KrylovSolver:
+    """GMRES with the two-level block preconditioner of the module docstring.
+
+    ``body_of``: the body of each free dof (``(nf,)``, sorted: a body's dofs are contiguous);
+    ``modes``: the rigid-body modes of the free dofs (``(nf, 6)``); ``rtol``: relative
+    residual of a solve; ``max_iterations``: GMRES iterations before a solve is failed.
+
+    ``rtol`` is the forcing term of an inexact Newton method: the Newton iterations judge
+    their own convergence on the residual of the step, so a direction good to 1 % is enough
+    (measured in docs/scaling.md)."""
+
+    def __init__(self, body_of: np.ndarray, modes: np.ndarray, rtol: float = 1e-2,
+                 max_iterations: int = 300, restart: int = 40):
+        body_of = np.asarray(body_of, dtype=np.int64)
+        self.nf = nf = len(body_of)
+        self.rtol, self.max_iterations, self.restart = rtol, max_iterations, restart
+        self.iterations = 0  # GMRES iterations of all solves so far
+        self.last_iterations = 0
+        self.last_residual = 0.0
+        self._x = None  # the last solution: the start of the next solve
+        self.body_of = body_of
+        # coarse space: six columns per body, the empty ones (imposed motions) dropped
+        rows = np.repeat(np.arange(nf), 6)
+        cols = (6 * body_of[:, None] + np.arange(6)).ravel()
+        R = sp.csc_matrix((np.asarray(modes, dtype=float).ravel(), (rows, cols)),
+                          shape=(nf, 6 * (int(body_of.max()) + 1 if nf else 0)))
+        R.eliminate_zeros()
+        used = np.flatnonzero(np.diff(R.indptr) > 0)
+        self.R = R[:, used].tocsc()
+        self.RT = self.R.T.tocsr()
+        # the bodies' dof ranges in the free numbering, grouped by size for batched inverses
+        starts = np.flatnonzero(np.r_[True, body_of[1:] != body_of[:-1]]) if nf else \
+            np.zeros(0, dtype=np.int64)
+        sizes = np.diff(np.r_[starts, nf])
+        self.groups = [(int(k), starts[sizes == k]) for k in np.unique(sizes)]
+        # per free dof: the size of its body and the place of its body in that size's group
+        self._group_of = np.repeat(sizes, sizes)
+        self._slot = np.empty(nf, dtype=np.int64)
+        for _, st in self.groups:
+            self._slot[st] = np.arange(len(st))
+        self._slot = self._slot[np.repeat(starts, sizes)]
+
+    def factorise(self, J: sp.spmatrix) -> _KrylovOperator:
+        """The preconditioner of ``J`` (free dofs first, then three rows per multiplier
+        point) and the object whose ``solve`` answers ``J x = b``."""
+        nf = self.nf
+        J = sp.csr_matrix(J)
+        A = J[:nf, :nf]
+        m = (J.shape[0] - nf) // 3
+        if m:
+            B = (-J[:nf, nf:]).tocsr()
+            C = J[nf:, :nf].tocsr()
+            Dinv = _block_diagonal(np.linalg.inv(_diagonal_blocks(J[nf:, nf:], m)))
+            S = (A + B @ (Dinv @ C)).tocsr()
+        else:
+            B = C = Dinv = None
+            S = A.tocsr()
+        # local: the dense diagonal block of every body, inverted in batches of equal size
+        coo = S.tocoo()
+        same = self.body_of[coo.row] == self.body_of[coo.col]
+        r, c, val = coo.row[same], coo.col[same], coo.data[same]
+        rows, cols, vals = [], [], []
+        for k, starts in self.groups:
+            blocks = np.zeros((len(starts), k, k))
+            sel = self._group_of[r] == k
+            g = self._slot[r[sel]]
+            blocks[g, r[sel] - starts[g], c[sel] - starts[g]] = val[sel]
+            idx = starts[:, None] + np.arange(k)[None, :]  # (g, k) dofs of each body
+            rows.append(np.repeat(idx, k, axis=1).ravel())
+            cols.append(np.tile(idx, (1, k)).ravel())
+            vals.append(np.linalg.inv(blocks).ravel())
+        S_loc_inv = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows),
+                                                          np.concatenate(cols))),
+                                  shape=(nf, nf)) if rows else sp.csr_matrix((nf, nf))
+        coarse = spla.splu((self.RT @ S @ self.R).tocsc())
+        return _KrylovOperator(self, S, B, C, Dinv, S_loc_inv, coarse)
+
+
+def _block_diagonal(blocks: np.ndarray) -> sp.csr_matrix:
+    """The block-diagonal CSR matrix of ``(m, 3, 3)`` blocks."""
+    m = len(blocks)
+    rows = np.repeat(np.arange(3 * m), 3)
+    cols = (3 * np.arange(m)[:, None, None] + np.zeros((1, 3, 1), dtype=np.int64)
+            + np.arange(3)[None, None, :]).ravel()
+    return sp.csr_matrix((blocks.ravel(), (rows, cols)), shape=(3 * m, 3 * m))
+
+
+def _diagonal_blocks(D: sp.spmatrix, m: int) -> np.ndarray:
+    """The 3 x 3 diagonal blocks of a block-diagonal ``(3m, 3m)`` matrix, ``(m, 3, 3)``."""
+    out = np.zeros((m, 3, 3))
+    coo = D.tocoo()
+    out[coo.row // 3, coo.row % 3, coo.col % 3] += coo.data
+    return out
+
+
+class _KrylovOperator:
+    """The body system ``S``, the elimination of the multipliers and the preconditioner;
+    ``solve(b)`` answers ``J x = b``."""
+
+    def __init__(self, owner: KrylovSolver, S, B, C, Dinv, S_loc_inv, coarse):
+        self.owner, self.S, self.B, self.C, self.Dinv = owner, S, B, C, Dinv
+        self.S_loc_inv, self.coarse = S_loc_inv, coarse
+
+    def _coarse(self, r: np.ndarray) -> np.ndarray:
+        o = self.owner
+        return o.R @ self.coarse.solve(o.RT @ r)
+
+    def _precondition(self, r: np.ndarray) -> np.ndarray:
+        r = np.ravel(r)
+        y = self._coarse(r)
+        z = y + self.S_loc_inv @ (r - self.S @ y)
+        return z + self._coarse(r - self.S @ z)
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """``x`` with ``|rhs - S v| <= rtol |rhs|`` on the body system; ``KrylovFailure`` when
+        GMRES does not get there within ``max_iterations``."""
+        o = self.owner
+        nf = o.nf
+        bv, bg = b[:nf], b[nf:]
+        rhs = bv if self.B is None else bv + self.B @ (self.Dinv @ bg)
+        rnorm = float(np.linalg.norm(rhs))
+        if rnorm == 0.0:
+            v = np.zeros(nf)
+        else:
+            x0 = None
+            if o._x is not None and np.linalg.norm(rhs - self.S @ o._x) < rnorm:
+                x0 = o._x
+            count = [0]
+
+            def callback(_):
+                count[0] += 1
+
+            v, count = gmres(self.S.dot, self._precondition, rhs, x0, o.rtol, o.restart,
+                             o.max_iterations)
+            res = float(np.linalg.norm(rhs - self.S @ v)) / rnorm
+            o.iterations += count
+            o.last_iterations, o.last_residual = count, res
+            if not (res <= 2.0 * o.rtol and np.all(np.isfinite(v))):
+                raise KrylovFailure(count, res, o.rtol)
+            o._x = v
+        if self.B is None:
+            return v
+        return np.concatenate([v, self.Dinv @ (bg - self.C @ v)])
+
+
+def gmres(matvec, precondition, b: np.ndarray, x0: np.ndarray | None, rtol: float,
+          restart: int, max_iterations: int) -> tuple[np.ndarray, int]:
+    """Restarted GMRES with right preconditioning: ``x = x0 + M^-1 V_k y`` minimising
+    ``|b - A x|`` over the Krylov space of ``A M^-1`` built from ``r0 = b - A x0``, stopping
+    when ``|b - A x| <= rtol |b|`` (its estimate from the Hessenberg least squares, checked
+    on the true residual at each restart). Arnoldi by classical Gram-Schmidt done twice (one
+    matrix product per pass over the basis); the small least-squares problem by Givens
+    rotations. Returns ``(x, iterations)``."""
+    n = len(b)
+    bnorm = float(np.linalg.norm(b))
+    x = np.zeros(n) if x0 is None else x0.copy()
+    iterations = 0
+    V = np.empty((restart + 1, n))
+    Z = np.empty((restart, n))
+    H = np.zeros((restart + 1, restart))
+    cs, sn = np.zeros(restart), np.zeros(restart)
+    while True:
+        r = b - matvec(x)
+        beta = float(np.linalg.norm(r))
+        if beta <= rtol * bnorm or iterations >= max_iterations:
+            return x, iterations
+        V[0] = r / beta
+        g = np.zeros(restart + 1)
+        g[0] = beta
+        k = 0
+        while k < restart and iterations < max_iterations:
+            Z[k] = precondition(V[k])
+            w = matvec(Z[k])
+            h = V[:k + 1] @ w
+            w -= h @ V[:k + 1]
+            h2 = V[:k + 1] @ w  # second pass: orthogonal to round-off
+            w -= h2 @ V[:k + 1]
+            h += h2
+            hn = float(np.linalg.norm(w))
+            H[:k + 1, k] = h
+            H[k + 1, k] = hn
+            for i in range(k):  # the earlier rotations on the new column
+                t = cs[i] * H[i, k] + sn[i] * H[i + 1, k]
+                H[i + 1, k] = -sn[i] * H[i, k] + cs[i] * H[i + 1, k]
+                H[i, k] = t
+            d = math.hypot(H[k, k], H[k + 1, k])
+            cs[k], sn[k] = (1.0, 0.0) if d == 0.0 else (H[k, k] / d, H[k + 1, k] / d)
+            H[k, k], H[k + 1, k] = d, 0.0
+            g[k + 1] = -sn[k] * g[k]
+            g[k] = cs[k] * g[k]
+            iterations += 1
+            k += 1
+            if hn == 0.0 or abs(g[k]) <= rtol * bnorm:
+                break
+            V[k] = w / hn
+        y = np.linalg.solve(np.triu(H[:k, :k]), g[:k]) if k else np.zeros(0)
+        x += y @ Z[:k]

@@ -1,0 +1,226 @@
+"""The linear solvers of the Newton matrix (``nscd/linear.py``, ``solver.linear``), against
+independent calculations and physics.
+
+* ``gmres``: the solution of small dense systems from ``numpy.linalg.solve``; in exact
+  arithmetic GMRES ends in at most n iterations, and with an exact preconditioner in one.
+* ``rigid_body_modes``: the elastic stiffness of a block does no work on them (K R = 0).
+* the two-level preconditioner: the solution of the Newton matrix of the smoke wall matches
+  SuperLU's, and a step made with ``krylov`` the step made with ``lu`` to the Newton tolerance.
+* a Krylov solve that cannot converge is detected and made by LU, to the same steps.
+* ``auto``: LU at the study's size, from the unknowns counted from the scene.
+* the case field and the bench options: errors that name the field and its range.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from typer.testing import CliRunner
+
+from masonry_nscd import bench as bm
+from masonry_nscd.case import CaseError, load_case
+from masonry_nscd.cli import app
+from masonry_nscd.nscd import linear
+from masonry_nscd.nscd.newton import jacobian_coo
+from masonry_nscd.scenes import build_scene
+
+SMOKE = "cases/smoke.yaml"
+STUDY = "cases/wall_0.5MPa_elastic.yaml"
+QUIET = ["output.vtu=false", "output.hdf5=false", "output.energy=false"]
+
+
+def test_gmres_solves_a_nonsymmetric_system_to_its_tolerance():
+    rng = np.random.default_rng(3)
+    n = 40
+    A = np.eye(n) * 4.0 + rng.normal(size=(n, n)) * 0.3  # nonsymmetric, well conditioned
+    b = rng.normal(size=n)
+    x_ref = np.linalg.solve(A, b)
+    x, its = linear.gmres(lambda v: A @ v, lambda v: v, b, None, 1e-10, 50, 200)
+    assert np.linalg.norm(A @ x - b) <= 1e-10 * np.linalg.norm(b) * 1.0001
+    assert np.allclose(x, x_ref, rtol=0, atol=1e-8 * np.abs(x_ref).max())
+    assert its <= n
+    # restarted every 5 iterations it still gets there, in more iterations
+    x5, its5 = linear.gmres(lambda v: A @ v, lambda v: v, b, None, 1e-10, 5, 2000)
+    assert np.allclose(x5, x_ref, rtol=0, atol=1e-8 * np.abs(x_ref).max()) and its5 >= its
+    # an exact preconditioner: one iteration; the exact solution as the start: none
+    Ainv = np.linalg.inv(A)
+    x1, its1 = linear.gmres(lambda v: A @ v, lambda v: Ainv @ v, b, None, 1e-10, 50, 200)
+    assert its1 == 1 and np.allclose(x1, x_ref, atol=1e-10 * np.abs(x_ref).max())
+    assert linear.gmres(lambda v: A @ v, lambda v: v, b, x_ref, 1e-10, 50, 200)[1] == 0
+
+
+@pytest.fixture(scope="module")
+def smoke_scene():
+    return build_scene(load_case(SMOKE, QUIET))
+
+
+def test_rigid_body_modes_are_the_null_space_of_each_blocks_stiffness(smoke_scene):
+    integ = smoke_scene.integrator()
+    s = integ.sys
+    xyz = [b.X if s.body_deformable[i] else None for i, b in enumerate(integ.bodies)]
+    R = linear.rigid_body_modes(s.body_dof0, s.body_deformable, xyz)
+    checked = 0
+    for i in np.flatnonzero(s.body_deformable):
+        d0, d1 = s.body_dof0[i], s.body_dof0[i + 1]
+        n = d1 - d0
+        K = s.k[s.k_off[i]:s.k_off[i] + n * n].reshape(n, n)
+        Ri = R[d0:d1]
+        assert np.linalg.matrix_rank(Ri) == 6
+        # K R = 0 to round-off: no strain energy in a rigid motion
+        assert np.abs(K @ Ri).max() <= 1e-9 * np.abs(K).max() * np.abs(Ri).max()
+        checked += 1
+    assert checked > 0
+
+
+def _newton_matrix(integ):
+    """The Newton matrix (CSC, natural order) at the last factorisation of ``integ``'s solver."""
+    N, s = integ.newton, integ.sys
+    K, Gu, Gr = N._K_factorised
+    nf = len(N.free)
+    n = nf + 3 * len(N.mult)
+    r, c, v = jacobian_coo(s.body_dof0, N.mhat_off, N.mhat_jac, N.free_index, nf, s.side_dofs,
+                           s.side_coef, N.mult_of, s.area, K, Gu, Gr, N.mu >= 0.0, s.h, s.theta,
+                           True)
+    return sp.csc_matrix((v, (r, c)), shape=(n, n)), nf
+
+
+def test_krylov_solve_of_the_newton_matrix_matches_superlu(smoke_scene):
+    integ = smoke_scene.integrator()
+    for _ in range(3):
+        integ.step()
+    J, nf = _newton_matrix(integ)
+    assert J.shape[0] > nf  # glue rows: the multipliers are eliminated
+    rng = np.random.default_rng(0)
+    b = rng.normal(size=J.shape[0])
+    x_ref = spla.splu(J).solve(b)
+    N, s = integ.newton, integ.sys
+    xyz = [bd.X if s.body_deformable[i] else None for i, bd in enumerate(integ.bodies)]
+    modes = linear.rigid_body_modes(s.body_dof0, s.body_deformable, xyz)[N.free]
+    body_of = np.searchsorted(s.body_dof0, N.free, side="right") - 1
+    ks = linear.KrylovSolver(body_of, modes, rtol=1e-10, max_iterations=500)
+    x = ks.factorise(J).solve(b)
+    assert ks.last_residual <= 1e-9
+    # J x = b row by row: the glue rows exactly (r is eliminated from them); the momentum rows
+    # to the tolerance of the body system S v = b_v + B D^-1 b_g, whose residual they are
+    res = b - J @ x
+    assert np.linalg.norm(res[nf:]) <= 1e-12 * np.linalg.norm(b[nf:])
+    B = -J[:nf, nf:]
+    d = J[nf:, nf:].diagonal()  # D = eps I for the glue: its inverse is 1 / eps
+    assert np.allclose(J[nf:, nf:].toarray(), np.diag(d))
+    rhs = b[:nf] + B @ (b[nf:] / d)
+    assert np.linalg.norm(res[:nf]) <= 1e-9 * np.linalg.norm(rhs)
+    # so the velocities are SuperLU's to the conditioning of the glue only: the body system
+    # holds the glue as springs 1 / eps, 1e9 times the local stiffness, and its residual of
+    # 1e-10 bounds the error of v to about 1e-10 / eps relative
+    v, v_ref = x[:nf], x_ref[:nf]
+    assert np.linalg.norm(v - v_ref) <= 1e-3 * np.linalg.norm(v_ref)
+
+
+def test_a_krylov_step_is_the_lu_step_to_the_newton_tolerance():
+    """Five steps of the smoke case with each linear solver: the same contact tractions to
+    the Newton tolerance (relative change of the forces 1e-8 in that case), and the Krylov
+    solver really did the solves (no LU fallback)."""
+    out = {}
+    for lin in ("lu", "krylov"):
+        case = load_case(SMOKE, [*QUIET, f"solver.linear={lin}"])
+        integ = build_scene(case).integrator()
+        T = []
+        for _ in range(5):
+            integ.step()
+            T.append(integ.joints.T.copy())
+        out[lin] = np.array(T), integ
+    tol = load_case(SMOKE, QUIET).solver.tolerance
+    T_lu, lu = out["lu"]
+    T_kr, kr = out["krylov"]
+    assert lu.newton.linear == "lu" and kr.newton.linear == "krylov"
+    counts = kr.solver_counts()
+    assert counts["linear_iterations"] > 0 and counts["linear_fallbacks"] == 0
+    assert lu.solver_counts()["linear_iterations"] == 0
+    for k in range(5):
+        scale = np.linalg.norm(T_lu[k])
+        assert np.linalg.norm(T_kr[k] - T_lu[k]) <= 100.0 * tol * scale, k
+
+
+def test_auto_picks_lu_at_the_studys_size():
+    case = load_case(STUDY, QUIET)
+    assert case.solver.linear == "auto"
+    integ = build_scene(case).integrator()
+    s = integ.sys
+    # unknowns counted from the scene: free dofs, and three per glued point (the study's wall
+    # has no rigid contacts)
+    from masonry_nscd.contact import laws
+
+    unknowns = s.ndof - len(s.imposed_dofs) + 3 * int(np.sum(s.kind == laws.KIND_GLUED))
+    assert unknowns == len(integ.newton.free) + 3 * len(integ.newton.mult)
+    assert unknowns < linear.KRYLOV_MIN_UNKNOWNS
+    assert integ.newton.linear == "lu"
+    assert linear.choose("auto", linear.KRYLOV_MIN_UNKNOWNS) == "krylov"
+    assert linear.choose("auto", linear.KRYLOV_MIN_UNKNOWNS - 1) == "lu"
+    assert linear.choose("krylov", 10) == "krylov" and linear.choose("lu", 10**7) == "lu"
+
+
+def test_solver_linear_is_validated():
+    with pytest.raises(CaseError, match=r"solver\.linear.*'auto'.*'lu'.*'krylov'"):
+        load_case(SMOKE, ["solver.linear=cholesky"])
+    with pytest.raises(ValueError, match="auto, lu, krylov"):
+        linear.choose("cg", 10)
+
+
+def test_bench_scaling_sizes_and_options():
+    # walls doubled in turn along the courses and the units per course, to 64 times the units
+    sizes = bm.scaling_sizes(11, 6, 64)
+    assert [k for k, *_ in sizes] == [1, 2, 4, 8, 16, 32, 64]
+    assert all(c * n == k * 11 * 6 for k, c, n in sizes)
+    assert sizes[4:] == [(16, 44, 24), (32, 88, 24), (64, 88, 48)]
+    assert bm.scaling_sizes(11, 6) == sizes[:4]  # the default stays at 8x
+    with pytest.raises(ValueError, match="power of two"):
+        bm.scaling_sizes(11, 6, 12)
+    runner = CliRunner()
+    for args, field in ((["--largest", "3"], "--largest"), (["--largest", "512"], "--largest"),
+                        (["--smallest", "16", "--largest", "8"], "--smallest"),
+                        (["--time-limit", "0"], "--time-limit"),
+                        (["--memory-limit", "0.1"], "--memory-limit")):
+        res = runner.invoke(app, ["bench-scaling", STUDY, *args])
+        assert res.exit_code == 2, (args, res.output)
+        assert field in res.output
+
+
+def test_a_wall_stopped_by_its_limit_keeps_its_build_and_steps():
+    """A child result with four steps, cumulative solver counts before and after each step,
+    stopped by its time limit: the row keeps the build time and the steps it made, and the
+    counts per step are those of the steps after the skipped ones."""
+    counts = [{"factorisations": f, "linear_iterations": 10 * f, "linear_fallbacks": 0}
+              for f in (1, 3, 4, 6, 7)]
+    res = {"status": "timeout", "message": "stopped", "process_s": 9.0, "peak_rss_MiB": 500.0,
+           "scene_s": 1.0, "build_s": 1.5, "units": 10, "contact_points": 100, "dofs": 300,
+           "step_s": [0.5, 0.2, 0.3, 0.4], "sweeps": [10, 4, 6, 8], "counts": counts}
+    row = bm._scaling_row("8x", 4, 2, res, skip=1)
+    assert (row.status, row.steps, row.build_s) == ("timeout", 4, 1.5)
+    assert row.step_ms_median == pytest.approx(300.0)  # median of 0.2, 0.3, 0.4 s
+    assert row.factorisations_per_step == pytest.approx((7 - 3) / 3)
+    assert row.linear_iterations_per_step == pytest.approx((70 - 30) / 3)
+
+
+def test_a_krylov_solve_that_does_not_converge_is_made_by_lu():
+    """GMRES allowed one iteration to a relative residual of 1e-14 cannot converge: every
+    such solve is detected, made again by an LU of the same matrix and recorded, and the steps
+    are those of the LU run to the Newton tolerance."""
+    T = {}
+    for lin in ("lu", "krylov"):
+        integ = build_scene(load_case(SMOKE, [*QUIET, f"solver.linear={lin}"])).integrator()
+        if lin == "krylov":
+            integ.newton._krylov.max_iterations = 1
+            integ.newton._krylov.rtol = 1e-14
+        for _ in range(3):
+            integ.step()
+        T[lin] = integ.joints.T.copy()
+        if lin == "krylov":
+            counts = integ.solver_counts()
+            assert counts["linear_fallbacks"] >= 1
+            notes = integ.linear_notes()
+            assert len(notes) == counts["linear_fallbacks"]
+            assert all("GMRES not converged" in n and "by LU" in n for n in notes)
+    tol = load_case(SMOKE, QUIET).solver.tolerance
+    assert np.linalg.norm(T["krylov"] - T["lu"]) <= 100.0 * tol * np.linalg.norm(T["lu"])
