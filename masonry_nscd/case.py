@@ -1482,7 +1482,6 @@ class Solver(_Section):
         "halves at once, without the attempt at h, twice as many each time the attempt after "
         "them fails again (count; 0: every step tries h first)",
     )
-
     max_time_step_s: Real | None = Field(
         None, gt=0.0, le=1.0,
         description="adaptive step size: the largest step (s); steps are time_step_s times 1, "
@@ -1500,9 +1499,9 @@ class Solver(_Section):
     )
     easy_damage: Real = Field(
         0.02, gt=0.0, le=1.0,
-        description="adaptive step size: ... and no joint lost more than this of its integrity "
-        "and no ENDO3D Gauss point gained more than this of damage in it; twice as much halves "
-        "the next step (dimensionless)",
+        description="adaptive step size: a step is easy only if no joint lost more than this of "
+        "its integrity and no ENDO3D Gauss point gained more than this of damage in it; twice "
+        "as much halves the next step (dimensionless)",
     )
 
     @property
@@ -1540,7 +1539,8 @@ class Output(_Section):
     """What the run writes (the force-displacement CSV is always written, every step)."""
 
     every_steps: Whole = Field(
-        5, ge=1, le=1_000_000_000, description="write fields every this many steps (count)"
+        5, ge=1, le=1_000_000_000, description="write fields every this many steps of "
+        "solver.time_step_s (count; with adaptive steps, the largest step divides it)"
     )
     vtu: bool = Field(True, description="write VTU/PVD fields for ParaView (true/false)")
     hdf5: bool = Field(True, description="write results.h5 (true/false)")
