@@ -151,6 +151,8 @@ SetOption = Annotated[
     typer.Option("--set", metavar="PATH=VALUE",
                  help="Override one field of the case (VALUE read as YAML; repeatable)."),
 ]
+OverwriteOption = Annotated[
+    bool, typer.Option("--overwrite", help="Write into a folder that is not empty.")]
 
 
 @app.command()
@@ -409,8 +411,7 @@ def calibrate_cmd(
         "-o", "--output", metavar="OUTDIR",
         help="Calibration folder (default results/<case name>_calibration/).")] = None,
     overrides: SetOption = None,
-    overwrite: Annotated[bool, typer.Option("--overwrite",
-                         help="Write into a folder that is not empty.")] = False,
+    overwrite: OverwriteOption = False,
 ) -> None:
     """Find the value of one parameter that gives a target initial stiffness of the wall.
 
@@ -474,8 +475,7 @@ def threshold_cmd(
         "-o", "--output", metavar="OUTDIR",
         help="Study folder (default results/<case name>_threshold/).")] = None,
     overrides: SetOption = None,
-    overwrite: Annotated[bool, typer.Option("--overwrite",
-                         help="Write into a folder that is not empty.")] = False,
+    overwrite: OverwriteOption = False,
 ) -> None:
     """Find the value of one parameter between standing and collapse (minimum thickness,
     critical multiplier) by bisection on runs of a limit-state case; writes threshold.csv and
@@ -521,8 +521,7 @@ def stress_test_cmd(
         "--case", metavar="CASE.yaml", help="Base case (default cases/smoke.yaml).")] = None,
     time_limit: Annotated[float, typer.Option(
         "--time-limit", metavar="S", help="Wall-clock limit per variant, s.")] = 600.0,
-    overwrite: Annotated[bool, typer.Option("--overwrite",
-                         help="Write into a folder that is not empty.")] = False,
+    overwrite: OverwriteOption = False,
 ) -> None:
     """Run a matrix of variants of a small wall (time step, theta, stiffnesses, stress,
     friction, joint damage, geometry, materials) and write OUTDIR/stress.csv. Exit 0 when every
@@ -575,8 +574,7 @@ def bench_cmd(
     time_limit: Annotated[float, typer.Option(
         "--time-limit", metavar="S", help="Wall-clock limit of one run, s.")] = 600.0,
     overrides: SetOption = None,
-    overwrite: Annotated[bool, typer.Option("--overwrite",
-                         help="Write into a folder that is not empty.")] = False,
+    overwrite: OverwriteOption = False,
 ) -> None:
     """Run time against error: a ladder of settings around the case's (time step, loading rate,
     tolerance, mesh per unit, solver), each compared with a refined reference run (half the
@@ -648,8 +646,7 @@ def bench_scaling_cmd(
         help="Per wall: the process's address space in GiB; a wall that needs more is reported "
         "as 'memory' and the larger walls are skipped (default: no limit).")] = None,
     overrides: SetOption = None,
-    overwrite: Annotated[bool, typer.Option("--overwrite",
-                         help="Write into a folder that is not empty.")] = False,
+    overwrite: OverwriteOption = False,
 ) -> None:
     """Time per step, factorisations per step and peak memory of walls with 1, 2, 4, ... K
     times the units of the case, against the number of contact points; each wall stepped N
