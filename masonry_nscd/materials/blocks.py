@@ -133,11 +133,11 @@ class Endo3dBlocks:
         """Centre (m, reference coordinates) of the hexahedron of Gauss point ``p``."""
         return self.xe[self.elem_of_point[p]].mean(axis=0)
 
-    def damage_growth(self, state0: np.ndarray) -> float:
-        """The largest growth of the tensile or compressive damage (``d_t``, ``d_c``) of a Gauss
-        point from the states ``state0`` to the committed ones (dimensionless)."""
-        cols = [endo3d.S_D_T, endo3d.S_D_C]
-        return float(np.max(self.state_all[:, cols] - state0[:, cols], initial=0.0))
+    def damages(self, state: np.ndarray | None = None) -> np.ndarray:
+        """The largest tensile and the compressive damage (``d_t``, ``d_c``) of every Gauss point
+        (ngp, 2) of ``state`` (the committed states by default)."""
+        st = self.state_all if state is None else state
+        return st[:, [endo3d.S_D_T, endo3d.S_D_C]]
 
     def commit(self) -> None:
         """The last trial becomes the state at the end of the step."""

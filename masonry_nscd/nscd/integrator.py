@@ -53,6 +53,7 @@ from masonry_nscd.contact import laws
 from masonry_nscd.loading import Loads, step_velocity
 from masonry_nscd.model import DOF_IMPOSED, ContactPoint, RigidBody
 from masonry_nscd.nscd import kernels
+from masonry_nscd.nscd.checkpoint import integrator_state, restore_integrator
 from masonry_nscd.nscd.step_size import StepSizeControl
 from masonry_nscd.nscd.system import build_system
 
@@ -314,8 +315,6 @@ class Integrator:
         while k > 0:
             rung = self._rung(k)
             if self._made_by != k or rung.t != self.t:
-                from masonry_nscd.nscd.checkpoint import integrator_state, restore_integrator
-
                 restore_integrator(rung, integrator_state(self))
                 if rung.newton is not None:  # predict from the run's last steps
                     rung.newton.adopt_solutions(self.newton)
@@ -392,8 +391,6 @@ class Integrator:
 
     def _take(self, rung: Integrator) -> None:
         """Take the state of ``rung`` after its step (it made one step of this run)."""
-        from masonry_nscd.nscd.checkpoint import integrator_state, restore_integrator
-
         number = self.step_index + 1
         restore_integrator(self, integrator_state(rung))
         self.step_index = rung.step_index = number
@@ -405,8 +402,6 @@ class Integrator:
         docstring), at most ``max_halvings`` times nested."""
         if not self.max_halvings:
             return self._step()
-        from masonry_nscd.nscd.checkpoint import integrator_state
-
         start = integrator_state(self)
         if self._halve_next > 0:
             self._halve_next -= 1
@@ -428,8 +423,6 @@ class Integrator:
         the state it ends in becomes this integrator's. The iterations of the failed attempt
         (None: it diverged) count in the report; a divergence at the smallest step is raised
         with this step's number."""
-        from masonry_nscd.nscd.checkpoint import integrator_state, restore_integrator
-
         if self._half is None:
             self._half = Integrator(self.bodies, self.points, self.params, self.loads,
                                     h=0.5 * self.sys.h, **self._half_args)
@@ -454,7 +447,9 @@ class Integrator:
             max(r.residual for r in reps), all(r.converged for r in reps),
             max(r.ambiguous for r in reps), sum(r.material_failures for r in reps),
             bad[0].material_failure_at if bad else None, sum(r.substeps for r in reps),
-            damage_growth=self._damage_growth(start["joint_beta"], start.get("material_state")))
+            damage_growth=self._damage_growth(
+                start["joint_beta"],
+                None if self.material is None else self.material.damages(start["material_state"])))
 
     def _step(self) -> StepReport:
         """One step of h (the module docstring's items 1 to 5), not subdivided."""
@@ -521,10 +516,10 @@ class Integrator:
                 bad = self.material.failed_points()
                 if len(bad):
                     failure_at = tuple(float(x) for x in self.material.point_centre(bad[0]))
-            state0 = self.material.state_all.copy()
+            damages0 = self.material.damages()
             self.material.commit()
         self.joints = JointState(u=ul1, U=U1, uc=uc, beta=beta, T=T, status=status)
-        growth = self._damage_growth(j.beta, state0 if self.material is not None else None)
+        growth = self._damage_growth(j.beta, damages0 if self.material is not None else None)
         if self.energy_account is not None:
             self.energy_account.step(self.energy, u0=u0, v0=v0, u1=u1, v1=v1, F0=F0, F1=F1,
                                      fint0=fint, fint1=self.internal_forces(), j0=j0,
@@ -533,12 +528,12 @@ class Integrator:
                           bool(residual <= self.tolerance and failures == 0), int(amb),
                           failures, failure_at, damage_growth=growth)
 
-    def _damage_growth(self, beta0: np.ndarray, material_state0: np.ndarray | None) -> float:
+    def _damage_growth(self, beta0: np.ndarray, damages0: np.ndarray | None) -> float:
         """The largest loss of integrity of a joint point and growth of an ENDO3D damage of a
-        Gauss point (``Endo3dBlocks.damage_growth``) from the given start of a step to now."""
+        Gauss point (``Endo3dBlocks.damages``) from those at the start of a step to now."""
         growth = float(np.max(beta0 - self.joints.beta, initial=0.0))
-        if self.material is not None and material_state0 is not None:
-            growth = max(growth, self.material.damage_growth(material_state0))
+        if damages0 is not None:
+            growth = max(growth, float(np.max(self.material.damages() - damages0, initial=0.0)))
         return growth
 
     # --- read-outs ----------------------------------------------------------------------

@@ -434,8 +434,8 @@ class NewtonSolver:
         # depth of the Anderson acceleration of the chord iterations (0: plain chord steps)
         self.anderson = 5
         # the solutions of the last two steps, for the predictor of the next one: (end time s,
-        # body velocities, multipliers' impulses N s, step size s)
-        self._solutions: list[tuple[float, np.ndarray, np.ndarray, float]] = []
+        # None when not given; body velocities, multipliers' impulses N s, step size s)
+        self._solutions: list[tuple[float | None, np.ndarray, np.ndarray, float]] = []
 
     @property
     def linear_iterations(self) -> int:
@@ -652,7 +652,7 @@ class NewtonSolver:
             # second iterate moves the tractions by 2e-5 instead of 1.3e-3, one iteration less);
             # velocities and impulses per unit time, along the time when the sizes differ
             (t1, v1, r1, h1), (t2, v2, r2, h2) = self._solutions
-            ratio = 1.0 if t_end is None else (t_end - t2) / (t2 - t1)
+            ratio = 1.0 if None in (t_end, t1, t2) else (t_end - t2) / (t2 - t1)
             if abs(ratio - 1.0) < 1e-9 and h1 == h2 == h:
                 v = 2.0 * v2 - v1
                 r_glue = 2.0 * r2 - r1
@@ -751,6 +751,5 @@ class NewtonSolver:
             c_prev = cvec
             v, r_glue, F, norm, state = v_try, r_try, F_try, norm_try, state_try
         Tn, uc, beta, status = state[:4]
-        t_now = math.nan if t_end is None else t_end
-        self._solutions = [*self._solutions[-1:], (t_now, v.copy(), r_glue.copy(), h)]
+        self._solutions = [*self._solutions[-1:], (t_end, v.copy(), r_glue.copy(), h)]
         return v, Tn, uc, beta, status, it, res
