@@ -94,6 +94,30 @@ def output_mesh_arrays(scene, mesh, integ) -> dict:
             **{f"contact_{k}": v for k, v in scene.point_fields.items()}}
 
 
+def _log_end(log: _Log, integ, secs: float, ux: float, top, unconverged: int, worst: float,
+             spans: dict[int, int], h: float) -> None:
+    """The closing lines of ``run.log``: the run's end, the linear solver's work, the step
+    sizes taken and the energy balance."""
+    log(f"done: {integ.step_index} steps in {secs:.1f} s, Ux {1e3 * ux:.4f} mm, "
+        f"Fx {1e-3 * top[0]:.3f} kN; {unconverged} steps not converged "
+        f"(worst residual {worst:.2e})")
+    if integ.newton is not None and integ.newton.linear == "krylov":
+        counts = integ.solver_counts()
+        log(f"linear solver krylov: {counts['factorisations']} preconditioner set-ups, "
+            f"{counts['linear_iterations']} GMRES iterations, {counts['linear_fallbacks']} "
+            "solves made by LU")
+    if any(k > 1 for k in spans):
+        log("step sizes: " + ", ".join(f"{spans[k]} of {k * h:g} s" for k in sorted(spans)))
+    if integ.energy_account is not None:
+        e = integ.energy_account.balance(integ)
+        log(f"energy: external work {e['external_work']:.6g} J = kinetic {e['kinetic']:.4g} "
+            f"+ elastic {e['elastic_blocks'] + e['elastic_joints']:.4g} + dissipated "
+            f"(friction {e['dissipated_friction']:.4g}, cohesion {e['dissipated_cohesion']:.4g}, "
+            f"impacts {e['dissipated_impacts']:.4g}, blocks {e['dissipated_blocks']:.4g}) + "
+            f"numerical {e['numerical']:.4g} J; imbalance {e['imbalance']:.3g} J "
+            f"(relative {e['relative_imbalance']:.2e})")
+
+
 def run_case(case, outdir: Path, *, overwrite: bool = False,
              echo: Callable[[str], None] = print, progress_every: int | None = None,
              stop_when: Callable[[dict[str, list]], bool] | None = None,
@@ -331,24 +355,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
         if monitor is not None:
             monitor.close()
     secs = time.perf_counter() - t_start
-    log(f"done: {integ.step_index} steps in {secs:.1f} s, Ux {1e3 * ux:.4f} mm, "
-        f"Fx {1e-3 * top[0]:.3f} kN; {unconverged} steps not converged "
-        f"(worst residual {worst:.2e})")
-    counts = integ.solver_counts()
-    if integ.newton is not None and integ.newton.linear == "krylov":
-        log(f"linear solver krylov: {counts['factorisations']} preconditioner set-ups, "
-            f"{counts['linear_iterations']} GMRES iterations, {counts['linear_fallbacks']} "
-            "solves made by LU")
-    if any(k > 1 for k in spans):
-        log("step sizes: " + ", ".join(f"{spans[k]} of {k * h:g} s" for k in sorted(spans)))
-    if integ.energy_account is not None:
-        e = integ.energy_account.balance(integ)
-        log(f"energy: external work {e['external_work']:.6g} J = kinetic {e['kinetic']:.4g} "
-            f"+ elastic {e['elastic_blocks'] + e['elastic_joints']:.4g} + dissipated "
-            f"(friction {e['dissipated_friction']:.4g}, cohesion {e['dissipated_cohesion']:.4g}, "
-            f"impacts {e['dissipated_impacts']:.4g}, blocks {e['dissipated_blocks']:.4g}) + "
-            f"numerical {e['numerical']:.4g} J; imbalance {e['imbalance']:.3g} J "
-            f"(relative {e['relative_imbalance']:.2e})")
+    _log_end(log, integ, secs, ux, top, unconverged, worst, spans, h)
     if monitor is not None:
         monitor.finish("done")
     report_run(outdir, log)
