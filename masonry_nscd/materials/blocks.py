@@ -154,21 +154,14 @@ class Endo3dBlocks:
         assembled as ``K_e = sum_p w_p B_p^T C_p B_p``. It is the derivative of the step's
         internal forces with respect to the end-of-step displacements: Newton converges
         quadratically where the law is smooth, softening included (a negative stiffness along
-        a crack's normal). Not symmetric in general; seven kernel calls per Gauss point.
+        a crack's normal). Not symmetric in general; six kernel calls per Gauss point (the
+        unperturbed stress is the last trial's).
         """
-        ngp = len(self._eps)
-        eps = np.repeat(self._eps[None], 7, axis=0)
-        for j in range(6):
-            eps[1 + j, :, j] += delta
-        states = np.tile(self.state_all, (7, 1))
-        out_states = np.empty_like(states)
-        sig = np.empty((7 * ngp, 6))
-        endo3d.endo3d_update_elements(
-            eps.reshape(-1, 6), states, self.params, self.xe,
-            np.tile(self.elem_of_point, 7), out_states, sig)
-        sig = sig.reshape(7, ngp, 6)
-        # C[p, i, j] = d sigma_i / d eps_j
-        C = np.ascontiguousarray(((sig[1:] - sig[0]) / delta).transpose(1, 2, 0))
+        # C[p, i, j] = d sigma_i / d eps_j, from the ENDO3D stresses of the last trial
+        C = np.empty((len(self._eps), 6, 6))
+        endo3d.endo3d_tangent_elements(
+            self._eps, self.state_all, self.params, self.xe, self.elem_of_point,
+            self._sigma_endo3d if self.relax > 0.0 else self.sigma_all, delta, C)
         if self.relax > 0.0:
             C = np.ascontiguousarray((self.C0 + self.relax * C) / (1.0 + self.relax))
         Ke = hex8.stiffness_from_b(self.B, self.w, C)

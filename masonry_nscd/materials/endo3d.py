@@ -195,6 +195,7 @@ __all__ = [
     "endo3d_initial_state",
     "endo3d_outputs",
     "endo3d_params",
+    "endo3d_tangent_elements",
     "endo3d_update",
     "endo3d_update_all",
     "endo3d_update_elements",
@@ -259,6 +260,9 @@ MAX_RESTARTS = 8
 #: are one repeated eigenvalue (the eigen solver's round-off is ~1e-16 of it), whose
 #: eigenspace gets a frame-independent basis (:func:`_refine_basis`).
 DEGENERATE_REL = 1e-12
+#: 3x3 work matrices of one point's update (:func:`_update`): its tensors, its 3-vectors (rows
+#: of a matrix) and the eigen solver's work.
+N_WORK = 18
 
 _SQRT3 = math.sqrt(3.0)
 
@@ -525,7 +529,12 @@ def _eig_sym3(A, w, V):
     """Eigenvalues ``w`` and eigenvectors (columns of ``V``) of a symmetric 3x3 ``A`` by cyclic
     Jacobi rotations (accurate to round-off, also for repeated eigenvalues). ``A`` is untouched.
     """
-    a = np.empty((3, 3))
+    _eig_sym3_work(A, w, V, np.empty((3, 3)))
+
+
+@njit(cache=True)
+def _eig_sym3_work(A, w, V, a):
+    """:func:`_eig_sym3` with the 3x3 work array ``a`` given (overwritten): no allocation."""
     for i in range(3):
         for j in range(3):
             a[i, j] = 0.5 * (A[i, j] + A[j, i])
@@ -1483,20 +1492,10 @@ def _return_mapping(s, r, lam_d_n, c_n, h_n, params, open_tol, dlR, depD):
 
 
 @njit(cache=True)
-def endo3d_update(eps, state_in, params, xe, state_out, sigma):
-    """Update one Gauss point from ``state_in`` to the total strain ``eps``.
-
-    ``eps`` (6,): total strain, Voigt [xx, yy, zz, yz, xz, xy], engineering shear (-).
-    ``state_in`` (N_STATE,): converged state of the previous step (read only).
-    ``params`` (N_PARAMS,): from :func:`endo3d_params`.
-    ``xe`` (8, 3): node coordinates (m) of the hexahedron, for the Hillerborg lengths.
-    ``state_out`` (N_STATE,): written. ``sigma`` (6,): apparent stress (Pa), true shear, written.
-    Returns 0 (the written state satisfies the Kuhn-Tucker conditions of the return mapping),
-    or 1 when no active set satisfies them (cutting-plane passes not converged or cycling,
-    and the closest-point search found none), or 2 when its linear system was (numerically)
-    singular; in both cases the last iterate is written (``lambda_D`` not decreased) and the
-    caller should retry the step (e.g. with a smaller one).
-    """
+def _update(eps, state_in, params, xe, state_out, sigma, wk):
+    """:func:`endo3d_update` with the work array ``wk`` (N_WORK, 3, 3) given: the 3x3
+    matrices and 3-vectors of the update are its slices, so that a batch of points allocates
+    once."""
     E_lame = params[P_LAME]
     G = params[P_G]
     M = params[P_M]
@@ -1505,11 +1504,11 @@ def endo3d_update(eps, state_in, params, xe, state_out, sigma):
     beta = params[P_BETA]
 
     # ---- trial effective stress ------------------------------------------------------------
-    epsR = np.empty((3, 3))
-    epsD = np.empty((3, 3))
+    epsR = wk[0]
+    epsD = wk[1]
     _from6(state_in, S_EPS_PR, epsR)
     _from6(state_in, S_EPS_PD, epsD)
-    ee = np.empty((3, 3))
+    ee = wk[2]
     ee[0, 0] = eps[0]
     ee[1, 1] = eps[1]
     ee[2, 2] = eps[2]
@@ -1523,14 +1522,14 @@ def endo3d_update(eps, state_in, params, xe, state_out, sigma):
         for j in range(3):
             ee[i, j] -= epsR[i, j] + epsD[i, j]
     tr_e = ee[0, 0] + ee[1, 1] + ee[2, 2]
-    s_tr = np.empty((3, 3))
+    s_tr = wk[3]
     for i in range(3):
         for j in range(3):
             s_tr[i, j] = 2.0 * G * ee[i, j]
         s_tr[i, i] += E_lame * tr_e
-    s = np.empty(3)
-    Q = np.empty((3, 3))
-    _eig_sym3(s_tr, s, Q)
+    s = wk[4, 0]
+    Q = wk[5]
+    _eig_sym3_work(s_tr, s, Q, wk[6])
     _sort_desc(s, Q)  # a canonical order: the return mapping's choices go by index
     # an opening below this strain is round-off (r_i is a projection of the tensor eps_pR)
     open_tol = 1e-10 * rt / params[P_E]
@@ -1541,7 +1540,7 @@ def endo3d_update(eps, state_in, params, xe, state_out, sigma):
         _trial_basis(s, Q, epsR, state_in, xe, open_tol)
 
     # Rankine plastic strain in the principal directions (for the reclosure criterion)
-    r = np.empty(3)
+    r = wk[4, 1]
     for i in range(3):
         acc = 0.0
         for k in range(3):
@@ -1555,8 +1554,10 @@ def endo3d_update(eps, state_in, params, xe, state_out, sigma):
     # (the common, elastic case) skips it and its work arrays.
     lam_d_n = state_in[S_LAMBDA_D]
     c_n, h_n = _cohesion(lam_d_n, params)
-    dlR = np.zeros(3)
-    depD = np.zeros(3)
+    dlR = wk[4, 2]
+    dlR[:] = 0.0
+    depD = wk[7, 0]
+    depD[:] = 0.0
     if _trial_admissible(s, r, c_n, params, open_tol):
         status = 0
         dlD = 0.0
@@ -1589,8 +1590,8 @@ def endo3d_update(eps, state_in, params, xe, state_out, sigma):
     state_out[S_ITER] = n_iter
 
     # ---- crack openings ------------------------------------------------------------------------
-    W = np.empty((3, 3))
-    Wm = np.empty((3, 3))
+    W = wk[8]
+    Wm = wk[9]
     _from6(state_in, S_W, W)
     _from6(state_in, S_W_MAX, Wm)
     if dlR[0] != 0.0 or dlR[1] != 0.0 or dlR[2] != 0.0:
@@ -1600,9 +1601,9 @@ def endo3d_update(eps, state_in, params, xe, state_out, sigma):
                 for i in range(3):
                     for j in range(3):
                         W[i, j] += dw * Q[i, k] * Q[j, k]
-        ww = np.empty(3)
-        Vw = np.empty((3, 3))
-        _eig_sym3(W, ww, Vw)
+        ww = wk[7, 1]
+        Vw = wk[10]
+        _eig_sym3_work(W, ww, Vw, wk[6])
         w_scale = max(ww[0], max(ww[1], ww[2]))
         if w_scale > 0.0 and _has_repeated(ww, 0.0):
             # repeated openings: W_max, then the element, order their eigenspace. With one
@@ -1614,7 +1615,7 @@ def endo3d_update(eps, state_in, params, xe, state_out, sigma):
         for k in range(3):
             ww[k] = max(ww[k], 0.0)
         # W_max in the basis of W: diagonal maxima, off-diagonal terms kept
-        B = np.empty((3, 3))
+        B = wk[11]
         _in_basis(Vw, Wm, B)
         for k in range(3):
             B[k, k] = max(B[k, k], ww[k])
@@ -1632,9 +1633,9 @@ def endo3d_update(eps, state_in, params, xe, state_out, sigma):
         _to6(Wm, state_out, S_W_MAX)
 
     # ---- damages -------------------------------------------------------------------------------
-    wm = np.empty(3)
-    P = np.empty((3, 3))
-    _eig_sym3(Wm, wm, P)
+    wm = wk[7, 2]
+    P = wk[12]
+    _eig_sym3_work(Wm, wm, P, wk[6])
     # repeated eigenvalues of W_max (one crack: (0, 0, w)): the basis of their eigenspace, where
     # the reclosure takes w_i,cur, from W, then from the element's edges (no crack: no damage)
     w_scale = max(abs(wm[0]), max(abs(wm[1]), abs(wm[2])))
@@ -1642,8 +1643,8 @@ def endo3d_update(eps, state_in, params, xe, state_out, sigma):
         _state_basis(wm, P, W, DEGENERATE_REL * w_scale, xe, DEGENERATE_REL * w_scale)
     w_k = params[P_W_K]
     w_r = params[P_W_R]
-    d_t = np.empty(3)
-    d_r = np.empty(3)
+    d_t = wk[13, 0]
+    d_r = wk[13, 1]
     for k in range(3):
         wk_ = max(0.0, wm[k])
         ratio = w_k / (w_k + wk_)
@@ -1705,8 +1706,10 @@ def endo3d_update(eps, state_in, params, xe, state_out, sigma):
     state_out[S_D_C] = d_c
 
     # ---- apparent stress -------------------------------------------------------------------------
-    Sp = np.zeros((3, 3))
-    Sm = np.zeros((3, 3))
+    Sp = wk[14]
+    Sp[:] = 0.0
+    Sm = wk[15]
+    Sm[:] = 0.0
     for k in range(3):
         sp = max(0.0, s[k])
         sm = s[k] - sp
@@ -1716,8 +1719,8 @@ def endo3d_update(eps, state_in, params, xe, state_out, sigma):
                 Sp[i, j] += sp * qq
                 Sm[i, j] += sm * qq
     nup = E_lame / M
-    Tp = np.empty((3, 3))
-    Tm = np.empty((3, 3))
+    Tp = wk[16]
+    Tm = wk[17]
     _crack_damage(Sp, P, d_t, nup, Tp)
     _crack_damage(Sm, P, d_r, nup, Tm)
     f_c = 1.0 - d_c
@@ -1732,14 +1735,33 @@ def endo3d_update(eps, state_in, params, xe, state_out, sigma):
 
 
 @njit(cache=True)
+def endo3d_update(eps, state_in, params, xe, state_out, sigma):
+    """Update one Gauss point from ``state_in`` to the total strain ``eps``.
+
+    ``eps`` (6,): total strain, Voigt [xx, yy, zz, yz, xz, xy], engineering shear (-).
+    ``state_in`` (N_STATE,): converged state of the previous step (read only).
+    ``params`` (N_PARAMS,): from :func:`endo3d_params`.
+    ``xe`` (8, 3): node coordinates (m) of the hexahedron, for the Hillerborg lengths.
+    ``state_out`` (N_STATE,): written. ``sigma`` (6,): apparent stress (Pa), true shear, written.
+    Returns 0 (the written state satisfies the Kuhn-Tucker conditions of the return mapping),
+    or 1 when no active set satisfies them (cutting-plane passes not converged or cycling,
+    and the closest-point search found none), or 2 when its linear system was (numerically)
+    singular; in both cases the last iterate is written (``lambda_D`` not decreased) and the
+    caller should retry the step (e.g. with a smaller one).
+    """
+    return _update(eps, state_in, params, xe, state_out, sigma, np.empty((N_WORK, 3, 3)))
+
+
+@njit(cache=True)
 def endo3d_update_all(eps, state_in, params, xe_of_point, state_out, sigma):
     """Update ``ngp`` Gauss points: ``eps`` (ngp, 6), ``state_in``/``state_out``
     (ngp, N_STATE), ``xe_of_point`` (ngp, 8, 3) the nodes of the element of each point (m),
     ``sigma`` (ngp, 6) written (Pa). Plain loop. Returns the number of points whose return
     mapping did not converge (status > 0)."""
     nfail = 0
+    wk = np.empty((N_WORK, 3, 3))
     for g in range(eps.shape[0]):
-        st = endo3d_update(eps[g], state_in[g], params, xe_of_point[g], state_out[g], sigma[g])
+        st = _update(eps[g], state_in[g], params, xe_of_point[g], state_out[g], sigma[g], wk)
         if st != 0:
             nfail += 1
     return nfail
@@ -1751,10 +1773,35 @@ def endo3d_update_elements(eps, state_in, params, xe, elem_of_point, state_out, 
     (nel, 8, 3) and ``elem_of_point`` (ngp,) int64, the element of each point. Returns the
     number of points whose return mapping did not converge."""
     nfail = 0
+    wk = np.empty((N_WORK, 3, 3))
     for g in range(eps.shape[0]):
-        st = endo3d_update(
-            eps[g], state_in[g], params, xe[elem_of_point[g]], state_out[g], sigma[g]
+        st = _update(
+            eps[g], state_in[g], params, xe[elem_of_point[g]], state_out[g], sigma[g], wk
         )
         if st != 0:
             nfail += 1
     return nfail
+
+
+@njit(cache=True)
+def endo3d_tangent_elements(eps, state_in, params, xe, elem_of_point, sigma, delta, C):
+    """Consistent tangent ``C[g] = d sigma / d eps`` (ngp, 6, 6; Pa, engineering shear) of
+    each point's update from ``state_in`` at the strains ``eps``, by forward differences:
+
+        C[g, :, j] = (sigma(eps_g + delta e_j) - sigma(eps_g)) / delta
+
+    ``sigma`` (ngp, 6): the points' stresses at ``eps`` (their last update, so that only the
+    six perturbed updates are made here); ``xe``, ``elem_of_point`` as in
+    :func:`endo3d_update_elements`. The perturbed states are scratch."""
+    wk = np.empty((N_WORK, 3, 3))
+    e = np.empty(6)
+    st = np.empty(N_STATE)
+    sp = np.empty(6)
+    for g in range(eps.shape[0]):
+        for j in range(6):
+            for i in range(6):
+                e[i] = eps[g, i]
+            e[j] += delta
+            _update(e, state_in[g], params, xe[elem_of_point[g]], st, sp, wk)
+            for i in range(6):
+                C[g, i, j] = (sp[i] - sigma[g, i]) / delta
