@@ -160,9 +160,21 @@ class Scene:
     def step_limit_s(self, t: float) -> float:
         """The latest time (s) a step starting at ``t`` may end at (the adaptive step size's
         bound): the start of the first step that holds a dof not held at ``t``, and the
-        expected end of the loading (the time limit once past it)."""
+        expected end of the loading (the time limit once past it).
+
+        A push that stops on its displacement (``target_m``) takes steps of ``h`` over the
+        last largest step before its expected end: that end is exact for the path's integral,
+        but the driven velocity is sampled at the end of each step, so the path runs ahead of
+        it by up to half a largest step during the ramp, and a large last step would carry the
+        beam past the target by up to a largest step's travel (which then depended on the
+        steps the run happened to take, e.g. after a resume). So the run stops within one
+        ``h`` of the target, as a run with every step at ``h`` does."""
         h = self.solver.h
         limit = self.expected_end_s if t < self.expected_end_s - 1e-9 * h else self.time_limit_s
+        if self.target_m is not None and self.solver.max_growth:
+            approach = self.expected_end_s - h * (1 << self.solver.max_growth)
+            limit = min(limit, t + h if t >= approach - 1e-9 * h
+                        else max(math.floor(approach / h + 1e-9) * h, t + h))
         for hd in self.holds:
             if hd not in self.holds_at(t):
                 limit = min(limit, math.floor(hd.from_s / h + 1e-9) * h)
