@@ -1450,11 +1450,13 @@ class Solver(_Section):
         "Gauss-Seidel), or auto: the faster for the case's blocks and joints (nlgs when every "
         "block is rigid and every joint rigid Signorini-Coulomb, newton otherwise)",
     )
-    linear: Literal["auto", "lu", "krylov"] = Field(
+    linear: Literal["auto", "lu", "pardiso", "krylov"] = Field(
         "auto",
-        description="solver of the Newton matrix: lu (sparse LU, SuperLU), krylov (GMRES with a "
-        "two-level preconditioner over the blocks: each block's own matrix and the blocks as "
-        "rigid bodies; docs/scaling.md), or auto: lu below 100,000 unknowns, krylov from there",
+        description="solver of the Newton matrix: lu (sparse LU, SuperLU), pardiso (sparse LU, "
+        "Intel MKL's PARDISO: the same solutions, faster; needs the mkl package), krylov (GMRES "
+        "with a two-level preconditioner over the blocks: each block's own matrix and the blocks "
+        "as rigid bodies; docs/scaling.md), or auto: pardiso (lu without MKL) below 100,000 "
+        "unknowns, krylov from there",
     )
     tolerance: Real = Field(
         1e-5,
@@ -1521,6 +1523,11 @@ class Solver(_Section):
             problems.append(("max_time_step_s", (
                 f"got {self.max_time_step_s:g}; the largest step cannot be smaller than "
                 f"time_step_s = {self.time_step_s:g} s")))
+        if self.linear == "pardiso":
+            from masonry_nscd.nscd import linear, pardiso
+
+            if not pardiso.available():
+                problems.append(("linear", f"got pardiso; {linear.PARDISO_MISSING}"))
         if self.check_every > self.max_iterations:
             problems.append(
                 (

@@ -7,7 +7,10 @@ independent calculations and physics.
 * the two-level preconditioner: the solution of the Newton matrix of the smoke wall matches
   SuperLU's, and a step made with ``krylov`` the step made with ``lu`` to the Newton tolerance.
 * a Krylov solve that cannot converge is detected and made by LU, to the same steps.
-* ``auto``: LU at the study's size, from the unknowns counted from the scene.
+* ``auto``: a direct solver at the study's size (PARDISO, or SuperLU without MKL), from the
+  unknowns counted from the scene.
+* ``pardiso``: solutions of the Newton matrix as SuperLU's, a factor replaced by a later one
+  refused, a run with it the run with SuperLU; asked for without MKL, an error naming the field.
 * the case field and the bench options: errors that name the field and its range.
 """
 
@@ -22,7 +25,7 @@ from typer.testing import CliRunner
 from masonry_nscd import bench as bm
 from masonry_nscd.case import CaseError, load_case
 from masonry_nscd.cli import app
-from masonry_nscd.nscd import linear
+from masonry_nscd.nscd import linear, pardiso
 from masonry_nscd.nscd.newton import jacobian_coo
 from masonry_nscd.scenes import build_scene
 
@@ -143,7 +146,9 @@ def test_a_krylov_step_is_the_lu_step_to_the_newton_tolerance():
         assert np.linalg.norm(T_kr[k] - T_lu[k]) <= 100.0 * tol * scale, k
 
 
-def test_auto_picks_lu_at_the_studys_size():
+def test_auto_picks_a_direct_solver_at_the_studys_size(monkeypatch):
+    """auto: PARDISO below KRYLOV_MIN_UNKNOWNS where MKL is installed, SuperLU where it is
+    not, Krylov from there."""
     case = load_case(STUDY, QUIET)
     assert case.solver.linear == "auto"
     integ = build_scene(case).integrator()
@@ -155,17 +160,93 @@ def test_auto_picks_lu_at_the_studys_size():
     unknowns = s.ndof - len(s.imposed_dofs) + 3 * int(np.sum(s.kind == laws.KIND_GLUED))
     assert unknowns == len(integ.newton.free) + 3 * len(integ.newton.mult)
     assert unknowns < linear.KRYLOV_MIN_UNKNOWNS
-    assert integ.newton.linear == "lu"
+    direct = "pardiso" if pardiso.available() else "lu"
+    assert integ.newton.linear == direct
     assert linear.choose("auto", linear.KRYLOV_MIN_UNKNOWNS) == "krylov"
-    assert linear.choose("auto", linear.KRYLOV_MIN_UNKNOWNS - 1) == "lu"
+    assert linear.choose("auto", linear.KRYLOV_MIN_UNKNOWNS - 1) == direct
     assert linear.choose("krylov", 10) == "krylov" and linear.choose("lu", 10**7) == "lu"
+    monkeypatch.setattr(pardiso, "available", lambda: False)
+    assert linear.choose("auto", 10) == "lu"
+    with pytest.raises(ValueError, match="needs Intel MKL"):
+        linear.choose("pardiso", 10)
 
 
-def test_solver_linear_is_validated():
-    with pytest.raises(CaseError, match=r"solver\.linear.*'auto'.*'lu'.*'krylov'"):
+def test_solver_linear_is_validated(monkeypatch):
+    with pytest.raises(CaseError, match=r"solver\.linear.*'auto'.*'lu'.*'pardiso'.*'krylov'"):
         load_case(SMOKE, ["solver.linear=cholesky"])
-    with pytest.raises(ValueError, match="auto, lu, krylov"):
+    with pytest.raises(ValueError, match="auto, lu, pardiso, krylov"):
         linear.choose("cg", 10)
+    # pardiso asked for where MKL is missing: exit 2, naming the field and what to do
+    monkeypatch.setattr(pardiso, "available", lambda: False)
+    with pytest.raises(CaseError, match=r"solver\.linear.*got pardiso.*needs Intel MKL"):
+        load_case(SMOKE, ["solver.linear=pardiso"])
+    res = CliRunner().invoke(app, ["validate", SMOKE, "--set", "solver.linear=pardiso"])
+    assert res.exit_code == 2 and "solver.linear" in res.output
+
+
+needs_mkl = pytest.mark.skipif(not pardiso.available(), reason="Intel MKL is not installed")
+
+
+@needs_mkl
+def test_pardiso_solves_the_newton_matrix_as_superlu(smoke_scene):
+    """The smoke wall's Newton matrix (glue rows included, compliance 1e-9 of the Delassus
+    diagonal: condition number about 1e9): PARDISO's solution is SuperLU's with partial
+    pivoting to within what that conditioning allows, and both leave a residual at round-off;
+    a second factorisation of another matrix of the pattern solves that one."""
+    integ = smoke_scene.integrator()
+    for _ in range(3):
+        integ.step()
+    J, _ = _newton_matrix(integ)
+    J = J.tocsc()
+    J.sort_indices()
+    rng = np.random.default_rng(1)
+    b = rng.normal(size=J.shape[0])
+    x_ref = spla.splu(J).solve(b)
+    handle = pardiso.Pardiso(J.indptr, J.indices, J.shape[0])
+    x = handle.factorise(J.data).solve(b)
+    assert np.linalg.norm(b - J @ x) <= 1e-10 * np.linalg.norm(b)
+    assert np.linalg.norm(x - x_ref) <= 1e-7 * np.linalg.norm(x_ref)
+    # the same pattern, other values (each entry scaled by 1 to 1.1), by the same handle
+    J2 = sp.csc_matrix((J.data * rng.uniform(1.0, 1.1, J.nnz), J.indices, J.indptr),
+                       shape=J.shape)
+    x2 = handle.factorise(J2.data).solve(b)
+    assert np.linalg.norm(b - J2 @ x2) <= 1e-10 * np.linalg.norm(b)
+
+
+@needs_mkl
+def test_a_replaced_pardiso_factor_refuses_to_solve():
+    A = sp.csc_matrix(np.array([[4.0, 1.0, 0.0], [1.0, 3.0, 1.0], [0.0, 2.0, 5.0]]))
+    handle = pardiso.Pardiso(A.indptr, A.indices, 3)
+    first = handle.factorise(A.data)
+    b = np.array([1.0, 2.0, 3.0])
+    assert np.allclose(first.solve(b), np.linalg.solve(A.toarray(), b), rtol=1e-13, atol=0)
+    second = handle.factorise(2.0 * A.data)
+    assert np.allclose(second.solve(b), np.linalg.solve(2.0 * A.toarray(), b), rtol=1e-13,
+                       atol=0)
+    with pytest.raises(pardiso.PardisoError, match="replaced"):
+        first.solve(b)
+    with pytest.raises(ValueError, match="values for a pattern"):
+        handle.factorise(np.ones(4))
+    handle.release()
+
+
+@needs_mkl
+def test_a_run_with_pardiso_is_the_run_with_lu():
+    """The smoke case to its end with each direct solver: the same Newton iterations and the
+    same force-displacement curve to round-off (1e-9 of the largest force)."""
+    out = {}
+    for lin in ("lu", "pardiso"):
+        integ = build_scene(load_case(SMOKE, [*QUIET, f"solver.linear={lin}"])).integrator()
+        assert integ.newton.linear == lin
+        T, its = [], 0
+        for _ in range(60):
+            rep = integ.step()
+            its += rep.sweeps
+            T.append(integ.joints.T.copy())
+        out[lin] = np.array(T), its
+    (T_lu, it_lu), (T_pa, it_pa) = out["lu"], out["pardiso"]
+    assert it_pa == it_lu
+    assert np.abs(T_pa - T_lu).max() <= 1e-9 * np.abs(T_lu).max()
 
 
 def test_bench_scaling_sizes_and_options():

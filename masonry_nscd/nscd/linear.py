@@ -37,7 +37,11 @@ before) starts GMRES when its residual is below that of zero. A solve whose rela
 ``|rhs - S v| / |rhs|`` stays above ``rtol`` after ``max_iterations`` is reported
 (``KrylovFailure``): the Newton solver then factorises the same matrix by LU and says so.
 
-``auto`` picks ``lu`` below ``KRYLOV_MIN_UNKNOWNS`` unknowns, ``krylov`` from there.
+``pardiso``: the sparse LU of Intel MKL (``nscd/pardiso.py``), in the same fixed pattern as
+``lu``: the same solutions to round-off, two to three times faster factorisations.
+
+``auto`` picks ``pardiso`` (``lu`` where MKL is not installed) below ``KRYLOV_MIN_UNKNOWNS``
+unknowns, ``krylov`` from there.
 """
 
 from __future__ import annotations
@@ -48,21 +52,32 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-LINEAR_SOLVERS = ("auto", "lu", "krylov")
+from masonry_nscd.nscd import pardiso
+
+LINEAR_SOLVERS = ("auto", "lu", "pardiso", "krylov")
 #: ``auto`` picks krylov from this many unknowns of the Newton matrix (free dofs and three per
-#: multiplier point); below, lu (docs/scaling.md)
+#: multiplier point); below, pardiso where MKL is installed, else lu (docs/scaling.md)
 KRYLOV_MIN_UNKNOWNS = 100_000
 
 
 def choose(linear: str, unknowns: int) -> str:
-    """The linear solver ``linear`` (``auto``, ``lu``, ``krylov``) resolved for a Newton
-    matrix of ``unknowns`` rows."""
+    """The linear solver ``linear`` (``auto``, ``lu``, ``pardiso``, ``krylov``) resolved for a
+    Newton matrix of ``unknowns`` rows. ``pardiso`` where MKL is missing is a ValueError."""
     if linear not in LINEAR_SOLVERS:
         raise ValueError(f"linear solver must be one of {', '.join(LINEAR_SOLVERS)}, got "
                          f"{linear!r}")
     if linear == "auto":
-        return "krylov" if unknowns >= KRYLOV_MIN_UNKNOWNS else "lu"
+        if unknowns >= KRYLOV_MIN_UNKNOWNS:
+            return "krylov"
+        return "pardiso" if pardiso.available() else "lu"
+    if linear == "pardiso" and not pardiso.available():
+        raise ValueError(PARDISO_MISSING)
     return linear
+
+
+#: The message when ``pardiso`` is asked for and MKL is not installed
+PARDISO_MISSING = ("the pardiso linear solver needs Intel MKL (pip install mkl, x86_64 only), "
+                   "which is not installed here; use lu or auto")
 
 
 def rigid_body_modes(body_dof0: np.ndarray, deformable: np.ndarray,
