@@ -92,14 +92,13 @@ def evaluate_joints(u_pred, Hv, h, theta, mult_of, law, params, uc_old, beta_old
     c = np.empty(3)
     co = np.empty(3)
     Ka = np.empty((3, 3))
-    wk = np.empty((laws.N_RESPONSE_WORK, 3, 3))
     for a in range(npt):
         if mult_of[a] >= 0:
             continue
         for i in range(3):
             u[i] = u_pred[a, i] + h * theta * Hv[a, i]
             co[i] = uc_old[a, i]
-        st, bn = laws.response(u, A, co, beta_old[a], params[law[a]], t, c, Ka, wk)
+        st, bn = laws.response(u, A, co, beta_old[a], params[law[a]], t, c, Ka)
         for i in range(3):
             T[a, i] = t[i]
             uc[a, i] = c[i]

@@ -44,7 +44,7 @@ from masonry_nscd.contact.laws.common import (
     glue_solve,
 )
 
-__all__ = ["KIND_GLUED", "KIND_JOINT", "LAWS", "N_COLUMNS", "N_RESPONSE_WORK", "P_LAW", "ST_AMBIGUOUS", "ST_GLUED",
+__all__ = ["KIND_GLUED", "KIND_JOINT", "LAWS", "N_COLUMNS", "P_LAW", "ST_AMBIGUOUS", "ST_GLUED",
            "ST_OPEN", "ST_SLIDE", "ST_STICK", "initial_damage", "law_module", "newton_ready",
            "normal_displacement", "params_from_case", "response", "rigid_friction", "solve",
            "solve_joint", "tangent_fd"]
@@ -86,11 +86,6 @@ def normal_displacement(sigma: float, beta: float, P: np.ndarray) -> float:
     return law_module(P).normal_displacement(sigma, beta, P)
 
 
-#: 3x3 work matrices of :func:`response`: a local solve's, the zero compliance and the
-#: vectors of the differences.
-N_RESPONSE_WORK = fczm.N_WORK + 2
-
-
 @njit(cache=True)
 def solve_joint(ut, A, uc_old, beta_old, P, T, uc):
     """The local problem of a joint point with the law of ``P`` (module docstring). Returns
@@ -118,47 +113,34 @@ def tangent_fd(u, T, uc_old, beta_old, P, K):
     ``beta = beta_env(u_c(u, beta))``. Steps ``delta = 1e-7 max(|u|, 1e-9 m)``; the regula
     falsi solves beta to 1e-14, so the difference quotient carries about 1e-7 of noise.
     """
-    _tangent_fd_work(u, T, uc_old, beta_old, P, K, np.empty((N_RESPONSE_WORK, 3, 3)))
-
-
-@njit(cache=True)
-def _tangent_fd_work(u, T, uc_old, beta_old, P, K, wk):
-    """:func:`tangent_fd` with the work array of :func:`response` given."""
-    A = wk[fczm.N_WORK]
-    A[:] = 0.0
-    up = wk[fczm.N_WORK + 1, 0]
-    tp = wk[fczm.N_WORK + 1, 1]
-    cp = wk[fczm.N_WORK + 1, 2]
+    A = np.zeros((3, 3))
+    up = np.empty(3)
+    tp = np.empty(3)
+    cp = np.empty(3)
     delta = 1e-7 * max(math.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]), 1e-9)
     for j in range(3):
         for i in range(3):
             up[i] = u[i]
         up[j] += delta
-        if P[P_LAW] == fczm.CODE:
-            fczm.solve_work(up, A, uc_old, beta_old, P, tp, cp, wk)
-        else:
-            tp[:] = math.nan
+        solve_joint(up, A, uc_old, beta_old, P, tp, cp)
         for i in range(3):
             K[i, j] = (tp[i] - T[i]) / delta
 
 
 @njit(cache=True, inline="always")
-def response(u, A0, uc_old, beta_old, P, T, uc, K, wk):
+def response(u, A0, uc_old, beta_old, P, T, uc, K):
     """The law of ``P`` driven by its total relative displacement ``u`` (``A0 = 0``), and its
     consistent tangent ``K`` (Pa/m), for the Newton solver: the law's own ``tangent`` with the
     integrity frozen where it does not drop within the step, differences of the implicit law
     (:func:`tangent_fd`) where it does (the frozen one misses the softening, by 100 % and in
     sign on opening joints). One dispatch per point, inlined: a call layer for the solve and
-    another for the tangent made the Newton evaluation 10 % slower. ``wk``: a work array
-    (N_RESPONSE_WORK, 3, 3), overwritten, allocated once by the caller for all its points (the
-    small allocations of every local solve cost a quarter of the evaluation). Returns
-    ``(status, beta)``."""
+    another for the tangent made the Newton evaluation 10 % slower. Returns ``(status, beta)``."""
     if P[P_LAW] == fczm.CODE:
-        st, beta = fczm.solve_work(u, A0, uc_old, beta_old, P, T, uc, wk)
+        st, beta = fczm.solve(u, A0, uc_old, beta_old, P, T, uc)
         if beta >= beta_old:
             fczm.tangent(u, T, uc_old, beta, st, P, K)
             return st, beta
     else:
         return ST_AMBIGUOUS, math.nan
-    _tangent_fd_work(u, T, uc_old, beta_old, P, K, wk)
+    tangent_fd(u, T, uc_old, beta_old, P, K)
     return st, beta

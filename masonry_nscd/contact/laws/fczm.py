@@ -66,8 +66,6 @@ from masonry_nscd.contact.laws.common import (  # noqa: F401 (re-exported for th
 
 NAMES = ("fczm", "coulomb", "dry")  # the case's joint.law values this module serves
 CODE = 0  # its code in column P_LAW
-#: 3x3 work matrices of one local solve (:func:`local_solve_work`).
-N_WORK = 3
 
 # --- layout of the parameter vector of one joint law (float64) ----------------------------
 P_CN_T = 0  # normal spring compliance in tension, m/Pa
@@ -520,14 +518,7 @@ def local_solve(
     Outputs written in place: traction ``T`` (Pa, tension positive) and cohesive displacement
     ``uc`` (m) at the end of the step. Returns the status code (ST_*).
     """
-    return local_solve_work(ut, A, uc_old, beta, P, T, uc, np.empty((N_WORK, 3, 3)))
-
-
-@njit(cache=True)
-def local_solve_work(ut, A, uc_old, beta, P, T, uc, wk) -> int:
-    """:func:`local_solve` with its work array ``wk`` (at least (3, 3, 3), overwritten) given,
-    so that the many solves of a step's points allocate nothing."""
-    D = wk[0]
+    D = np.empty((3, 3))
     b = P[P_B]
     kn = beta * b * P[P_KI]
     kt = beta * b * P[P_KII]
@@ -540,12 +531,12 @@ def local_solve_work(ut, A, uc_old, beta, P, T, uc, wk) -> int:
     D[0, 0] += P[P_CN_T]
     D[1, 1] += P[P_CT]
     D[2, 2] += P[P_CT]
-    M = wk[1]
+    M = np.empty((3, 3))
     for i in range(3):
         M[i, 0] = (1.0 if i == 0 else 0.0) + D[i, 0] * kn
         M[i, 1] = (1.0 if i == 1 else 0.0) + D[i, 1] * kt
         M[i, 2] = (1.0 if i == 2 else 0.0) + D[i, 2] * kt
-    x = wk[2, 0]
+    x = np.empty(3)
     if solve3(M, ut, x) and x[0] > 0.0:
         uc[0] = x[0]
         uc[1] = x[1]
@@ -554,12 +545,11 @@ def local_solve_work(ut, A, uc_old, beta, P, T, uc, wk) -> int:
         T[1] = kt * x[1]
         T[2] = kt * x[2]
         return ST_OPEN
-    open_uc = wk[2, 1]
-    open_uc[:] = x
+    open_uc = x.copy()
 
     # --- closed: stick ----------------------------------------------------------------------
     D[0, 0] += P[P_CN_C] - P[P_CN_T]
-    rhs = wk[2, 2]
+    rhs = np.empty(3)
     rhs[0] = ut[0]
     rhs[1] = ut[1] - uc_old[1]
     rhs[2] = ut[2] - uc_old[2]
@@ -629,13 +619,7 @@ def solve(
 
     Returns ``(status, beta)``; ``T`` and ``uc`` hold the solution for that ``beta``.
     """
-    return solve_work(ut, A, uc_old, beta_old, P, T, uc, np.empty((N_WORK, 3, 3)))
-
-
-@njit(cache=True)
-def solve_work(ut, A, uc_old, beta_old, P, T, uc, wk):
-    """:func:`solve` with the work array ``wk`` of :func:`local_solve_work` given."""
-    st = local_solve_work(ut, A, uc_old, beta_old, P, T, uc, wk)
+    st = local_solve(ut, A, uc_old, beta_old, P, T, uc)
     if P[P_B] <= 0.0:
         return st, beta_old
     g_hi = envelope_integrity(uc[0], uc[1], uc[2], beta_old, P) - beta_old
@@ -643,7 +627,7 @@ def solve_work(ut, A, uc_old, beta_old, P, T, uc, wk):
         return st, beta_old
     hi = beta_old
     lo = 0.0
-    st = local_solve_work(ut, A, uc_old, 0.0, P, T, uc, wk)
+    st = local_solve(ut, A, uc_old, 0.0, P, T, uc)
     g_lo = envelope_integrity(uc[0], uc[1], uc[2], beta_old, P)
     if g_lo <= 0.0:
         return st, 0.0
@@ -656,7 +640,7 @@ def solve_work(ut, A, uc_old, beta_old, P, T, uc, wk):
         else:
             # the secant crawls (g nearly flat on one side, a cliff at the root): bisect
             beta = 0.5 * (lo + hi)
-        st = local_solve_work(ut, A, uc_old, beta, P, T, uc, wk)
+        st = local_solve(ut, A, uc_old, beta, P, T, uc)
         g = envelope_integrity(uc[0], uc[1], uc[2], beta_old, P) - beta
         if abs(g) <= 1e-14 or hi - lo <= 1e-14:
             break
