@@ -1524,10 +1524,10 @@ class Solver(_Section):
                 f"got {self.max_time_step_s:g}; the largest step cannot be smaller than "
                 f"time_step_s = {self.time_step_s:g} s")))
         if self.linear == "pardiso":
-            from masonry_nscd.nscd import linear, pardiso
+            from masonry_nscd.nscd import pardiso
 
             if not pardiso.available():
-                problems.append(("linear", f"got pardiso; {linear.PARDISO_MISSING}"))
+                problems.append(("linear", f"got pardiso; {pardiso.MISSING}"))
         if self.check_every > self.max_iterations:
             problems.append(
                 (

@@ -71,13 +71,8 @@ def choose(linear: str, unknowns: int) -> str:
             return "krylov"
         return "pardiso" if pardiso.available() else "lu"
     if linear == "pardiso" and not pardiso.available():
-        raise ValueError(PARDISO_MISSING)
+        raise ValueError(pardiso.MISSING)
     return linear
-
-
-#: The message when ``pardiso`` is asked for and MKL is not installed
-PARDISO_MISSING = ("the pardiso linear solver needs Intel MKL (pip install mkl, x86_64 only), "
-                   "which is not installed here; use lu or auto")
 
 
 def rigid_body_modes(body_dof0: np.ndarray, deformable: np.ndarray,

@@ -52,6 +52,12 @@ _ERRORS = {
 }
 
 
+#: Why PARDISO cannot run where MKL is missing (the run's, the case check's and the solver's
+#: message)
+MISSING = ("the pardiso linear solver needs Intel MKL (pip install mkl, x86_64 only), which is "
+           "not installed here; use lu or auto")
+
+
 class PardisoError(RuntimeError):
     """PARDISO returned an error code (the message says which)."""
 
@@ -110,8 +116,7 @@ class Pardiso:
     def __init__(self, indptr: np.ndarray, indices: np.ndarray, n: int):
         lib = library()
         if lib is None:
-            raise PardisoError("PARDISO needs Intel MKL (the mkl package), which is not "
-                               "installed here")
+            raise PardisoError(MISSING)
         self._lib = lib
         self.n = int(n)
         self._ia = np.ascontiguousarray(indptr, dtype=np.int32)
@@ -129,7 +134,6 @@ class Pardiso:
         self.iparm[34] = 1  # zero-based indices
         self._data: np.ndarray | None = None
         self._analysed = False
-        self._alive = True
         self.generation = 0  # counts the factorisations; a factor solves only if it is the last
 
     def _call(self, phase: int, data: np.ndarray, b: np.ndarray | None = None,
@@ -168,11 +172,6 @@ class Pardiso:
         self.generation += 1
         return PardisoFactor(self, self.generation)
 
-    @property
-    def perturbed_pivots(self) -> int:
-        """Pivots perturbed at the last factorisation (MKL's ``iparm[13]``)."""
-        return int(self.iparm[13])
-
     def solve(self, b: np.ndarray, generation: int) -> np.ndarray:
         """``x`` with ``J x = b`` for the factorisation ``generation`` (the last one)."""
         if generation != self.generation or self._data is None:
@@ -184,9 +183,8 @@ class Pardiso:
 
     def release(self) -> None:
         """Free PARDISO's memory for this handle (also on garbage collection)."""
-        if self._alive and self._analysed:
+        if self._analysed:
             self._call(-1, np.zeros(1))
-        self._alive = False
         self._analysed = False
         self._data = None
 
