@@ -25,6 +25,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from masonry_nscd import threads
 from masonry_nscd.errors import RunFailure, RunInputError, RunOutputError
 from masonry_nscd.io import runfolder as rf
 from masonry_nscd.io.atomic import writing
@@ -184,7 +185,8 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
            + (" (auto)" if case.solver.linear == "auto" else "")
            if integ.newton is not None else "")
         + (f", contact points at {scene.meta['contact_point_rule']} points"
-           if "contact_point_rule" in scene.meta else ""))
+           if "contact_point_rule" in scene.meta else "")
+        + f", kernels on {threads.count()} thread(s)")
     if point is not None:
         try:
             restore_integrator(integ, point.state)

@@ -261,7 +261,11 @@ def _quiet(_message: str) -> None:
 
 
 def one_numba_thread() -> None:
-    """Give numba one thread in this process (before numba is imported, if possible)."""
+    """Give numba and the per-point kernels (``masonry_nscd.threads``) one thread in this
+    process (before numba is imported, if possible)."""
+    from masonry_nscd import threads
+
+    threads.set_count(1)
     if "numba" in sys.modules:
         import numba
 

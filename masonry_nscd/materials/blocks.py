@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from masonry_nscd import threads
 from masonry_nscd.fe import hex8
 from masonry_nscd.materials import endo3d
 from masonry_nscd.model import MAT_ENDO3D, Block
@@ -105,9 +106,14 @@ class Endo3dBlocks:
             hex8.strains_from_b(self.B, self.edofs, u, self._eps)
             r = self.relax
             out = self._sigma_endo3d if r > 0.0 else self.sigma_all
-            self.failures = endo3d.endo3d_update_elements(
-                self._eps, self.state_all, self.params, self.xe, self.elem_of_point,
-                self.trial_all, out)
+            eps, state, trial_all, of = self._eps, self.state_all, self.trial_all, self.elem_of_point
+
+            def update(lo, hi):
+                return endo3d.endo3d_update_elements(eps[lo:hi], state[lo:hi], self.params,
+                                                     self.xe, of[lo:hi], trial_all[lo:hi],
+                                                     out[lo:hi])
+
+            self.failures = sum(threads.run_ranges(update, len(eps)))
             if r > 0.0:  # Duvaut-Lions relaxation towards the ENDO3D stress
                 self.sigma_all[:] = (self.sigma_committed_all + r * out
                                      + np.einsum("pij,pj->pi", self.C0,
@@ -159,9 +165,14 @@ class Endo3dBlocks:
         """
         # C[p, i, j] = d sigma_i / d eps_j, from the ENDO3D stresses of the last trial
         C = np.empty((len(self._eps), 6, 6))
-        endo3d.endo3d_tangent_elements(
-            self._eps, self.state_all, self.params, self.xe, self.elem_of_point,
-            self._sigma_endo3d if self.relax > 0.0 else self.sigma_all, delta, C)
+        eps, state, of = self._eps, self.state_all, self.elem_of_point
+        sigma = self._sigma_endo3d if self.relax > 0.0 else self.sigma_all
+
+        def tangent(lo, hi):
+            endo3d.endo3d_tangent_elements(eps[lo:hi], state[lo:hi], self.params, self.xe,
+                                           of[lo:hi], sigma[lo:hi], delta, C[lo:hi])
+
+        threads.run_ranges(tangent, len(eps))
         if self.relax > 0.0:
             C = np.ascontiguousarray((self.C0 + self.relax * C) / (1.0 + self.relax))
         Ke = hex8.stiffness_from_b(self.B, self.w, C)

@@ -75,12 +75,13 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numba import njit
 
+from masonry_nscd import threads
 from masonry_nscd.contact import alart_curnier, laws
 from masonry_nscd.nscd import linear as linear_solvers
 from masonry_nscd.nscd import pardiso as pardiso_solver
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def evaluate_joints(u_pred, Hv, h, theta, mult_of, law, params, uc_old, beta_old,
                     T, uc, beta, status, K):
     """Law and consistent tangent at every joint point with a spring (``mult_of < 0``) for
@@ -645,8 +646,14 @@ class NewtonSolver:
             Gr = np.empty((len(g), 3, 3))
             F = np.empty(nf + 3 * len(g))
             kernels.local_velocities(s.side_dofs, s.side_coef, v, Hv)
-            evaluate_joints(u_pred, Hv, h, th, self.mult_of, s.law, params, uc_old, beta_old,
-                            out_T, out_uc, out_beta, out_status, K)
+            mo = self.mult_of
+
+            def joints(lo, hi):
+                evaluate_joints(u_pred[lo:hi], Hv[lo:hi], h, th, mo[lo:hi], s.law[lo:hi],
+                                params, uc_old[lo:hi], beta_old[lo:hi], out_T[lo:hi],
+                                out_uc[lo:hi], out_beta[lo:hi], out_status[lo:hi], K[lo:hi])
+
+            threads.run_ranges(joints, npt)
             evaluate_multipliers(u_pred, Hv, h, th, g, self.mu, self.rho, self.eps, uc_old,
                                  r_glue, s.area, F[nf:], Gu, Gr, out_T, out_uc, out_status)
             residual(s.body_dof0, self.mhat_off, self.mhat, v, v_free, s.side_dofs,

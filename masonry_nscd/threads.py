@@ -1,0 +1,93 @@
+r"""The per-point kernels on several cores: a batch of independent points split into ranges.
+
+A joint point's law and an ENDO3D Gauss point's update read their own inputs and write their
+own outputs, nothing shared: a batch ``[0, n)`` split into ranges ``[lo, hi)`` run on threads
+gives the same numbers bit for bit, whatever the number of threads. The kernels are compiled
+with ``nogil=True``, so the threads run them at the same time; the calling thread runs the
+first range itself and waits for the others.
+
+How many threads: ``NUMBA_NUM_THREADS`` when set (the variable numba's own parallel loops
+read), else the cores this process may run on; ``set_count`` overrides both (a sweep's worker
+runs one thread, the runs being the parallelism). A range is at least ``MIN_POINTS`` points,
+so a small batch stays on the calling thread, where a thread's hand-over (some 10 to 50
+microseconds) would cost more than it saves.
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from typing import TypeVar
+
+import numpy as np
+
+R = TypeVar("R")
+
+MIN_POINTS = 256
+_count: int | None = None
+_pool: ThreadPoolExecutor | None = None
+
+
+def count() -> int:
+    """Threads the per-point kernels use (at least 1)."""
+    if _count is not None:
+        return _count
+    env = os.environ.get("NUMBA_NUM_THREADS", "").strip()
+    if env:
+        try:
+            return max(1, int(env))
+        except ValueError:
+            pass
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def set_count(n: int | None) -> None:
+    """Use ``n`` threads from now on (None: back to ``NUMBA_NUM_THREADS`` or the cores)."""
+    global _count, _pool
+    if n is not None and n < 1:
+        raise ValueError(f"threads: at least 1, got {n}")
+    _count = n
+    if _pool is not None:
+        _pool.shutdown(wait=True)
+        _pool = None
+
+
+def ranges(n: int, threads: int | None = None, min_size: int | None = None,
+           cost: np.ndarray | None = None) -> list[tuple[int, int]]:
+    """``[0, n)`` cut into at most ``threads`` ranges of at least ``min_size`` items each
+    (default ``MIN_POINTS``; one range when ``n`` is small). ``cost`` (n,): the work of each item (e.g. a block's ``n^2``
+    for a dense product): the ranges then carry equal shares of the total, else equal counts."""
+    k = max(1, min(threads or count(), n // max(1, min_size or MIN_POINTS)))
+    if k == 1:
+        return [(0, n)]
+    if cost is None:
+        cuts = [i * n // k for i in range(k + 1)]
+    else:
+        c = np.cumsum(cost, dtype=np.float64)
+        inner = np.searchsorted(c, c[-1] * np.arange(1, k) / k).tolist()
+        cuts = [0, *inner, n]
+    return [(lo, hi) for lo, hi in itertools.pairwise(cuts) if hi > lo]
+
+
+def run_ranges(kernel: Callable[[int, int], R], n: int, min_size: int | None = None,
+               cost: np.ndarray | None = None) -> list[R]:
+    """``kernel(lo, hi)`` over the ranges of ``[0, n)`` (``ranges``), in threads; the results
+    in the order of the ranges. ``kernel`` must touch items ``lo`` to ``hi - 1`` only and
+    release the GIL (a numba kernel compiled ``nogil=True``) to gain anything."""
+    global _pool
+    parts = ranges(n, min_size=min_size, cost=cost)
+    if len(parts) == 1:
+        return [kernel(*parts[0])]
+    if _pool is None or _pool._max_workers < len(parts) - 1:
+        if _pool is not None:
+            _pool.shutdown(wait=True)
+        _pool = ThreadPoolExecutor(max_workers=len(parts) - 1,
+                                   thread_name_prefix="masonry-kernel")
+    futures = [_pool.submit(kernel, lo, hi) for lo, hi in parts[1:]]
+    first = kernel(*parts[0])
+    return [first, *(f.result() for f in futures)]

@@ -1,0 +1,101 @@
+"""The per-point kernels on several threads (``masonry_nscd/threads.py``).
+
+* ``ranges``: the ranges cover ``[0, n)`` once, in order, at most one per thread, none shorter
+  than the minimum, and with a cost per item they carry equal shares of it (a block twice as
+  dear counts twice).
+* a point's law and a Gauss point's update touch nothing but their own point, so a run on
+  three threads is the run on one bit for bit: the smoke wall with ENDO3D blocks (the joint
+  law, the ENDO3D update and its tangent all split), the ranges made short enough that every
+  kernel is split.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from masonry_nscd import threads
+from masonry_nscd.case import load_case
+from masonry_nscd.scenes import build_scene
+
+
+@pytest.fixture(autouse=True)
+def _restore_threads():
+    yield
+    threads.set_count(None)
+
+
+def _check_cover(parts, n):
+    assert parts[0][0] == 0 and parts[-1][1] == n
+    for (_, hi), (lo, _) in itertools.pairwise(parts):
+        assert hi == lo
+    assert all(hi > lo for lo, hi in parts)
+
+
+@pytest.mark.parametrize("n", [0, 1, 255, 511, 512, 1000, 1160, 10_001])
+@pytest.mark.parametrize("k", [1, 2, 3, 8])
+def test_ranges_cover_the_batch_once(n, k):
+    parts = threads.ranges(n, k)
+    if n == 0:
+        assert parts == [(0, 0)]
+        return
+    _check_cover(parts, n)
+    assert len(parts) <= k
+    if len(parts) > 1:
+        assert min(hi - lo for lo, hi in parts) >= threads.MIN_POINTS
+        sizes = [hi - lo for lo, hi in parts]
+        assert max(sizes) - min(sizes) <= 1
+    # as many ranges as the threads allow while each keeps its minimum
+    assert len(parts) == max(1, min(k, n // threads.MIN_POINTS))
+
+
+def test_ranges_by_cost_share_the_work():
+    # 60 blocks of 54 dofs and 10 of 150 (the study's refined corner units): n^2 each
+    cost = np.array([54**2] * 30 + [150**2] * 10 + [54**2] * 30, dtype=float)
+    parts = threads.ranges(len(cost), 2, min_size=8, cost=cost)
+    _check_cover(parts, len(cost))
+    shares = [cost[lo:hi].sum() / cost.sum() for lo, hi in parts]
+    assert len(parts) == 2
+    # equal shares but for the one item the cut falls on
+    assert abs(shares[0] - 0.5) <= cost.max() / cost.sum()
+
+
+def test_set_count_is_checked_and_used():
+    with pytest.raises(ValueError, match="at least 1"):
+        threads.set_count(0)
+    threads.set_count(3)
+    assert threads.count() == 3
+    seen = []
+    out = threads.run_ranges(lambda lo, hi: seen.append((lo, hi)) or hi - lo, 3000)
+    assert sorted(seen) == threads.ranges(3000) and sum(out) == 3000 and len(out) == 3
+
+
+def test_the_count_follows_numba_num_threads(monkeypatch):
+    monkeypatch.setenv("NUMBA_NUM_THREADS", "5")
+    assert threads.count() == 5
+    monkeypatch.setenv("NUMBA_NUM_THREADS", "")
+    assert threads.count() >= 1
+
+
+def test_an_endo3d_run_on_three_threads_is_the_run_on_one(monkeypatch):
+    monkeypatch.setattr(threads, "MIN_POINTS", 8)  # every kernel of the smoke wall split
+    sets = ["output.vtu=false", "output.hdf5=false", "output.energy=false",
+            "blocks.material=endo3d", "wall.elements_per_unit=[2, 1, 1]"]
+    out = {}
+    for k in (1, 3):
+        threads.set_count(k)
+        integ = build_scene(load_case("cases/smoke.yaml", sets)).integrator()
+        assert len(threads.ranges(len(integ.sys.area))) == k
+        T, its = [], 0
+        for _ in range(80):
+            rep = integ.step()
+            its += rep.sweeps
+            T.append(integ.joints.T.copy())
+        out[k] = np.array(T), its, integ.material.state_all.copy(), integ.tangent_updates
+    (T1, it1, st1, tu1), (T3, it3, st3, tu3) = out[1], out[3]
+    assert tu1 > 0 and tu1 == tu3  # the tangent kernel ran, on both
+    assert it3 == it1
+    assert np.array_equal(T3, T1) and np.array_equal(st3, st1)
+    assert np.abs(T1).max() > 0
