@@ -43,9 +43,9 @@ written uncompressed because meshio's compressed header is wrong for empty array
 from __future__ import annotations
 
 import os
-import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from xml.sax.saxutils import quoteattr
 
 import meshio
 import numpy as np
@@ -183,10 +183,9 @@ def write_pvd(path: PathLike, entries: Sequence[tuple[float, str] | tuple[float,
     is complete and valid at all times.
     """
     target = Path(path)
-    root = ET.Element(
-        "VTKFile", type="Collection", version="0.1", byte_order="LittleEndian"
-    )
-    collection = ET.SubElement(root, "Collection")
+    lines = ['<?xml version="1.0" encoding="utf-8"?>',
+             '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
+             "  <Collection>"]
     for i, entry in enumerate(entries):
         if len(entry) not in (2, 3):
             raise ValueError(f"entries[{i}]: (time, file) or (time, file, part) expected")
@@ -202,18 +201,14 @@ def write_pvd(path: PathLike, entries: Sequence[tuple[float, str] | tuple[float,
             raise ValueError(f"entries[{i}]: empty file name")
         if os.path.isabs(name):
             name = os.path.relpath(name, os.path.abspath(target.parent))
-        ET.SubElement(
-            collection,
-            "DataSet",
-            timestep=repr(t),
-            group="",
-            part=str(int(part)),
-            file=Path(name).as_posix(),
-        )
-    ET.indent(root)
-    tree = ET.ElementTree(root)
+        # the XML by hand (ElementTree took 6 ms for 300 entries, at every output step)
+        lines.append(f'    <DataSet timestep="{t!r}" group="" part="{int(part)}" '
+                     f'file={quoteattr(Path(name).as_posix())} />')
+    lines += ["  </Collection>", "</VTKFile>", ""]
+    text = "\n".join(lines)
 
     def write(tmp: str) -> None:
-        tree.write(tmp, encoding="utf-8", xml_declaration=True)
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(text)
 
     atomic_write(target, write)

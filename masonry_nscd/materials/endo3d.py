@@ -1767,7 +1767,7 @@ def endo3d_update_all(eps, state_in, params, xe_of_point, state_out, sigma):
     return nfail
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def endo3d_update_elements(eps, state_in, params, xe, elem_of_point, state_out, sigma):
     """As :func:`endo3d_update_all` with the node coordinates given per element: ``xe``
     (nel, 8, 3) and ``elem_of_point`` (ngp,) int64, the element of each point. Returns the
@@ -1783,7 +1783,7 @@ def endo3d_update_elements(eps, state_in, params, xe, elem_of_point, state_out, 
     return nfail
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def endo3d_tangent_elements(eps, state_in, params, xe, elem_of_point, sigma, delta, C):
     """Consistent tangent ``C[g] = d sigma / d eps`` (ngp, 6, 6; Pa, engineering shear) of
     each point's update from ``state_in`` at the strains ``eps``, by forward differences:
