@@ -1,6 +1,6 @@
 r"""Block meshes read from a mesh file (Gmsh ``.msh``, or any format meshio reads), and written.
 
-With :mod:`masonry_nscd.io.vtu` the only modules that import meshio (barely maintained).
+The only module that imports meshio (barely maintained); the VTU output is written without it.
 
 A **block mesh** is a set of 8-node hexahedra, each with an integer tag: the hexahedra of one
 tag are one block. In a Gmsh file the tag is the element's physical group (meshio's cell data
