@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from masonry_nscd.contact.laws import fczm as jl
+from masonry_nscd.fe import hex8
 from masonry_nscd.materials.blocks import Endo3dBlocks
 from masonry_nscd.materials.endo3d import endo3d_params
 from masonry_nscd.model import MAT_ENDO3D, Block
@@ -144,3 +145,25 @@ def test_viscous_regularisation_relaxes_to_the_endo3d_stress_at_rate_h_over_tau(
     mat.internal_forces(u1 - 1e-3 * d, fm, trial=True)
     fd = (fp - fm) / 2e-3
     assert np.linalg.norm(K @ d - fd) < 2e-3 * np.linalg.norm(fd)
+
+
+@pytest.mark.parametrize("tau", [0.0, 1e-3])
+def test_the_departure_from_the_linear_forces_is_summed_element_by_element(tau):
+    """``internal_forces(..., departure=c)`` gives ``F_int(u) - F_int(u_n) - K0 (u - u_n)`` with
+    ``K0`` the block's elastic stiffness as the scene assembles it (``hex8.assemble_block``): the
+    residual's material correction, summed per element from the committed stresses and
+    strains, in a cracked state and past it, with and without the viscous relaxation."""
+    blk, mat0 = _block_and_material()
+    mat = Endo3dBlocks([blk], np.array([0, blk.ndof]), mat0.params, tau=tau, h=2e-3)
+    K0 = hex8.assemble_block(blk.X, blk.conn, hex8.elastic_matrix(E, NU), 2000.0)[0]
+    u_n = _field(blk, [[4e-4, 0, 0], [0, -1e-4, 5e-5], [0, 5e-5, 0]])
+    f_n, f, c = np.zeros(blk.ndof), np.zeros(blk.ndof), np.zeros(blk.ndof)
+    mat.internal_forces(u_n, f_n, trial=True)
+    mat.commit()
+    mat.internal_forces(u_n, f_n, trial=False)  # F_int(u_n) from the committed stresses
+    for scale in (1.0, 1.3):
+        u = scale * u_n + _field(blk, [[1e-5, 0, 0], [0, 0, 2e-5], [0, 2e-5, 0]])
+        mat.internal_forces(u, f, trial=True, departure=c)
+        expected = f - f_n - K0 @ (u - u_n)
+        assert np.abs(c - expected).max() <= 1e-9 * np.abs(f).max()
+    assert np.abs(c).max() > 1e-3 * np.abs(f).max()  # the state is not linear: c is not zero

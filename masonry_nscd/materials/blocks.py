@@ -3,17 +3,19 @@ r"""ENDO3D in the blocks of a scene: Gauss-point states, internal forces, output
 Every deformable block with ``material = MAT_ENDO3D`` carries an ENDO3D state at each of the
 8 Gauss points of each of its hexahedra. For a trial displacement ``u`` of the step the strains
 are computed at the Gauss points, ENDO3D updates the states from those committed at the end of
-the last step (``endo3d_update_elements``; the committed states are never modified by a trial),
-and the internal forces are ``F_int = sum_e sum_g B^T sigma det J`` (N). ``commit`` makes the
-last trial the state of the step.
+the last step (the committed states are never modified by a trial), and the internal forces
+are ``F_int = sum_e sum_g B^T sigma det J`` (N): one kernel per element (``trial_forces``),
+the elements shared between threads. ``commit`` makes the last trial the state of the step.
 
 In the step, the theta-method's internal-force term is ``theta F_int(u_n+1) + (1 - theta)
 F_int(u_n)``; the free velocities hold the elastic part ``K0 (u_n+1 - u_n)``, so the residual
 needs the correction
 
     c(u_n+1) = h theta [ F_int(u_n+1) - F_int(u_n) - K0 (u_n+1 - u_n) ]          (N s)
+             = h theta sum_e sum_g B^T [ sigma - sigma_n - C0 (eps - eps_n) ] det J
 
-which is zero for linear elastic blocks, and the Newton matrix the tangent stiffness
+(``K0 = sum B^T C0 B det J``, the blocks' elastic stiffness), summed element by element with
+the forces, which is zero for linear elastic blocks, and the Newton matrix the tangent stiffness
 (``tangent_stiffness``: consistent, by differences of the kernel). Blocks that are linear
 elastic never call ENDO3D.
 
@@ -35,11 +37,70 @@ rate-independent law returns; the stress lags it by about ``E tau d eps / dt``.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from masonry_nscd import threads
 from masonry_nscd.fe import hex8
 from masonry_nscd.materials import endo3d
 from masonry_nscd.model import MAT_ENDO3D, Block
+
+
+@njit(cache=True, nogil=True)
+def trial_forces(B, w, edofs, u, state_in, params, xe, relax, C0, sigma_c, eps_c,
+                 eps, state_out, sigma_endo, sigma, f_e, c_e):
+    """A trial of the elements of the batch (arrays sliced to them; Gauss point ``8 e + g``)
+    at the displacements ``u`` (m, every dof): the strains ``eps = B u_e``; the ENDO3D update
+    from ``state_in`` (``state_out``, ``sigma_endo``, Pa); the stress ``sigma``, relaxed
+    towards ``sigma_endo`` when ``relax = h / tau > 0`` (module docstring) or equal to it;
+    the element forces ``f_e = sum_g w B^T sigma`` (N) and their departure from the linear
+    forces of the step's start, ``c_e = sum_g w B^T (sigma - sigma_c - C0 (eps - eps_c))``
+    (N), both (nel, 24). Returns the number of points whose return mapping did not converge.
+    """
+    nfail = 0
+    wk = np.empty((endo3d.N_WORK, 3, 3))
+    ue = np.empty(24)
+    d = np.empty(6)
+    for e in range(B.shape[0]):
+        for i in range(24):
+            ue[i] = u[edofs[e, i]]
+            f_e[e, i] = 0.0
+            c_e[e, i] = 0.0
+        for g in range(8):
+            p = 8 * e + g
+            for c in range(6):
+                s = 0.0
+                for i in range(24):
+                    s += B[e, g, c, i] * ue[i]
+                eps[p, c] = s
+            if endo3d.update_point(eps[p], state_in[p], params, xe[e], state_out[p],
+                                   sigma_endo[p], wk) != 0:
+                nfail += 1
+            for i in range(6):
+                lin = 0.0
+                for j in range(6):
+                    lin += C0[p, i, j] * (eps[p, j] - eps_c[p, j])
+                if relax > 0.0:
+                    sigma[p, i] = (sigma_c[p, i] + relax * sigma_endo[p, i] + lin) / (1.0 + relax)
+                else:
+                    sigma[p, i] = sigma_endo[p, i]
+                d[i] = sigma[p, i] - sigma_c[p, i] - lin
+            for i in range(24):
+                sf = 0.0
+                sc = 0.0
+                for c in range(6):
+                    sf += B[e, g, c, i] * sigma[p, c]
+                    sc += B[e, g, c, i] * d[c]
+                f_e[e, i] += w[e, g] * sf
+                c_e[e, i] += w[e, g] * sc
+    return nfail
+
+
+@njit(cache=True)
+def add_element_vectors(edofs, v_e, f):
+    """``f[edofs[e, i]] += v_e[e, i]``, element by element (N)."""
+    for e in range(edofs.shape[0]):
+        for i in range(edofs.shape[1]):
+            f[edofs[e, i]] += v_e[e, i]
 
 
 class Endo3dBlocks:
@@ -96,33 +157,41 @@ class Endo3dBlocks:
     def __bool__(self) -> bool:
         return bool(self.blocks)
 
-    def internal_forces(self, u: np.ndarray, fint: np.ndarray, *, trial: bool = True) -> None:
+    def internal_forces(self, u: np.ndarray, fint: np.ndarray, *, trial: bool = True,
+                        departure: np.ndarray | None = None) -> None:
         """Write the ENDO3D internal forces of the blocks at displacement u into fint (N).
 
         ``trial``: update trial states from the committed ones (inside a step); otherwise the
         committed stresses are used as they are (forces at the start of the step).
+        ``departure`` (trial only): also write there the forces' departure from the linear
+        forces of the step's start, ``F_int(u) - F_int(u_n) - K0 (u - u_n)`` (N, module
+        docstring). Both are zero at the dofs of other bodies.
         """
-        if trial:
-            hex8.strains_from_b(self.B, self.edofs, u, self._eps)
-            r = self.relax
-            out = self._sigma_endo3d if r > 0.0 else self.sigma_all
-            eps, state, trial_all, of = self._eps, self.state_all, self.trial_all, self.elem_of_point
+        if not trial:
+            fint[self.all_dofs] = 0.0
+            hex8.forces_from_b(self.B, self.w, self.edofs, self.sigma_committed_all, fint)
+            return
+        nel = len(self.B)
+        f_e = np.empty((nel, 24))
+        c_e = np.empty((nel, 24))
+        r = self.relax
+        # without relaxation the stress is ENDO3D's: sigma_all holds it, as the tangent expects
+        sig_endo = self._sigma_endo3d if r > 0.0 else self.sigma_all
 
-            def update(lo, hi):
-                return endo3d.endo3d_update_elements(eps[lo:hi], state[lo:hi], self.params,
-                                                     self.xe, of[lo:hi], trial_all[lo:hi],
-                                                     out[lo:hi])
+        def batch(lo, hi):
+            p0, p1 = 8 * lo, 8 * hi
+            return trial_forces(
+                self.B[lo:hi], self.w[lo:hi], self.edofs[lo:hi], u, self.state_all[p0:p1],
+                self.params, self.xe[lo:hi], r, self.C0[p0:p1], self.sigma_committed_all[p0:p1],
+                self.eps_committed_all[p0:p1], self._eps[p0:p1], self.trial_all[p0:p1],
+                sig_endo[p0:p1], self.sigma_all[p0:p1], f_e[lo:hi], c_e[lo:hi])
 
-            self.failures = sum(threads.run_ranges(update, len(eps)))
-            if r > 0.0:  # Duvaut-Lions relaxation towards the ENDO3D stress
-                self.sigma_all[:] = (self.sigma_committed_all + r * out
-                                     + np.einsum("pij,pj->pi", self.C0,
-                                                 self._eps - self.eps_committed_all)) / (1.0 + r)
-            sig = self.sigma_all
-        else:
-            sig = self.sigma_committed_all
+        self.failures = sum(threads.run_ranges(batch, nel, min_size=32))
         fint[self.all_dofs] = 0.0
-        hex8.forces_from_b(self.B, self.w, self.edofs, sig, fint)
+        add_element_vectors(self.edofs, f_e, fint)
+        if departure is not None:
+            departure[self.all_dofs] = 0.0
+            add_element_vectors(self.edofs, c_e, departure)
 
     def failed_points(self) -> np.ndarray:
         """Gauss points (indices into the batch) whose return mapping did not converge at the

@@ -1752,6 +1752,12 @@ def endo3d_update(eps, state_in, params, xe, state_out, sigma):
     return _update(eps, state_in, params, xe, state_out, sigma, np.empty((N_WORK, 3, 3)))
 
 
+#: ``_update`` for the batch kernels of other modules (``materials.blocks``): one point, with
+#: the caller's work array ``wk`` (N_WORK, 3, 3); the arguments and the status as
+#: :func:`endo3d_update`
+update_point = _update
+
+
 @njit(cache=True)
 def endo3d_update_all(eps, state_in, params, xe_of_point, state_out, sigma):
     """Update ``ngp`` Gauss points: ``eps`` (ngp, 6), ``state_in``/``state_out``

@@ -284,20 +284,19 @@ class Integrator:
         if self.material is not None:
             self._update_tangent()
 
-    def _material_correction(self, fint_n: np.ndarray):
-        """``c(v) = h theta [F_int(u) - F_int(u_n) - K0 (u - u_n)]`` for the ENDO3D blocks."""
+    def _material_correction(self):
+        """``c(v) = h theta [F_int(u) - F_int(u_n) - K0 (u - u_n)]`` for the ENDO3D blocks,
+        summed element by element from the stresses and strains committed at ``u_n``
+        (``Endo3dBlocks.internal_forces``)."""
         s = self.sys
         h, th = s.h, s.theta
         f_trial = np.zeros(s.ndof)
-        k0du = np.zeros(s.ndof)
 
         def correction(v):
             du = h * (th * v + (1.0 - th) * self.v)
-            self.material.internal_forces(self.u + du, f_trial, trial=True)
-            kernels.elastic_forces(s.body_dof0, s.k_off, s.k, du, k0du)
-            c = np.zeros(s.ndof)
-            d = self.material.all_dofs
-            c[d] = h * th * (f_trial[d] - fint_n[d] - k0du[d])
+            c = np.zeros(s.ndof)  # a new array: the solver compares it with the last one
+            self.material.internal_forces(self.u + du, f_trial, trial=True, departure=c)
+            c *= h * th
             return c, h * th * float(np.linalg.norm(f_trial)) + 1e-300
 
         return correction
@@ -473,7 +472,7 @@ class Integrator:
         if self.newton is not None:
             corr = None
             if self.material is not None:
-                corr = self._material_correction(fint.copy())
+                corr = self._material_correction()
             v1, T, uc, beta, status, sweeps, residual = self.newton.solve(
                 v_free, j.u, j.U, self.params, j.uc, j.beta, j.T, self._dv, correction=corr,
                 t_end=t1)
