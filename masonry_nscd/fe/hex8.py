@@ -2,8 +2,9 @@ r"""Eight-node hexahedra: shape functions, Gauss rules, stiffness, lumped mass, 
 
 What is computed once per block (B matrices, stiffness, mass) is vectorised NumPy over the
 elements: compiled with numba it cost 8 of the 14 s of a first run of the smoke case, for work
-that takes milliseconds. What runs at every step for ENDO3D blocks (``strains_from_b``,
-``forces_from_b``, ``stiffness_from_b``) stays compiled: plain loops, quick to compile.
+that takes milliseconds. What runs at every step for ENDO3D blocks (``forces_from_b``,
+``stiffness_from_b``, and the strains inside ``materials.blocks.trial_forces``) stays compiled:
+plain loops, quick to compile.
 
 Reference element ``[-1, 1]^3``, nodes in the usual order (bottom face ``zeta = -1``
 counter-clockwise, then the top face)::
@@ -187,24 +188,6 @@ def internal_forces(X: np.ndarray, conn: np.ndarray, sigma: np.ndarray, f: np.nd
     fe = np.einsum("eg,egij,egi->ej", w, B, np.asarray(sigma).reshape(len(conn), 8, 6))
     f[:] = 0.0
     np.add.at(f, _element_dofs(conn), fe)
-
-
-@njit(cache=True)
-def strains_from_b(B: np.ndarray, edofs: np.ndarray, u: np.ndarray, eps: np.ndarray) -> None:
-    """Gauss-point strains (nel * 8, 6) from global displacements with precomputed B.
-
-    ``edofs`` (nel, 24): the global dofs of each element's nodes (x, y, z per node).
-    """
-    ue = np.empty(24)
-    for e in range(B.shape[0]):
-        for i in range(24):
-            ue[i] = u[edofs[e, i]]
-        for g in range(8):
-            for c in range(6):
-                s = 0.0
-                for i in range(24):
-                    s += B[e, g, c, i] * ue[i]
-                eps[8 * e + g, c] = s
 
 
 @njit(cache=True)

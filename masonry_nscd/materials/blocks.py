@@ -107,8 +107,9 @@ class Endo3dBlocks:
     """The ENDO3D blocks of a scene (body indices ``index``) and their Gauss-point states.
 
     All ENDO3D elements are handled in one batch: their B matrices are computed once, and a
-    trial evaluation is three kernel calls (strains, ENDO3D, forces) whatever the number of
-    blocks. Per-block views (``state``, ``trial``) index into the batch.
+    trial evaluation is one kernel (``trial_forces``) over ranges of elements on the threads of
+    ``masonry_nscd.threads``, whatever the number of blocks. Per-block views (``state``,
+    ``trial``) index into the batch.
     """
 
     def __init__(self, bodies: list, body_dof0: np.ndarray, params: np.ndarray, *,
