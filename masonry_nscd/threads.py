@@ -28,6 +28,7 @@ R = TypeVar("R")
 MIN_POINTS = 256
 _count: int | None = None
 _pool: ThreadPoolExecutor | None = None
+_pool_size = 0
 
 
 def count() -> int:
@@ -48,13 +49,13 @@ def count() -> int:
 
 def set_count(n: int | None) -> None:
     """Use ``n`` threads from now on (None: back to ``NUMBA_NUM_THREADS`` or the cores)."""
-    global _count, _pool
+    global _count, _pool, _pool_size
     if n is not None and n < 1:
         raise ValueError(f"threads: at least 1, got {n}")
     _count = n
     if _pool is not None:
         _pool.shutdown(wait=True)
-        _pool = None
+        _pool, _pool_size = None, 0
 
 
 def ranges(n: int, threads: int | None = None, min_size: int | None = None,
@@ -79,15 +80,15 @@ def run_ranges(kernel: Callable[[int, int], R], n: int, min_size: int | None = N
     """``kernel(lo, hi)`` over the ranges of ``[0, n)`` (``ranges``), in threads; the results
     in the order of the ranges. ``kernel`` must touch items ``lo`` to ``hi - 1`` only and
     release the GIL (a numba kernel compiled ``nogil=True``) to gain anything."""
-    global _pool
+    global _pool, _pool_size
     parts = ranges(n, min_size=min_size, cost=cost)
     if len(parts) == 1:
         return [kernel(*parts[0])]
-    if _pool is None or _pool._max_workers < len(parts) - 1:
+    if _pool is None or _pool_size < len(parts) - 1:
         if _pool is not None:
             _pool.shutdown(wait=True)
-        _pool = ThreadPoolExecutor(max_workers=len(parts) - 1,
-                                   thread_name_prefix="masonry-kernel")
+        _pool_size = len(parts) - 1
+        _pool = ThreadPoolExecutor(max_workers=_pool_size, thread_name_prefix="masonry-kernel")
     futures = [_pool.submit(kernel, lo, hi) for lo, hi in parts[1:]]
     first = kernel(*parts[0])
     return [first, *(f.result() for f in futures)]

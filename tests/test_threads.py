@@ -5,8 +5,8 @@
   dear counts twice).
 * a point's law and a Gauss point's update touch nothing but their own point, so a run on
   three threads is the run on one bit for bit: the smoke wall with ENDO3D blocks (the joint
-  law, the ENDO3D update and its tangent all split), the ranges made short enough that every
-  kernel is split.
+  law, the ENDO3D trial by elements and its tangent all split), the ranges made short enough
+  that every kernel is split.
 """
 
 from __future__ import annotations
@@ -87,7 +87,9 @@ def test_an_endo3d_run_on_three_threads_is_the_run_on_one(monkeypatch):
     for k in (1, 3):
         threads.set_count(k)
         integ = build_scene(load_case("cases/smoke.yaml", sets)).integrator()
-        assert len(threads.ranges(len(integ.sys.area))) == k
+        assert len(threads.ranges(len(integ.sys.area))) == k  # the joint law split
+        nel = len(integ.material.B)  # and the ENDO3D trial, by elements
+        assert len(threads.ranges(nel, min_size=threads.MIN_POINTS // 8)) == k
         T, its = [], 0
         for _ in range(80):
             rep = integ.step()

@@ -187,7 +187,8 @@ class Endo3dBlocks:
                 self.eps_committed_all[p0:p1], self._eps[p0:p1], self.trial_all[p0:p1],
                 sig_endo[p0:p1], self.sigma_all[p0:p1], f_e[lo:hi], c_e[lo:hi])
 
-        self.failures = sum(threads.run_ranges(batch, nel, min_size=32))
+        # a range of elements holds as many Gauss points as a range of points elsewhere
+        self.failures = sum(threads.run_ranges(batch, nel, min_size=threads.MIN_POINTS // 8))
         fint[self.all_dofs] = 0.0
         add_element_vectors(self.edofs, f_e, fint)
         if departure is not None:
