@@ -168,8 +168,16 @@ def run(
         "--resume", metavar="OUTDIR",
         help="Continue the interrupted run in OUTDIR from its last checkpoint "
         "(case from OUTDIR/case.yaml).")] = None,
+    n_threads: Annotated[int | None, typer.Option(
+        "--threads", min=1, metavar="N",
+        help="Threads for the joint law and the ENDO3D kernels (default: NUMBA_NUM_THREADS, "
+        "else every core); the results are the same on any number.")] = None,
 ) -> None:
     """Run a wall case to its target displacement and write CSV, HDF5 and VTU results."""
+    if n_threads is not None:
+        from masonry_nscd import threads
+
+        threads.set_count(n_threads)
     if resume is not None:
         if case_file is not None or output is not None or overrides or overwrite:
             _fail("--resume OUTDIR continues the run in OUTDIR with its own case.yaml: give "

@@ -101,3 +101,18 @@ def test_an_endo3d_run_on_three_threads_is_the_run_on_one(monkeypatch):
     assert it3 == it1
     assert np.array_equal(T3, T1) and np.array_equal(st3, st1)
     assert np.abs(T1).max() > 0
+
+
+def test_the_cli_takes_the_thread_count(tmp_path):
+    from typer.testing import CliRunner
+
+    from masonry_nscd.cli import app
+
+    runner = CliRunner()
+    base = ["run", "cases/smoke.yaml", "-o", str(tmp_path / "r"), "--set", "output.vtu=false",
+            "--set", "output.hdf5=false", "--set", "loading.horizontal.target_m=1e-5"]
+    bad = runner.invoke(app, [*base, "--threads", "0"])
+    assert bad.exit_code == 2 and "--threads" in bad.output
+    ok = runner.invoke(app, [*base, "--threads", "1"])
+    assert ok.exit_code == 0, ok.output
+    assert "kernels on 1 thread(s)" in (tmp_path / "r" / "run.log").read_text()
