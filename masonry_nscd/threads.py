@@ -21,8 +21,6 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from typing import TypeVar
 
-import numpy as np
-
 R = TypeVar("R")
 
 MIN_POINTS = 256
@@ -58,30 +56,23 @@ def set_count(n: int | None) -> None:
         _pool, _pool_size = None, 0
 
 
-def ranges(n: int, threads: int | None = None, min_size: int | None = None,
-           cost: np.ndarray | None = None) -> list[tuple[int, int]]:
+def ranges(n: int, threads: int | None = None,
+           min_size: int | None = None) -> list[tuple[int, int]]:
     """``[0, n)`` cut into at most ``threads`` ranges of at least ``min_size`` items each
-    (default ``MIN_POINTS``; one range when ``n`` is small). ``cost`` (n,): the work of each item (e.g. a block's ``n^2``
-    for a dense product): the ranges then carry equal shares of the total, else equal counts."""
+    (default ``MIN_POINTS``; one range when ``n`` is small), of sizes differing by at most
+    one."""
     k = max(1, min(threads or count(), n // max(1, min_size or MIN_POINTS)))
-    if k == 1:
-        return [(0, n)]
-    if cost is None:
-        cuts = [i * n // k for i in range(k + 1)]
-    else:
-        c = np.cumsum(cost, dtype=np.float64)
-        inner = np.searchsorted(c, c[-1] * np.arange(1, k) / k).tolist()
-        cuts = [0, *inner, n]
-    return [(lo, hi) for lo, hi in itertools.pairwise(cuts) if hi > lo]
+    cuts = [i * n // k for i in range(k + 1)]
+    return list(itertools.pairwise(cuts))
 
 
-def run_ranges(kernel: Callable[[int, int], R], n: int, min_size: int | None = None,
-               cost: np.ndarray | None = None) -> list[R]:
+def run_ranges(kernel: Callable[[int, int], R], n: int,
+               min_size: int | None = None) -> list[R]:
     """``kernel(lo, hi)`` over the ranges of ``[0, n)`` (``ranges``), in threads; the results
     in the order of the ranges. ``kernel`` must touch items ``lo`` to ``hi - 1`` only and
     release the GIL (a numba kernel compiled ``nogil=True``) to gain anything."""
     global _pool, _pool_size
-    parts = ranges(n, min_size=min_size, cost=cost)
+    parts = ranges(n, min_size=min_size)
     if len(parts) == 1:
         return [kernel(*parts[0])]
     if _pool is None or _pool_size < len(parts) - 1:

@@ -1,8 +1,7 @@
 """The per-point kernels on several threads (``masonry_nscd/threads.py``).
 
 * ``ranges``: the ranges cover ``[0, n)`` once, in order, at most one per thread, none shorter
-  than the minimum, and with a cost per item they carry equal shares of it (a block twice as
-  dear counts twice).
+  than the minimum, of sizes differing by at most one.
 * a point's law and a Gauss point's update touch nothing but their own point, so a run on
   three threads is the run on one bit for bit: the smoke wall with ENDO3D blocks (the joint
   law, the ENDO3D trial by elements and its tangent all split), the ranges made short enough
@@ -49,17 +48,6 @@ def test_ranges_cover_the_batch_once(n, k):
         assert max(sizes) - min(sizes) <= 1
     # as many ranges as the threads allow while each keeps its minimum
     assert len(parts) == max(1, min(k, n // threads.MIN_POINTS))
-
-
-def test_ranges_by_cost_share_the_work():
-    # 60 blocks of 54 dofs and 10 of 150 (the study's refined corner units): n^2 each
-    cost = np.array([54**2] * 30 + [150**2] * 10 + [54**2] * 30, dtype=float)
-    parts = threads.ranges(len(cost), 2, min_size=8, cost=cost)
-    _check_cover(parts, len(cost))
-    shares = [cost[lo:hi].sum() / cost.sum() for lo, hi in parts]
-    assert len(parts) == 2
-    # equal shares but for the one item the cut falls on
-    assert abs(shares[0] - 0.5) <= cost.max() / cost.sum()
 
 
 def test_set_count_is_checked_and_used():

@@ -1773,7 +1773,7 @@ def endo3d_update_all(eps, state_in, params, xe_of_point, state_out, sigma):
     return nfail
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def endo3d_update_elements(eps, state_in, params, xe, elem_of_point, state_out, sigma):
     """As :func:`endo3d_update_all` with the node coordinates given per element: ``xe``
     (nel, 8, 3) and ``elem_of_point`` (ngp,) int64, the element of each point. Returns the
