@@ -3,7 +3,7 @@
 ``Integrator.step`` advances from t_n to t_n+1 = t_n + h:
 
 1. external forces at t_n and t_n+1, internal forces at u_n;
-2. free velocities of every body (``kernels.free_velocity``), imposed velocities set;
+2. free velocities of every body (``_free_velocity``), imposed velocities set;
 3. local free velocities of the contact points;
 4. the contact problem, by semi-smooth Newton on the whole step (``newton.NewtonSolver``, the
    default; finished by Gauss-Seidel sweeps when it does not converge, elastic blocks only) or
@@ -241,8 +241,7 @@ class Integrator:
     # --- one step -----------------------------------------------------------------------
     def internal_forces(self) -> np.ndarray:
         """Internal forces at the current displacements (N). Linear elastic blocks: K u."""
-        s = self.sys
-        kernels.elastic_forces(s.body_dof0, s.k_off, s.k, self.u, self.fint)
+        self.sys.k_op.matvec(self.u, self.fint)
         if self.material is not None:
             self.material.internal_forces(self.u, self.fint, trial=False)
         self._fint_u = self.u
@@ -450,6 +449,19 @@ class Integrator:
                 start["joint_beta"],
                 None if self.material is None else self.material.damages(start["material_state"])))
 
+    def _free_velocity(self, fint: np.ndarray, F1: np.ndarray) -> np.ndarray:
+        """Velocities at the end of the step without contact impulses (m/s), theta-method with
+        ``M_hat = M + (theta h)^2 K`` (model.md section 4)::
+
+            v_free = v_n + M_hat^-1 [h (theta F_n+1 + (1 - theta) F_n) - h F_int(u_n)
+                                     - theta h^2 K v_n]
+        """
+        s = self.sys
+        h, theta = s.h, s.theta
+        rhs = h * (theta * F1 + (1.0 - theta) * self._F0) - h * fint
+        rhs -= theta * h * h * s.k_op.matvec(self.v)
+        return self.v + s.minv_op.matvec(rhs)
+
     def _step(self) -> StepReport:
         """One step of h (the module docstring's items 1 to 5), not subdivided."""
         s = self.sys
@@ -459,9 +471,7 @@ class Integrator:
         fint = self.current_internal_forces()
         if self.energy_account is not None:
             fint = fint.copy()  # the end of the step computes those at u1 into self.fint
-        v_free = np.empty(s.ndof)
-        kernels.free_velocity(s.body_dof0, s.minv_off, s.minv, s.k_off, s.k, fint, self.v,
-                              self._F0, F1, h, theta, v_free)
+        v_free = self._free_velocity(fint, F1)
         for d, hist in self.imposed:
             v_free[d] = step_velocity(hist, self.t, t1, theta, self.v[d])
         for free, imposed, C in self._coupled:

@@ -1,4 +1,4 @@
-r"""numba kernels of the Moreau-Jean step: free velocity, local velocities, Gauss-Seidel sweeps.
+r"""numba kernels of the Moreau-Jean step: local velocities, Gauss-Seidel sweeps.
 
 Theta-method for the bodies (model.md section 4), with ``M_hat = M + (theta h)^2 K``::
 
@@ -28,50 +28,6 @@ import numpy as np
 from numba import njit
 
 from masonry_nscd.contact import laws
-
-
-@njit(cache=True)
-def free_velocity(body_dof0, minv_off, minv, k_off, k, fint, v, F0, F1, h, theta, v_free):
-    """Free velocity of every body (no contact impulses), m/s."""
-    nb = body_dof0.shape[0] - 1
-    for b in range(nb):
-        d0 = body_dof0[b]
-        n = body_dof0[b + 1] - d0
-        rhs = np.empty(n)
-        for i in range(n):
-            rhs[i] = h * (theta * F1[d0 + i] + (1.0 - theta) * F0[d0 + i]) - h * fint[d0 + i]
-        if k_off[b] >= 0:
-            ko = k_off[b]
-            c = theta * h * h
-            for i in range(n):
-                s = 0.0
-                for j in range(n):
-                    s += k[ko + i * n + j] * v[d0 + j]
-                rhs[i] -= c * s
-        mo = minv_off[b]
-        for i in range(n):
-            s = 0.0
-            for j in range(n):
-                s += minv[mo + i * n + j] * rhs[j]
-            v_free[d0 + i] = v[d0 + i] + s
-
-
-@njit(cache=True)
-def elastic_forces(body_dof0, k_off, k, u, fint):
-    """Internal forces ``K u`` of linear elastic blocks (N); zero for rigid bodies."""
-    nb = body_dof0.shape[0] - 1
-    fint[:] = 0.0
-    for b in range(nb):
-        ko = k_off[b]
-        if ko < 0:
-            continue
-        d0 = body_dof0[b]
-        n = body_dof0[b + 1] - d0
-        for i in range(n):
-            s = 0.0
-            for j in range(n):
-                s += k[ko + i * n + j] * u[d0 + j]
-            fint[d0 + i] = s
 
 
 @njit(cache=True)

@@ -79,6 +79,7 @@ from masonry_nscd import threads
 from masonry_nscd.contact import alart_curnier, laws
 from masonry_nscd.nscd import linear as linear_solvers
 from masonry_nscd.nscd import pardiso as pardiso_solver
+from masonry_nscd.nscd.block_diagonal import BlockDiagonal
 
 
 @njit(cache=True, nogil=True)
@@ -151,19 +152,9 @@ def evaluate_multipliers(u_pred, Hv, h, theta, mult, mu, rho, eps, uc_old, r, ar
 
 
 @njit(cache=True)
-def residual(body_dof0, mhat_off, mhat, v, v_free, side_dofs, side_coef, mult_of, area, T,
-             r_mult, h, R):
-    """``R_v = M_hat (v - v_free) - H r`` over all dofs (imposed ones included)."""
-    nb = body_dof0.shape[0] - 1
-    for b in range(nb):
-        d0 = body_dof0[b]
-        n = body_dof0[b + 1] - d0
-        mo = mhat_off[b]
-        for i in range(n):
-            s = 0.0
-            for j in range(n):
-                s += mhat[mo + i * n + j] * (v[d0 + j] - v_free[d0 + j])
-            R[d0 + i] = s
+def subtract_impulses(side_dofs, side_coef, mult_of, area, T, r_mult, h, R):
+    """``R -= H r``: the contact impulses (N s) of every point taken from the residual, the
+    points with a law from their tractions (``r = -h S T``), the multipliers' from ``r_mult``."""
     for a in range(side_dofs.shape[0]):
         g = mult_of[a]
         if g < 0:
@@ -383,6 +374,7 @@ class NewtonSolver:
         self.sys = sys
         self.mhat_off = mhat_off
         self.mhat = mhat
+        self.mhat_op = BlockDiagonal(sys.body_dof0, mhat_off, mhat)
         self.tolerance = tolerance
         self.max_iterations = max_iterations
         free = np.ones(sys.ndof, dtype=bool)
@@ -656,8 +648,9 @@ class NewtonSolver:
             threads.run_ranges(joints, npt)
             evaluate_multipliers(u_pred, Hv, h, th, g, self.mu, self.rho, self.eps, uc_old,
                                  r_glue, s.area, F[nf:], Gu, Gr, out_T, out_uc, out_status)
-            residual(s.body_dof0, self.mhat_off, self.mhat, v, v_free, s.side_dofs,
-                     s.side_coef, self.mult_of, s.area, out_T, r_glue, h, R)
+            # R_v = M_hat (v - v_free) - H r over all dofs (imposed ones included)
+            self.mhat_op.matvec(v - v_free, R)
+            subtract_impulses(s.side_dofs, s.side_coef, self.mult_of, s.area, out_T, r_glue, h, R)
             cvec, cscale = (None, 0.0) if correction is None else correction(v)
             if cvec is not None:
                 R[:] += cvec

@@ -28,6 +28,7 @@ import numpy as np
 
 from masonry_nscd.fe import hex8
 from masonry_nscd.model import DOF_IMPOSED, Block, ContactPoint, RigidBody
+from masonry_nscd.nscd.block_diagonal import BlockDiagonal, grouped_offsets
 
 MAX_SIDE_DOFS = 12
 
@@ -39,7 +40,7 @@ class System:
     ndof: int
     body_dof0: np.ndarray  # (nb + 1,)
     body_deformable: np.ndarray  # (nb,) bool
-    minv_off: np.ndarray  # (nb,) offsets into minv
+    minv_off: np.ndarray  # (nb,) offsets into minv (the blocks grouped by size)
     minv: np.ndarray  # flat, dense M_hat^-1 per body (row-major)
     mhat: np.ndarray  # flat, dense M_hat per body (same offsets as minv)
     k_off: np.ndarray  # (nb,) offsets into k (-1 for rigid bodies)
@@ -59,6 +60,12 @@ class System:
     W: np.ndarray  # (npt, 3, 3)
     h: float
     theta: float
+
+    def __post_init__(self):
+        # the products by M_hat^-1, M_hat and K (views of the flat arrays above)
+        self.minv_op = BlockDiagonal(self.body_dof0, self.minv_off, self.minv)
+        self.mhat_op = BlockDiagonal(self.body_dof0, self.minv_off, self.mhat)
+        self.k_op = BlockDiagonal(self.body_dof0, self.k_off, self.k)
 
     @property
     def npt(self) -> int:
@@ -93,22 +100,24 @@ def build_system(bodies, points: list[ContactPoint], h: float, theta: float) -> 
     for i, b in enumerate(bodies):
         body_dof0[i + 1] = body_dof0[i] + b.ndof
     ndof = int(body_dof0[-1])
-    minvs, mhats, ks, mass = [], [], [], np.zeros(ndof)
-    minv_off = np.zeros(nb, dtype=np.int64)
-    k_off = np.full(nb, -1, dtype=np.int64)
-    off = koff = 0
+    sizes = np.diff(body_dof0)
+    deformable = np.array([isinstance(b, Block) for b in bodies], dtype=bool)
+    # the blocks of one size one after the other (block_diagonal.grouped_offsets)
+    minv_off = grouped_offsets(sizes)
+    k_off = grouped_offsets(sizes, deformable)
+    minv = np.zeros(int(np.sum(sizes ** 2)))
+    mhat_flat = np.zeros_like(minv)
+    k = np.zeros(int(np.sum(sizes[deformable] ** 2)))
+    mass = np.zeros(ndof)
     imposed = []
     for i, b in enumerate(bodies):
-        K, m, minv, mhat = body_matrices(b, h, theta, with_mhat=True)
-        mhats.append(mhat.ravel())
+        K, m, minv_b, mhat_b = body_matrices(b, h, theta, with_mhat=True)
+        o, n2 = minv_off[i], minv_b.size
+        mhat_flat[o:o + n2] = mhat_b.ravel()
+        minv[o:o + n2] = minv_b.ravel()
         mass[body_dof0[i]:body_dof0[i + 1]] = m
-        minv_off[i] = off
-        off += minv.size
-        minvs.append(minv.ravel())
         if K is not None:
-            k_off[i] = koff
-            koff += K.size
-            ks.append(K.ravel())
+            k[k_off[i]:k_off[i] + K.size] = K.ravel()
         if isinstance(b, RigidBody):
             imposed += [body_dof0[i] + d for d in range(6) if b.dof_mode[d] == DOF_IMPOSED]
     npt = len(points)
@@ -127,10 +136,10 @@ def build_system(bodies, points: list[ContactPoint], h: float, theta: float) -> 
             side_body[a, s] = bi
             d0, d1 = body_dof0[bi], body_dof0[bi + 1]
             nB = d1 - d0
-            minv = minvs[bi].reshape(nB, nB)
+            o = minv_off[bi]
             H = np.zeros((nB, 3))
             H[dofs - d0] = coef
-            Y = minv @ H
+            Y = minv[o:o + nB * nB].reshape(nB, nB) @ H
             if not np.any(Y):
                 continue  # a fixed body: impulses do not move it
             y_off[a, s] = yo
@@ -151,8 +160,8 @@ def build_system(bodies, points: list[ContactPoint], h: float, theta: float) -> 
     cat = lambda xs: np.concatenate(xs) if xs else np.zeros(0)
     return System(
         ndof=ndof, body_dof0=body_dof0,
-        body_deformable=np.array([isinstance(b, Block) for b in bodies]),
-        minv_off=minv_off, minv=cat(minvs), mhat=cat(mhats), k_off=k_off, k=cat(ks), mass=mass,
+        body_deformable=deformable,
+        minv_off=minv_off, minv=minv, mhat=mhat_flat, k_off=k_off, k=k, mass=mass,
         imposed_dofs=np.array(imposed, dtype=np.int64),
         kind=np.array([p.kind for p in points], dtype=np.int64),
         law=np.array([p.law for p in points], dtype=np.int64),
