@@ -305,3 +305,37 @@ def test_a_krylov_solve_that_does_not_converge_is_made_by_lu():
             assert all("GMRES not converged" in n and "by LU" in n for n in notes)
     tol = load_case(SMOKE, QUIET).solver.tolerance
     assert np.linalg.norm(T["krylov"] - T["lu"]) <= 100.0 * tol * np.linalg.norm(T["lu"])
+
+
+def test_newton_matrix_values_fill_the_pattern_as_its_triplets_do(smoke_scene):
+    """``jacobian_values`` (the entries summed straight into a fixed pattern) gives the values
+    that the triplets of ``jacobian_coo`` give through the pattern, bit for bit, in the natural
+    pattern and in the pattern reordered by a first SuperLU factorisation; the matrix is the one
+    scipy assembles from the triplets."""
+    from masonry_nscd.nscd.newton import _Pattern, jacobian_values
+
+    integ = smoke_scene.integrator()
+    for _ in range(3):
+        integ.step()
+    N, s = integ.newton, integ.sys
+    K, Gu, Gr = N._K_factorised
+    nf = len(N.free)
+    n = nf + 3 * len(N.mult)
+    args = (s.body_dof0, N.mhat_off, N.mhat_jac, N.free_index, nf, s.side_dofs, s.side_coef,
+            N.mult_of, s.area, K, Gu, Gr, N.mu >= 0.0, s.h, s.theta)
+    r, c, v = jacobian_coo(*args, True)
+    J = sp.csc_matrix((v, (r, c)), shape=(n, n))
+    pat = _Pattern(r, c, n)
+    for reordered in (False, True):
+        data = jacobian_values(pat.slot, len(pat.indices), *args)
+        assert np.array_equal(data, pat.values(v))
+        if not reordered:
+            # scipy sums the repeated entries in another order: equal to round-off
+            assert np.allclose(pat.matrix(data).toarray(), J.toarray(), rtol=1e-14,
+                               atol=1e-14 * abs(J).max())
+            pat.factorise(data)  # the first factorisation reorders the pattern
+    b = np.random.default_rng(2).normal(size=n)
+    x = pat.factorise(data).solve(b)  # in the reordered pattern
+    assert np.abs(J @ x - b).max() <= 1e-9 * abs(J).max() * np.abs(x).max()
+    with pytest.raises(RuntimeError, match="entries"):
+        jacobian_values(pat.slot[:-1], len(pat.indices), *args)

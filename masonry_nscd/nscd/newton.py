@@ -175,26 +175,32 @@ def subtract_impulses(side_dofs, side_coef, mult_of, area, T, r_mult, h, R):
                     + side_coef[a, s, j, 2] * r2
 
 
-@njit(cache=True)
-def jacobian_coo(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_coef, mult_of,
-                 area, K, Gu, Gr, full_block, h, theta, keep_zeros=False):
-    """COO triplets of the Newton matrix (free dofs, then 3 impulses per multiplier point: glue
-    and rigid contacts, rows ``Gu H^T`` and ``Gr``, of which only the diagonal unless
-    ``full_block``).
+@njit(cache=True, inline="always")
+def _emit(k, row, col, val, rows, cols, vals, slot, data):
+    """Entry ``k`` of the Newton matrix: a triplet, or (with ``slot``) added to the values of
+    the fixed pattern."""
+    if slot.shape[0] > 0:
+        data[slot[k]] += val
+    else:
+        rows[k] = row
+        cols[k] = col
+        vals[k] = val
+    return k + 1
 
-    ``keep_zeros``: emit every entry that can be non-zero, zeros included, always in the same
-    order; the triplets then fit the fixed pattern of ``NewtonSolver`` (``_pattern``)."""
+
+@njit(cache=True)
+def _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_coef,
+                      mult_of, area, K, Gu, Gr, full_block, h, theta, keep_zeros, slot, rows,
+                      cols, vals, data):
+    """The entries of the Newton matrix, in a fixed order (``jacobian_coo``): as triplets
+    into ``rows, cols, vals`` when ``slot`` is empty, else summed into ``data[slot[k]]`` (every
+    entry, zeros included; ``data`` zeroed first). Returns the number of entries."""
+    if slot.shape[0] > 0:
+        data[:] = 0.0
+        keep_zeros = True
     nb = body_dof0.shape[0] - 1
-    cap = 0
-    for b in range(nb):
-        n = body_dof0[b + 1] - body_dof0[b]
-        cap += n * n
     npt = side_dofs.shape[0]
     ms = 2 * side_dofs.shape[2]
-    cap += npt * ms * ms + npt * 2 * ms * 3 + 9 * Gr.shape[0]
-    rows = np.empty(cap, dtype=np.int64)
-    cols = np.empty(cap, dtype=np.int64)
-    vals = np.empty(cap)
     k = 0
     for b in range(nb):
         d0 = body_dof0[b]
@@ -210,10 +216,7 @@ def jacobian_coo(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_c
                     continue
                 val = mhat[mo + i * n + j]
                 if val != 0.0 or keep_zeros:
-                    rows[k] = fi
-                    cols[k] = fj
-                    vals[k] = val
-                    k += 1
+                    k = _emit(k, fi, fj, val, rows, cols, vals, slot, data)
     dofs = np.empty(ms, dtype=np.int64)
     coef = np.empty((ms, 3))
     for a in range(npt):
@@ -240,10 +243,7 @@ def jacobian_coo(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_c
                 for j in range(m):
                     val = w * (k0 * coef[j, 0] + k1 * coef[j, 1] + k2 * coef[j, 2])
                     if val != 0.0 or keep_zeros:
-                        rows[k] = dofs[i]
-                        cols[k] = dofs[j]
-                        vals[k] = val
-                        k += 1
+                        k = _emit(k, dofs[i], dofs[j], val, rows, cols, vals, slot, data)
         else:
             row0 = nfree + 3 * g
             for i in range(m):
@@ -251,24 +251,57 @@ def jacobian_coo(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_c
                     val = Gu[g, c, 0] * coef[i, 0] + Gu[g, c, 1] * coef[i, 1] \
                         + Gu[g, c, 2] * coef[i, 2]
                     if coef[i, c] != 0.0 or keep_zeros:
-                        rows[k] = dofs[i]
-                        cols[k] = row0 + c
-                        vals[k] = -coef[i, c]
-                        k += 1
+                        k = _emit(k, dofs[i], row0 + c, -coef[i, c], rows, cols, vals, slot,
+                                  data)
                     if val != 0.0 or keep_zeros:
-                        rows[k] = row0 + c
-                        cols[k] = dofs[i]
-                        vals[k] = val
-                        k += 1
+                        k = _emit(k, row0 + c, dofs[i], val, rows, cols, vals, slot, data)
     for gi in range(Gr.shape[0]):
         for c in range(3):
             for d in range(3):
                 if c == d or (full_block[gi] and (Gr[gi, c, d] != 0.0 or keep_zeros)):
-                    rows[k] = nfree + 3 * gi + c
-                    cols[k] = nfree + 3 * gi + d
-                    vals[k] = Gr[gi, c, d]
-                    k += 1
+                    k = _emit(k, nfree + 3 * gi + c, nfree + 3 * gi + d, Gr[gi, c, d], rows,
+                              cols, vals, slot, data)
+    return k
+
+
+_NO_SLOT = np.zeros(0, dtype=np.int64)
+_NO_INT = np.zeros(0, dtype=np.int64)
+_NO_FLOAT = np.zeros(0)
+
+
+def jacobian_coo(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_coef, mult_of,
+                 area, K, Gu, Gr, full_block, h, theta, keep_zeros=False):
+    """COO triplets of the Newton matrix (free dofs, then 3 impulses per multiplier point: glue
+    and rigid contacts, rows ``Gu H^T`` and ``Gr``, of which only the diagonal unless
+    ``full_block``).
+
+    ``keep_zeros``: emit every entry that can be non-zero, zeros included, always in the same
+    order; the triplets then fit the fixed pattern of ``NewtonSolver`` (``_Pattern``), and
+    later matrices are summed straight into its values (``jacobian_values``)."""
+    ms = 2 * side_dofs.shape[2]
+    cap = int(np.sum(np.diff(body_dof0) ** 2)) + side_dofs.shape[0] * (ms * ms + 6 * ms) \
+        + 9 * Gr.shape[0]
+    rows = np.empty(cap, dtype=np.int64)
+    cols = np.empty(cap, dtype=np.int64)
+    vals = np.empty(cap)
+    k = _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_coef,
+                          mult_of, area, K, Gu, Gr, full_block, h, theta, keep_zeros, _NO_SLOT,
+                          rows, cols, vals, _NO_FLOAT)
     return rows[:k], cols[:k], vals[:k]
+
+
+def jacobian_values(slot, nnz, body_dof0, mhat_off, mhat, free_index, nfree, side_dofs,
+                    side_coef, mult_of, area, K, Gu, Gr, full_block, h, theta) -> np.ndarray:
+    """The values (``nnz``) of the Newton matrix in a fixed pattern whose entry ``k`` of
+    ``jacobian_coo(..., keep_zeros=True)`` sits at ``slot[k]``: the same sums, without the
+    triplets (24 bytes per entry: 1.2 GB at 64 times the study's wall)."""
+    data = np.empty(nnz)
+    k = _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_coef,
+                          mult_of, area, K, Gu, Gr, full_block, h, theta, True, slot, _NO_INT,
+                          _NO_INT, _NO_FLOAT, data)
+    if k != len(slot):
+        raise RuntimeError(f"the Newton matrix has {k} entries, its pattern {len(slot)}")
+    return data
 
 
 @njit(cache=True)
@@ -332,24 +365,23 @@ class _Pattern:
         scatter_add(self.slot, vals, data)
         return data
 
-    def matrix(self, vals: np.ndarray) -> sp.csc_matrix:
-        """The matrix of the triplet values ``vals`` (in the current order)."""
-        return sp.csc_matrix((self.values(vals), self.indices, self.indptr),
-                             shape=(self.n, self.n))
+    def matrix(self, data: np.ndarray) -> sp.csc_matrix:
+        """The matrix of the CSC values ``data`` (in the current order)."""
+        return sp.csc_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
 
-    def factorise(self, vals: np.ndarray, pivoting: bool = False):
-        """LU of the matrix of ``vals``: with diagonal pivots (SuperLU; RuntimeError on a zero
-        pivot), by PARDISO for a ``pardiso`` pattern (its own pivoting; ``PardisoError``, a
-        RuntimeError, when it fails), or with partial pivoting (``pivoting``: SuperLU, robust
-        and slower, whatever the pattern)."""
+    def factorise(self, data: np.ndarray, pivoting: bool = False):
+        """LU of the matrix of the CSC values ``data``: with diagonal pivots (SuperLU;
+        RuntimeError on a zero pivot), by PARDISO for a ``pardiso`` pattern (its own pivoting;
+        ``PardisoError``, a RuntimeError, when it fails), or with partial pivoting
+        (``pivoting``: SuperLU, robust and slower, whatever the pattern)."""
         if pivoting:
-            lu = spla.splu(self.matrix(vals))
+            lu = spla.splu(self.matrix(data))
             return lu if self.order is None else _PermutedLU(lu, self.order)
         if self._pardiso is not None:
-            return self._pardiso.factorise(self.values(vals))
+            return self._pardiso.factorise(data)
         opts = {"SymmetricMode": True}
         if self.order is None:
-            lu = spla.splu(self.matrix(vals), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+            lu = spla.splu(self.matrix(data), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                            options=opts)
             # J[r, c] is entry (place[r], place[c]) of P J P^T
             place = lu.perm_c.astype(np.int64)
@@ -357,7 +389,7 @@ class _Pattern:
             self.slot = self._slots(place[self._rows], place[self._cols])
             self._rows = self._cols = None  # not needed again (16 bytes per triplet)
             return lu
-        lu = spla.splu(self.matrix(vals), permc_spec="NATURAL", diag_pivot_thresh=0.0,
+        lu = spla.splu(self.matrix(data), permc_spec="NATURAL", diag_pivot_thresh=0.0,
                        options=opts)
         return _PermutedLU(lu, self.order)
 
@@ -495,23 +527,30 @@ class NewtonSolver:
         s = self.sys
         nf = len(self.free)
         n = nf + 3 * len(self.mult)
-        r, c, v = jacobian_coo(s.body_dof0, self.mhat_off, self.mhat_jac, self.free_index, nf,
-                               s.side_dofs, s.side_coef, self.mult_of, s.area, K, Gu, Gr,
-                               self.mu >= 0.0, s.h, s.theta, True)
-        if self._krylov is not None and not (pivoting or direct):
-            # the Krylov solver's own pattern, never reordered (the LU's is, at its first
-            # factorisation)
-            if self._krylov_pattern is None or len(self._krylov_pattern.slot) != len(v):
-                self._krylov_pattern = _Pattern(r, c, n)
+        krylov = self._krylov is not None and not (pivoting or direct)
+        args = (s.body_dof0, self.mhat_off, self.mhat_jac, self.free_index, nf, s.side_dofs,
+                s.side_coef, self.mult_of, s.area, K, Gu, Gr, self.mu >= 0.0, s.h, s.theta)
+        # the Krylov solver has its own pattern, never reordered (the LU's is, at its first
+        # factorisation)
+        pat = self._krylov_pattern if krylov else self._pattern
+        if pat is None:
+            r, c, v = jacobian_coo(*args, True)
+            pat = _Pattern(r, c, n, pardiso=self.linear == "pardiso" and not krylov)
+            data = pat.values(v)
+            del r, c, v
+            if krylov:
                 # kept for the reordering at an LU's first factorisation, which this pattern
                 # never has (16 bytes per triplet: 0.8 GB at 64 times the study's wall)
-                self._krylov_pattern._rows = self._krylov_pattern._cols = None
-            self.lu = self._krylov.factorise(self._krylov_pattern.matrix(v))
+                pat._rows = pat._cols = None
+                self._krylov_pattern = pat
+            else:
+                self._pattern = pat
+        else:
+            data = jacobian_values(pat.slot, len(pat.indices), *args)
+        if krylov:
+            self.lu = self._krylov.factorise(pat.matrix(data))
             self.factorisations += 1
             return
-        if self._pattern is None or len(self._pattern.slot) != len(v):
-            self._pattern = _Pattern(r, c, n, pardiso=self.linear == "pardiso")
-        pat = self._pattern
         self.lu = None
         if not pivoting:
             # the pattern is symmetric and the diagonal dominant enough (mass, springs, glue
@@ -519,9 +558,9 @@ class NewtonSolver:
             # 0.72 M nonzeros in L + U against 1.0 M with COLAMD, solves 0.4 to 1 ms against
             # 2.5 to 3 ms with partial pivoting
             with contextlib.suppress(RuntimeError):  # a zero pivot: pivot after all
-                self.lu = pat.factorise(v)
+                self.lu = pat.factorise(data)
         if self.lu is None:
-            self.lu = pat.factorise(v, pivoting=True)
+            self.lu = pat.factorise(data, pivoting=True)
         self.factorisations += 1
 
     def _refresh(self, K) -> None:
