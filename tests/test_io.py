@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from masonry_nscd.io import vtu
-from masonry_nscd.io.results_h5 import ResultsFile, read_results
+from masonry_nscd.io.results_h5 import ResultsFile, _rewrite_column, read_results
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -230,6 +230,31 @@ def step_fields(s: int) -> dict[str, np.ndarray]:
         "status": np.array([s % 3, 1], dtype=np.int8),
         "open": np.array([True, s % 2 == 0]),
     }
+
+
+def test_curve_columns_are_rewritten_shrunk_and_replaced(tmp_path):
+    """``write_curve`` rewrites a column whole: longer, shorter (a resumed run's curve), or
+    replaced when its dtype changes or it cannot grow (a fixed-size dataset left by another
+    writer)."""
+    path = tmp_path / "results.h5"
+    with ResultsFile(path, CASE_YAML, make_mesh()) as rf:
+        rf.write_curve({"a": np.arange(5.0), "b": np.arange(5)})
+        rf.write_curve({"a": np.array([7.0, 8.0]), "b": np.array([0.5, 1.5])})
+        with h5py.File(path, "r+") as f:
+            f["curve"].create_dataset("c", data=np.arange(3.0))  # fixed size
+        rf.write_curve({"c": np.arange(4.0)})
+        rf.write_curve({"a": np.zeros(0)})
+    with h5py.File(path, "r") as f:
+        np.testing.assert_array_equal(f["curve/a"][()], np.zeros(0))
+        np.testing.assert_array_equal(f["curve/b"][()], [0.5, 1.5])
+        assert f["curve/b"].dtype == np.float64  # was int64: replaced
+        np.testing.assert_array_equal(f["curve/c"][()], np.arange(4.0))
+        assert all(f["curve"][k].maxshape == (None,) for k in "abc")
+    with h5py.File(path, "r+") as f:  # a growable column of the same dtype: in place
+        assert _rewrite_column(f["curve"], "c", np.arange(6.0))
+        assert not _rewrite_column(f["curve"], "c", np.arange(6))
+        assert not _rewrite_column(f["curve"], "missing", np.arange(6.0))
+        np.testing.assert_array_equal(f["curve/c"][()], np.arange(6.0))
 
 
 def test_results_round_trip(tmp_path):

@@ -125,6 +125,27 @@ def _create_dataset(group: h5py.Group, name: str, arr: NDArray, compression: str
         group.create_dataset(name, data=arr)
 
 
+def _rewrite_column(curve: h5py.Group, name: str, v: NDArray) -> bool:
+    """Resize the 1-D dataset ``curve/name`` to ``len(v)`` and write ``v`` into it, through
+    h5py's low-level calls (a third of the high-level ones' time for the 17 columns of a run's
+    curve); False, nothing written, when there is no such dataset of ``v``'s dtype that can
+    grow without bound."""
+    key = name.encode()
+    if not curve.id.__contains__(key):
+        return False
+    obj = h5py.h5o.open(curve.id, key)
+    if not isinstance(obj, h5py.h5d.DatasetID) or obj.dtype != v.dtype:
+        return False
+    space = obj.get_space()
+    if space.get_simple_extent_ndims() != 1 or \
+            space.get_simple_extent_dims(maxdims=True) != (h5py.h5s.UNLIMITED,):
+        return False
+    obj.set_extent((len(v),))
+    if len(v):
+        obj.write(h5py.h5s.create_simple((len(v),)), obj.get_space(), np.ascontiguousarray(v))
+    return True
+
+
 class ResultsFile:
     """Writer of a results file; see the module docstring for the layout and guarantees.
 
@@ -296,17 +317,12 @@ class ResultsFile:
                     v = v.astype(np.float64)
                 elif v.dtype.kind in "iu":
                     v = v.astype(np.int64)
-                ds = curve.get(k)
-                if ds is not None and (ds.dtype != v.dtype or ds.maxshape != (None,)):
-                    del curve[k]
-                    ds = None
-                if ds is None:
+                if not _rewrite_column(curve, k, v):
+                    if k in curve:
+                        del curve[k]
                     curve.create_dataset(
                         k, data=v, maxshape=(None,), chunks=(_CURVE_CHUNK,)
                     )
-                else:
-                    ds.resize((len(v),))
-                    ds[...] = v
         fsync_file(self.path)
 
 
