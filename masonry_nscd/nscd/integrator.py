@@ -401,9 +401,11 @@ class Integrator:
         if not self.max_halvings:
             return self._step()
         start = integrator_state(self)
+        # the solutions the step's predictor extrapolates, before a failed attempt adds its own
+        before = [] if self.newton is None else self.newton.remembered()
         if self._halve_next > 0:
             self._halve_next -= 1
-            return replace(self._subdivide(start, None), tried_h=False)
+            return replace(self._subdivide(start, None, before), tried_h=False)
         try:
             rep = self._step()
         except DivergenceError:  # a smaller step may not diverge
@@ -413,21 +415,22 @@ class Integrator:
             return rep
         self._halve_next = self._halve_run
         self._halve_run = min(2 * self._halve_run, MAX_HALVE_RUN)
-        return self._subdivide(start, rep)
+        return self._subdivide(start, rep, before)
 
-    def _subdivide(self, start: dict, failed: StepReport | None) -> StepReport:
+    def _subdivide(self, start: dict, failed: StepReport | None, before: list) -> StepReport:
         """Make the step that began in state ``start`` again as two steps of h/2 (each of which
         may subdivide again), with an integrator of the same scene built at h/2 on first use;
-        the state it ends in becomes this integrator's. The iterations of the failed attempt
-        (None: it diverged) count in the report; a divergence at the smallest step is raised
-        with this step's number."""
+        the state it ends in becomes this integrator's. The halves predict from ``before``
+        (the run's last solutions, ``NewtonSolver.remembered``) and the next step from the
+        halves. The iterations of the failed attempt (None: it diverged) count in the report;
+        a divergence at the smallest step is raised with this step's number."""
         if self._half is None:
             self._half = Integrator(self.bodies, self.points, self.params, self.loads,
                                     h=0.5 * self.sys.h, **self._half_args)
         half = self._half
         restore_integrator(half, start)
         if half.newton is not None:
-            half.newton.forget_solutions()  # its last solutions belong to another time
+            half.newton.remember(before)
         number = int(start["step_index"]) + 1
         try:
             reps = [half.step(), half.step()]
@@ -437,7 +440,7 @@ class Integrator:
         restore_integrator(self, integrator_state(half))
         self.step_index = number
         if self.newton is not None:
-            self.newton.forget_solutions()
+            self.newton.adopt_solutions(half.newton)
         bad = [r for r in reps if r.material_failures]
         return StepReport(
             self.step_index, self.t,

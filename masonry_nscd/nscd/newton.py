@@ -497,15 +497,21 @@ class NewtonSolver:
             self._factorise(tangents, direct=True)
             return self.lu.solve(b)
 
-    def forget_solutions(self) -> None:
-        """Drop the last steps' solutions: the next step starts from the free velocities (its
-        state does not follow from them, e.g. after a step was subdivided)."""
-        self._solutions = []
+    def remembered(self) -> list:
+        """The last steps' solutions that the predictor extrapolates (a copy of the list, for
+        :meth:`remember`)."""
+        return list(self._solutions)
+
+    def remember(self, solutions: list) -> None:
+        """Predict the next step from ``solutions`` (:meth:`remembered` of a solver of the same
+        scene, of any step size: the predictor extrapolates along the time); ``[]``: from the
+        free velocities."""
+        self._solutions = list(solutions)
 
     def adopt_solutions(self, other: NewtonSolver) -> None:
         """Predict from the last steps of ``other``, a solver of the same scene with another
         step size (the adaptive step size's integrators hand the run over to one another)."""
-        self._solutions = list(other._solutions)
+        self.remember(other.remembered())
 
     def set_iteration_mhat(self, mhat_jac: np.ndarray) -> None:
         """Use other body blocks (same layout as ``mhat``) in the Newton matrix."""
