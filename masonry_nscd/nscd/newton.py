@@ -178,9 +178,10 @@ def subtract_impulses(side_dofs, side_coef, mult_of, area, T, r_mult, h, R):
 @njit(cache=True, inline="always")
 def _emit(k, row, col, val, rows, cols, vals, slot, data):
     """Entry ``k`` of the Newton matrix: a triplet, or (with ``slot``) added to the values of
-    the fixed pattern."""
+    the fixed pattern; an entry beyond the pattern is only counted (the caller raises)."""
     if slot.shape[0] > 0:
-        data[slot[k]] += val
+        if k < slot.shape[0]:
+            data[slot[k]] += val
     else:
         rows[k] = row
         cols[k] = col
