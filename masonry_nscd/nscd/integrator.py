@@ -417,13 +417,17 @@ class Integrator:
         self._halve_run = min(2 * self._halve_run, MAX_HALVE_RUN)
         return self._subdivide(start, rep, before)
 
-    def _subdivide(self, start: dict, failed: StepReport | None, before: list) -> StepReport:
+    def _subdivide(self, start: dict, failed: StepReport | None,
+                   before: list | None = None) -> StepReport:
         """Make the step that began in state ``start`` again as two steps of h/2 (each of which
         may subdivide again), with an integrator of the same scene built at h/2 on first use;
         the state it ends in becomes this integrator's. The halves predict from ``before``
-        (the run's last solutions, ``NewtonSolver.remembered``) and the next step from the
+        (the run's last solutions, ``NewtonSolver.remembered``, taken before the failed
+        attempt; None: the solver's, no attempt having been made) and the next step from the
         halves. The iterations of the failed attempt (None: it diverged) count in the report;
         a divergence at the smallest step is raised with this step's number."""
+        if before is None:
+            before = [] if self.newton is None else self.newton.remembered()
         if self._half is None:
             self._half = Integrator(self.bodies, self.points, self.params, self.loads,
                                     h=0.5 * self.sys.h, **self._half_args)
