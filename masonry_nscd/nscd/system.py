@@ -62,9 +62,9 @@ class System:
     theta: float
 
     def __post_init__(self):
-        # the products by M_hat^-1, M_hat and K (views of the flat arrays above)
+        # the products by M_hat^-1 and K of the free velocity and the internal forces (views
+        # of the flat arrays above); the Newton solver makes its own by the M_hat it is given
         self.minv_op = BlockDiagonal(self.body_dof0, self.minv_off, self.minv)
-        self.mhat_op = BlockDiagonal(self.body_dof0, self.minv_off, self.mhat)
         self.k_op = BlockDiagonal(self.body_dof0, self.k_off, self.k)
 
     @property
