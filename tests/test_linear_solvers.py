@@ -79,13 +79,10 @@ def test_rigid_body_modes_are_the_null_space_of_each_blocks_stiffness(smoke_scen
 
 def _newton_matrix(integ):
     """The Newton matrix (CSC, natural order) at the last factorisation of ``integ``'s solver."""
-    N, s = integ.newton, integ.sys
-    K, Gu, Gr = N._K_factorised
+    N = integ.newton
     nf = len(N.free)
     n = nf + 3 * len(N.mult)
-    r, c, v = jacobian_coo(s.body_dof0, N.mhat_off, N.mhat_jac, N.free_index, nf, s.side_dofs,
-                           s.side_coef, N.mult_of, s.area, K, Gu, Gr, N.mu >= 0.0, s.h, s.theta,
-                           True)
+    r, c, v = jacobian_coo(*N.jacobian_args(N._K_factorised), True)
     return sp.csc_matrix((v, (r, c)), shape=(n, n)), nf
 
 
@@ -317,12 +314,9 @@ def test_newton_matrix_values_fill_the_pattern_as_its_triplets_do(smoke_scene):
     integ = smoke_scene.integrator()
     for _ in range(3):
         integ.step()
-    N, s = integ.newton, integ.sys
-    K, Gu, Gr = N._K_factorised
-    nf = len(N.free)
-    n = nf + 3 * len(N.mult)
-    args = (s.body_dof0, N.mhat_off, N.mhat_jac, N.free_index, nf, s.side_dofs, s.side_coef,
-            N.mult_of, s.area, K, Gu, Gr, N.mu >= 0.0, s.h, s.theta)
+    N = integ.newton
+    n = len(N.free) + 3 * len(N.mult)
+    args = N.jacobian_args(N._K_factorised)
     r, c, v = jacobian_coo(*args, True)
     J = sp.csc_matrix((v, (r, c)), shape=(n, n))
     pat = _Pattern(r, c, n)

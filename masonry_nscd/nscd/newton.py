@@ -519,6 +519,14 @@ class NewtonSolver:
         self.mhat_jac = mhat_jac
         self.lu = None
 
+    def jacobian_args(self, tangents) -> tuple:
+        """The arguments of ``jacobian_coo`` and, after the slot and the size, of
+        ``jacobian_values`` for the Newton matrix with ``tangents = (K, Gu, Gr)``."""
+        s = self.sys
+        return (s.body_dof0, self.mhat_off, self.mhat_jac, self.free_index, len(self.free),
+                s.side_dofs, s.side_coef, self.mult_of, s.area, *tangents, self.mu >= 0.0, s.h,
+                s.theta)
+
     def _factorise(self, tangents, pivoting: bool = False, direct: bool = False):
         """Factorise the Newton matrix with the joint tangents and the multipliers' derivatives
         ``tangents = (K, Gu, Gr)`` (sparse LU), unless the factorisation in place is already of
@@ -531,12 +539,9 @@ class NewtonSolver:
                                                           strict=True)):
             return  # the same matrix: refactorising would not help
         self._K_factorised = (K.copy(), Gu.copy(), Gr.copy())
-        s = self.sys
-        nf = len(self.free)
-        n = nf + 3 * len(self.mult)
+        n = len(self.free) + 3 * len(self.mult)
         krylov = self._krylov is not None and not (pivoting or direct)
-        args = (s.body_dof0, self.mhat_off, self.mhat_jac, self.free_index, nf, s.side_dofs,
-                s.side_coef, self.mult_of, s.area, K, Gu, Gr, self.mu >= 0.0, s.h, s.theta)
+        args = self.jacobian_args(tangents)
         # the Krylov solver has its own pattern, never reordered (the LU's is, at its first
         # factorisation)
         pat = self._krylov_pattern if krylov else self._pattern
