@@ -331,5 +331,9 @@ def test_newton_matrix_values_fill_the_pattern_as_its_triplets_do(smoke_scene):
     b = np.random.default_rng(2).normal(size=n)
     x = pat.factorise(data).solve(b)  # in the reordered pattern
     assert np.abs(J @ x - b).max() <= 1e-9 * abs(J).max() * np.abs(x).max()
-    with pytest.raises(RuntimeError, match="entries"):
+    # a pattern one entry short is refused before anything is written past it, and one
+    # entry too long is refused too
+    with pytest.raises(RuntimeError, match="more entries than its pattern"):
         jacobian_values(pat.slot[:-1], len(pat.indices), *args)
+    with pytest.raises(RuntimeError, match="entries, its pattern"):
+        jacobian_values(np.append(pat.slot, 0), len(pat.indices), *args)
