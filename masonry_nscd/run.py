@@ -25,7 +25,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from masonry_nscd import threads
+from masonry_nscd import threads, timing
 from masonry_nscd.errors import RunFailure, RunInputError, RunOutputError
 from masonry_nscd.io import runfolder as rf
 from masonry_nscd.io.atomic import writing
@@ -95,10 +95,15 @@ def output_mesh_arrays(scene, mesh, integ) -> dict:
             **{f"contact_{k}": v for k, v in scene.point_fields.items()}}
 
 
+#: The parts of a run that ``run.log`` times (``masonry_nscd.timing``); the solver's parts
+#: are inside "steps"
+_RUN_PARTS = ("scene build", "steps", "outputs")
+
+
 def _log_end(log: _Log, integ, secs: float, ux: float, top, unconverged: int, worst: float,
              spans: dict[int, int], h: float) -> None:
-    """The closing lines of ``run.log``: the run's end, the linear solver's work, the step
-    sizes taken and the energy balance."""
+    """The closing lines of ``run.log``: the run's end, the linear solver's work, where the
+    time went (``masonry_nscd.timing``), the step sizes taken and the energy balance."""
     log(f"done: {integ.step_index} steps in {secs:.1f} s, Ux {1e3 * ux:.4f} mm, "
         f"Fx {1e-3 * top[0]:.3f} kN; {unconverged} steps not converged "
         f"(worst residual {worst:.2e})")
@@ -107,6 +112,19 @@ def _log_end(log: _Log, integ, secs: float, ux: float, top, unconverged: int, wo
         log(f"linear solver krylov: {counts['factorisations']} preconditioner set-ups, "
             f"{counts['linear_iterations']} GMRES iterations, {counts['linear_fallbacks']} "
             "solves made by LU")
+    parts = timing.table()
+    outer = [r for r in parts if r.name in _RUN_PARTS]
+    if outer:
+        log("time: " + ", ".join(f"{r.name} {r.total_s:.2f} s" for r in outer)
+            + f", the rest {secs - sum(r.total_s for r in outer):.2f} s")
+    inner = [r for r in parts if r.name not in _RUN_PARTS]
+    for r in inner:
+        log(f"time in the steps: {r.name} {r.total_s:.2f} s ({r.calls} calls, median "
+            f"{r.median_ms:.3g} ms)")
+    steps = next((r for r in outer if r.name == "steps"), None)
+    if inner and steps is not None:
+        log(f"time in the steps: the rest {steps.total_s - sum(r.total_s for r in inner):.2f} s "
+            "(the Newton iterations' own work, the step's set-up)")
     if any(k > 1 for k in spans):
         log("step sizes: " + ", ".join(f"{spans[k]} of {k * h:g} s" for k in sorted(spans)))
     if integ.energy_account is not None:
@@ -166,12 +184,14 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     log = _Log(outdir / rf.LOG, resume, echo)
 
     t_start = time.perf_counter()
+    timing.reset()
     try:
-        scene = build_scene(case)
+        with timing.part("scene build"):
+            scene = build_scene(case)
+            integ = scene.integrator(point.state["t"] if point else 0.0)
     except ValueError as exc:  # parameters the schema lets through but the scene refuses
         log.close()
         raise RunInputError(f"invalid case {case.name}: {exc}") from exc
-    integ = scene.integrator(point.state["t"] if point else 0.0)
     s = integ.sys
     log(f"case {case.name}: {len(scene.structure)} units, {s.npt} contact points, {s.ndof} "
         f"dofs, blocks {case.blocks.material}"
@@ -239,7 +259,8 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
             t1 = integ.t + h
             fallbacks = integ.solver_counts()["linear_fallbacks"]
             try:
-                rep = integ.step()
+                with timing.part("steps"):
+                    rep = integ.step()
             except DivergenceError as exc:
                 raise RunFailure(f"{exc} ({scene.stage_at(t1)} stage)") from exc
             except (KeyboardInterrupt, RunFailure):
@@ -302,27 +323,28 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
             stopped = not done and stop_when is not None and bool(stop_when(curve))
             done = done or stopped
             if round(rep.time / h) % case.output.every_steps == 0 or done:
-                sig = fields.element_stress()
-                j = integ.joints
-                step_out = StepOutput(
-                    block_points={"displacement_m": fields.nodal_displacement()},
-                    block_cells={"block": mesh.block_of_element.astype(float), "stress_Pa": sig,
-                                 "von_mises_Pa": von_mises(sig), **damage},
-                    joint_points=fields.joint_fields(),
-                    h5={"u": integ.u, "v": integ.v, "element_stress_Pa": sig,
-                        "nodal_displacement_m": fields.nodal_displacement(),
-                        **{f"element_{k}": v for k, v in damage.items()},
-                        "joint_u_m": j.u, "joint_uc_m": j.uc, "joint_beta": j.beta,
-                        "joint_T_Pa": j.T, "joint_status": j.status})
-                acct = integ.energy_account
-                energy = None if acct is None else acct.balance(integ)
-                try:  # the writers refuse NaN/inf (ValueError naming the field)
-                    rec.write_output(rep.step, rep.time, step_out, integ, done=done,
-                                     unconverged=unconverged, worst_residual=worst,
-                                     energy_row=None if energy is None else
-                                     energy_row(rep.step, rep.time, energy))
-                except ValueError as exc:
-                    raise failure(rep.step, rep.time, f"{exc} (not written)") from exc
+                with timing.part("outputs"):  # the fields and their files
+                    sig = fields.element_stress()
+                    j = integ.joints
+                    step_out = StepOutput(
+                        block_points={"displacement_m": fields.nodal_displacement()},
+                        block_cells={"block": mesh.block_of_element.astype(float), "stress_Pa": sig,
+                                     "von_mises_Pa": von_mises(sig), **damage},
+                        joint_points=fields.joint_fields(),
+                        h5={"u": integ.u, "v": integ.v, "element_stress_Pa": sig,
+                            "nodal_displacement_m": fields.nodal_displacement(),
+                            **{f"element_{k}": v for k, v in damage.items()},
+                            "joint_u_m": j.u, "joint_uc_m": j.uc, "joint_beta": j.beta,
+                            "joint_T_Pa": j.T, "joint_status": j.status})
+                    acct = integ.energy_account
+                    energy = None if acct is None else acct.balance(integ)
+                    try:  # the writers refuse NaN/inf (ValueError naming the field)
+                        rec.write_output(rep.step, rep.time, step_out, integ, done=done,
+                                         unconverged=unconverged, worst_residual=worst,
+                                         energy_row=None if energy is None else
+                                         energy_row(rep.step, rep.time, energy))
+                    except ValueError as exc:
+                        raise failure(rep.step, rep.time, f"{exc} (not written)") from exc
             if rep.step % every == 0 or done:
                 stage = scene.stage_at(rep.time)
                 log(f"[{stage:10s}] step {rep.step:6d}/{n_est} t {rep.time:7.4f} s  "

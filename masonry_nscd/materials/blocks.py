@@ -39,7 +39,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from masonry_nscd import threads
+from masonry_nscd import threads, timing
 from masonry_nscd.fe import hex8
 from masonry_nscd.materials import endo3d
 from masonry_nscd.model import MAT_ENDO3D, Block
@@ -187,13 +187,14 @@ class Endo3dBlocks:
                 self.eps_committed_all[p0:p1], self._eps[p0:p1], self.trial_all[p0:p1],
                 sig_endo[p0:p1], self.sigma_all[p0:p1], f_e[lo:hi], c_e[lo:hi])
 
-        # a range of elements holds as many Gauss points as a range of points elsewhere
-        self.failures = sum(threads.run_ranges(batch, nel, min_size=threads.MIN_POINTS // 8))
-        fint[self.all_dofs] = 0.0
-        add_element_vectors(self.edofs, f_e, fint)
-        if departure is not None:
-            departure[self.all_dofs] = 0.0
-            add_element_vectors(self.edofs, c_e, departure)
+        with timing.part("ENDO3D trial"):
+            # a range of elements holds as many Gauss points as a range of points elsewhere
+            self.failures = sum(threads.run_ranges(batch, nel, min_size=threads.MIN_POINTS // 8))
+            fint[self.all_dofs] = 0.0
+            add_element_vectors(self.edofs, f_e, fint)
+            if departure is not None:
+                departure[self.all_dofs] = 0.0
+                add_element_vectors(self.edofs, c_e, departure)
 
     def failed_points(self) -> np.ndarray:
         """Gauss points (indices into the batch) whose return mapping did not converge at the
@@ -234,6 +235,10 @@ class Endo3dBlocks:
         a crack's normal). Not symmetric in general; six kernel calls per Gauss point (the
         unperturbed stress is the last trial's).
         """
+        with timing.part("ENDO3D tangent"):
+            return self._tangent_stiffness(delta)
+
+    def _tangent_stiffness(self, delta: float) -> list[np.ndarray]:
         # C[p, i, j] = d sigma_i / d eps_j, from the ENDO3D stresses of the last trial
         C = np.empty((len(self._eps), 6, 6))
         eps, state, of = self._eps, self.state_all, self.elem_of_point

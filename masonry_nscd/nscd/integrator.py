@@ -49,6 +49,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from masonry_nscd import timing
 from masonry_nscd.contact import laws
 from masonry_nscd.loading import Loads, step_velocity
 from masonry_nscd.model import DOF_IMPOSED, ContactPoint, RigidBody
@@ -507,12 +508,13 @@ class Integrator:
             uc = np.empty_like(j.uc)
             beta = np.empty_like(j.beta)
             status = np.empty_like(j.status)
-            sweeps, residual, amb = kernels.nlgs(
-                U_free, j.u, j.U, s.kind, s.law, self.params, s.area, s.W, s.side_dofs,
-                s.side_coef, s.side_body, s.body_dof0, s.y_off, s.y, h, theta, j.uc, j.beta,
-                T, uc, beta, status, self._dv, self.tolerance, self.max_iterations,
-                self.check_every,
-            )
+            with timing.part("Gauss-Seidel sweeps"):
+                sweeps, residual, amb = kernels.nlgs(
+                    U_free, j.u, j.U, s.kind, s.law, self.params, s.area, s.W, s.side_dofs,
+                    s.side_coef, s.side_body, s.body_dof0, s.y_off, s.y, h, theta, j.uc,
+                    j.beta, T, uc, beta, status, self._dv, self.tolerance, self.max_iterations,
+                    self.check_every,
+                )
             sweeps += newton_its
             v1 = v_free + self._dv
         u1 = self.u + h * (theta * v1 + (1.0 - theta) * self.v)

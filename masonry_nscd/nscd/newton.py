@@ -75,7 +75,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numba import njit
 
-from masonry_nscd import threads
+from masonry_nscd import threads, timing
 from masonry_nscd.contact import alart_curnier, laws
 from masonry_nscd.nscd import linear as linear_solvers
 from masonry_nscd.nscd import pardiso as pardiso_solver
@@ -509,7 +509,8 @@ class NewtonSolver:
         again by an LU factorisation of the same matrix (counted in ``linear_fallbacks``, the
         reason in ``linear_notes``)."""
         try:
-            return self.lu.solve(b)
+            with timing.part("linear solve"):
+                return self.lu.solve(b)
         except linear_solvers.KrylovFailure as exc:
             self.linear_fallbacks += 1
             self.linear_notes.append(f"{exc}: the Newton matrix factorised by LU instead")
@@ -566,10 +567,11 @@ class NewtonSolver:
         # factorisation)
         pat = self._krylov_pattern if krylov else self._pattern
         if pat is None:
-            r, c, v = jacobian_coo(*args, True)
-            pat = _Pattern(r, c, n, pardiso=self.linear == "pardiso" and not krylov)
-            data = pat.values(v)
-            del r, c, v
+            with timing.part("Newton matrix pattern"):
+                r, c, v = jacobian_coo(*args, True)
+                pat = _Pattern(r, c, n, pardiso=self.linear == "pardiso" and not krylov)
+                data = pat.values(v)
+                del r, c, v
             if krylov:
                 # kept for the reordering at an LU's first factorisation, which this pattern
                 # never has (16 bytes per triplet: 0.8 GB at 64 times the study's wall)
@@ -578,21 +580,24 @@ class NewtonSolver:
             else:
                 self._pattern = pat
         else:
-            data = jacobian_values(pat.slot, len(pat.indices), *args)
+            with timing.part("Newton matrix"):
+                data = jacobian_values(pat.slot, len(pat.indices), *args)
         if krylov:
-            self.lu = self._krylov.factorise(pat.matrix(data))
+            with timing.part("preconditioner set-up"):
+                self.lu = self._krylov.factorise(pat.matrix(data))
             self.factorisations += 1
             return
         self.lu = None
-        if not pivoting:
-            # the pattern is symmetric and the diagonal dominant enough (mass, springs, glue
-            # compliance): symmetric ordering, pivots on the diagonal. Measured on the wall:
-            # 0.72 M nonzeros in L + U against 1.0 M with COLAMD, solves 0.4 to 1 ms against
-            # 2.5 to 3 ms with partial pivoting
-            with contextlib.suppress(RuntimeError):  # a zero pivot: pivot after all
-                self.lu = pat.factorise(data)
-        if self.lu is None:
-            self.lu = pat.factorise(data, pivoting=True)
+        with timing.part("factorisation"):
+            if not pivoting:
+                # the pattern is symmetric and the diagonal dominant enough (mass, springs,
+                # glue compliance): symmetric ordering, pivots on the diagonal. Measured on the
+                # wall: 0.72 M nonzeros in L + U against 1.0 M with COLAMD, solves 0.4 to 1 ms
+                # against 2.5 to 3 ms with partial pivoting
+                with contextlib.suppress(RuntimeError):  # a zero pivot: pivot after all
+                    self.lu = pat.factorise(data)
+            if self.lu is None:
+                self.lu = pat.factorise(data, pivoting=True)
         self.factorisations += 1
 
     def _refresh(self, K) -> None:
@@ -716,12 +721,16 @@ class NewtonSolver:
                                 params, uc_old[lo:hi], beta_old[lo:hi], out_T[lo:hi],
                                 out_uc[lo:hi], out_beta[lo:hi], out_status[lo:hi], K[lo:hi])
 
-            threads.run_ranges(joints, npt)
-            evaluate_multipliers(u_pred, Hv, h, th, g, self.mu, self.rho, self.eps, uc_old,
-                                 r_glue, s.area, F[nf:], Gu, Gr, out_T, out_uc, out_status)
-            # R_v = M_hat (v - v_free) - H r over all dofs (imposed ones included)
-            self.mhat_op.matvec(v - v_free, R)
-            subtract_impulses(s.side_dofs, s.side_coef, self.mult_of, s.area, out_T, r_glue, h, R)
+            with timing.part("joint law"):
+                threads.run_ranges(joints, npt)
+            with timing.part("glue and rigid contacts"):
+                evaluate_multipliers(u_pred, Hv, h, th, g, self.mu, self.rho, self.eps, uc_old,
+                                     r_glue, s.area, F[nf:], Gu, Gr, out_T, out_uc, out_status)
+            with timing.part("bodies' residual"):
+                # R_v = M_hat (v - v_free) - H r over all dofs (imposed ones included)
+                self.mhat_op.matvec(v - v_free, R)
+                subtract_impulses(s.side_dofs, s.side_coef, self.mult_of, s.area, out_T, r_glue,
+                                  h, R)
             cvec, cscale = (None, 0.0) if correction is None else correction(v)
             if cvec is not None:
                 R[:] += cvec
