@@ -3,7 +3,7 @@
 * ENDO3D blocks: ``Endo3dBlocks.tangent_stiffness`` (forward differences of the kernel per Gauss
   point, assembled with B) against central differences of the blocks' internal forces, in states
   that are elastic, cracked in tension and crushed in compression.
-* Joints: the consistent tangent of ``newton.evaluate_joints`` against central differences of the
+* Joints: the consistent tangent of ``step_residual.evaluate_joints`` against central differences of the
   implicit law, on points that open and soften within the step, and the closed-form tangent
   where the integrity does not move.
 """
@@ -16,7 +16,7 @@ from masonry_nscd.fe import hex8
 from masonry_nscd.materials.blocks import Endo3dBlocks
 from masonry_nscd.materials.endo3d import endo3d_params
 from masonry_nscd.model import MAT_ENDO3D, Block
-from masonry_nscd.nscd.newton import evaluate_joints
+from masonry_nscd.nscd.step_residual import evaluate_joints
 
 E, NU = 11.1e9, 0.2
 

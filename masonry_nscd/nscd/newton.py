@@ -75,104 +75,12 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numba import njit
 
-from masonry_nscd import threads, timing
-from masonry_nscd.contact import alart_curnier, laws
+from masonry_nscd import timing
+from masonry_nscd.contact import laws
 from masonry_nscd.nscd import linear as linear_solvers
 from masonry_nscd.nscd import pardiso as pardiso_solver
 from masonry_nscd.nscd.block_diagonal import BlockDiagonal
-
-
-@njit(cache=True, nogil=True)
-def evaluate_joints(u_pred, Hv, h, theta, mult_of, law, params, uc_old, beta_old,
-                    T, uc, beta, status, K):
-    """Law and consistent tangent at every joint point with a spring (``mult_of < 0``) for
-    ``u = u_pred + h theta H^T v`` (Hv = H^T v), from ``contact.laws.response``."""
-    npt = u_pred.shape[0]
-    A = np.zeros((3, 3))
-    u = np.empty(3)
-    t = np.empty(3)
-    c = np.empty(3)
-    co = np.empty(3)
-    Ka = np.empty((3, 3))
-    for a in range(npt):
-        if mult_of[a] >= 0:
-            continue
-        for i in range(3):
-            u[i] = u_pred[a, i] + h * theta * Hv[a, i]
-            co[i] = uc_old[a, i]
-        st, bn = laws.response(u, A, co, beta_old[a], params[law[a]], t, c, Ka)
-        for i in range(3):
-            T[a, i] = t[i]
-            uc[a, i] = c[i]
-            for j in range(3):
-                K[a, i, j] = Ka[i, j]
-        beta[a] = bn
-        status[a] = st
-
-
-@njit(cache=True)
-def evaluate_multipliers(u_pred, Hv, h, theta, mult, mu, rho, eps, uc_old, r, area, F, Gu, Gr,
-                         T, uc, status):
-    """Rows of the points whose impulses ``r`` (N s) are unknowns: glue (``mu < 0``) and rigid
-    Signorini-Coulomb contacts, at ``u = u_pred + h theta H^T v`` (Hv = H^T v), in velocity
-    units: ``F = Phi / (h theta) + eps r`` with ``Phi = u`` for the glue and the Alart-Curnier
-    function (``contact.alart_curnier``, with ``rho`` in N s/m) for a contact; ``Gu``, ``Gr``
-    the derivatives of ``F`` along ``H^T v`` and ``r``. The tractions ``T = -r / (h S)`` (Pa),
-    the cohesive displacements and the statuses of these points are written too."""
-    phi = np.empty(3)
-    u = np.empty(3)
-    gu = np.empty((3, 3))
-    gr = np.empty((3, 3))
-    c = np.empty(3)
-    ht = h * theta
-    for m in range(mult.shape[0]):
-        a = mult[m]
-        e = eps[m]
-        if mu[m] < 0.0:
-            for i in range(3):
-                F[3 * m + i] = Hv[a, i] + u_pred[a, i] / ht + e * r[3 * m + i]
-                for j in range(3):
-                    Gu[m, i, j] = 1.0 if i == j else 0.0
-                    Gr[m, i, j] = e if i == j else 0.0
-                uc[a, i] = 0.0
-            status[a] = laws.ST_GLUED
-        else:
-            for i in range(3):
-                u[i] = u_pred[a, i] + ht * Hv[a, i]
-            status[a] = alart_curnier.residual(u, r[3 * m:3 * m + 3], uc_old[a], mu[m], rho[m],
-                                               phi, gu, gr, c)
-            for i in range(3):
-                F[3 * m + i] = phi[i] / ht + e * r[3 * m + i]
-                for j in range(3):
-                    Gu[m, i, j] = gu[i, j]
-                    Gr[m, i, j] = gr[i, j] / ht + (e if i == j else 0.0)
-                uc[a, i] = c[i]
-        for i in range(3):
-            T[a, i] = -r[3 * m + i] / (h * area[a])
-
-
-@njit(cache=True)
-def subtract_impulses(side_dofs, side_coef, mult_of, area, T, r_mult, h, R):
-    """``R -= H r``: the contact impulses (N s) of every point taken from the residual, the
-    points with a law from their tractions (``r = -h S T``), the multipliers' from ``r_mult``."""
-    for a in range(side_dofs.shape[0]):
-        g = mult_of[a]
-        if g < 0:
-            f = -h * area[a]
-            r0 = f * T[a, 0]
-            r1 = f * T[a, 1]
-            r2 = f * T[a, 2]
-        else:
-            r0 = r_mult[3 * g]
-            r1 = r_mult[3 * g + 1]
-            r2 = r_mult[3 * g + 2]
-        for s in range(2):
-            for j in range(side_dofs.shape[2]):
-                d = side_dofs[a, s, j]
-                if d < 0:
-                    break
-                R[d] -= side_coef[a, s, j, 0] * r0 + side_coef[a, s, j, 1] * r1 \
-                    + side_coef[a, s, j, 2] * r2
+from masonry_nscd.nscd.step_residual import Evaluation, StepResidual
 
 
 @njit(cache=True, inline="always")
@@ -415,6 +323,20 @@ class _Pattern:
         return _PermutedLU(lu, self.order)
 
 
+class _ChordHistory:
+    """The Anderson acceleration's memory (``NewtonSolver._anderson``): the last iterate and
+    its chord step ``last``, the differences ``d_x``, ``d_f`` of both over the last steps
+    with one matrix, and the weights of the unknowns in the least squares."""
+
+    def __init__(self, weight: np.ndarray):
+        self.weight = weight
+        self.clear()
+
+    def clear(self) -> None:
+        """Forget the steps (a new matrix, or a step that was not a full one)."""
+        self.last, self.d_x, self.d_f = None, [], []
+
+
 class NewtonSolver:
     """Semi-smooth Newton (chord) solver of one step; keeps its factorisation between steps."""
 
@@ -608,10 +530,10 @@ class NewtonSolver:
         self.lu = None
         self._factorise(K)
 
-    def _line_search(self, evaluate, v, r_glue, dx, norm, nf, fresh):
+    def _line_search(self, residual: StepResidual, v, r_glue, dx, norm, fresh):
         """Backtracking on the merit norm from ``(v, r_glue)`` along ``dx``: halve the step
         until the norm decreases (Armijo, 1e-4) or the step falls below 0.01. Returns
-        ``(alpha, descent, v, r_glue, F, norm, state)`` at the step taken.
+        ``(alpha, descent, v, r_glue, evaluation)`` at the step taken.
 
         When no step decreases the norm along a direction from the matrix of this iterate
         (``fresh``), the full step is taken all the same: the residual is only piecewise
@@ -621,22 +543,22 @@ class NewtonSolver:
         U_x = 1.8 mm: 50 iterations stuck at a residual of 1e-5 with short steps, 11 to 33
         iterations to 1e-8 with the full step).
         """
+        nf = len(self.free)
         alpha = 1.0
         first = None
         while True:
             v_try = v.copy()
             v_try[self.free] += alpha * dx[:nf]
             r_try = r_glue + alpha * dx[nf:]
-            F_try, norm_try, state_try = evaluate(v_try, r_try)
-            descent = norm_try <= (1.0 - 1e-4 * alpha) * norm
+            ev = residual(v_try, r_try)
+            descent = ev.norm <= (1.0 - 1e-4 * alpha) * norm
             if descent:
-                return alpha, True, v_try, r_try, F_try, norm_try, state_try
+                return alpha, True, v_try, r_try, ev
             if alpha < 0.01:
                 if not fresh:
-                    return alpha, False, v_try, r_try, F_try, norm_try, state_try
+                    return alpha, False, v_try, r_try, ev
                 # the full step, evaluated again so that the material's trial states are its own
-                F_try, norm_try, state_try = evaluate(first[0], first[1])
-                return 1.0, False, first[0], first[1], F_try, norm_try, state_try
+                return 1.0, False, first[0], first[1], residual(first[0], first[1])
             if first is None:
                 first = (v_try, r_try)
             alpha *= 0.5
@@ -661,87 +583,12 @@ class NewtonSolver:
         gamma = np.linalg.lstsq(DF * weight[:, None], f * weight, rcond=1e-12)[0]
         return f - (np.column_stack(d_x) + DF) @ gamma
 
-    def solve(self, v_free, u_old, U_old, params, uc_old, beta_old, T, dv_guess,
-              correction=None, t_end: float | None = None):
-        """Solve the step. Returns (v, T, uc, beta, status, iterations, residual).
-
-        ``t_end`` (s): the time the step ends at, for the predictor when the last steps had
-        another size (None: they had this one).
-
-        Each iteration: the law and its tangent at every joint point, the residual, a solve
-        with the current factorisation (refactorised when the iterations slow down), and a
-        backtracking line search on the residual norm (glue rows scaled to impulse units), which
-        stops the cycling between open and closed statuses that full steps show when the
-        loads are tiny (the open joint is some 300 times softer than the closed one).
-
-        ``correction(v) -> (c, scale)``: a material correction of the body residual (N s), for
-        blocks whose internal forces are not linear (ENDO3D), and the size of the internal
-        impulses it corrects; its relative change between iterates joins the convergence test.
-        """
-        from masonry_nscd.nscd import kernels
-
+    def _predict(self, v_free, dv_guess, T, t_end):
+        """The iterate Newton starts from: ``(v, r_glue)``, body velocities (m/s) and the
+        multipliers' impulses (N s)."""
         s = self.sys
-        h, th = s.h, s.theta
-        npt = s.npt
-        u_pred = u_old + h * (1.0 - th) * U_old
+        h = s.h
         g = self.mult
-        nf = len(self.free)
-        glue_scale = float(np.mean(np.abs(self.mhat))) * 10.0 if len(self.mhat) else 1.0
-        # the rows of the rigid contacts in impulse units (N s): F / w
-        rigid_w = np.repeat(self.w, 3)[self.rigid_rows]
-        glue_rows = nf + np.flatnonzero(self.glue_rows)
-        rigid_rows = nf + np.flatnonzero(self.rigid_rows)
-        # the points whose tractions' change is judged: all but the rigid contacts
-        lawful = slice(None)
-        if self.has_rigid:
-            lawful = np.ones(npt, dtype=bool)
-            lawful[self.mult[self.mu >= 0.0]] = False
-
-        def rigid_sq(F):
-            """Sum of squares of the rigid contacts' rows as impulses (F / w, N s)."""
-            return np.sum((F[rigid_rows] / rigid_w) ** 2)
-
-        Hv = np.empty((npt, 3))
-        R = np.empty(s.ndof)
-
-        def evaluate(v, r_glue):
-            out_T = T.copy()
-            out_uc = np.zeros((npt, 3))
-            out_beta = beta_old.copy()
-            out_status = np.full(npt, laws.ST_GLUED, dtype=np.int64)
-            K = np.zeros((npt, 3, 3))
-            Gu = np.empty((len(g), 3, 3))
-            Gr = np.empty((len(g), 3, 3))
-            F = np.empty(nf + 3 * len(g))
-            kernels.local_velocities(s.side_dofs, s.side_coef, v, Hv)
-            mo = self.mult_of
-
-            def joints(lo, hi):
-                evaluate_joints(u_pred[lo:hi], Hv[lo:hi], h, th, mo[lo:hi], s.law[lo:hi],
-                                params, uc_old[lo:hi], beta_old[lo:hi], out_T[lo:hi],
-                                out_uc[lo:hi], out_beta[lo:hi], out_status[lo:hi], K[lo:hi])
-
-            with timing.part("joint law"):
-                threads.run_ranges(joints, npt)
-            with timing.part("glue and rigid contacts"):
-                evaluate_multipliers(u_pred, Hv, h, th, g, self.mu, self.rho, self.eps, uc_old,
-                                     r_glue, s.area, F[nf:], Gu, Gr, out_T, out_uc, out_status)
-            with timing.part("bodies' residual"):
-                # R_v = M_hat (v - v_free) - H r over all dofs (imposed ones included)
-                self.mhat_op.matvec(v - v_free, R)
-                subtract_impulses(s.side_dofs, s.side_coef, self.mult_of, s.area, out_T, r_glue,
-                                  h, R)
-            cvec, cscale = (None, 0.0) if correction is None else correction(v)
-            if cvec is not None:
-                R[:] += cvec
-            F[:nf] = R[self.free]
-            if self.has_rigid:
-                norm = math.sqrt(np.sum(F[:nf] ** 2) + glue_scale ** 2 * np.sum(F[glue_rows] ** 2)
-                                 + rigid_sq(F))
-            else:
-                norm = math.sqrt(np.sum(F[:nf] ** 2) + glue_scale ** 2 * np.sum(F[nf:] ** 2))
-            return F, norm, (out_T, out_uc, out_beta, out_status, (K, Gu, Gr), cvec, cscale)
-
         if len(self._solutions) == 2:
             # the solution of the step extrapolated linearly from the last two: in a slow,
             # smooth loading both change at a steady rate (measured on the reference wall: the
@@ -759,36 +606,86 @@ class NewtonSolver:
             v = v_free + dv_guess
             r_glue = (-h * s.area[g, None] * T[g]).ravel()
         v[s.imposed_dofs] = v_free[s.imposed_dofs]
-        F, norm, state = evaluate(v, r_glue)
-        T_prev = T
-        c_prev = None
+        return v, r_glue
+
+    def _move(self, residual: StepResidual, v, r_glue, ev: Evaluation, fresh: bool,
+              history: _ChordHistory):
+        """One iteration from ``(v, r_glue)`` with its evaluation ``ev``: the direction of the
+        matrix in place (``fresh``: factorised at this iterate), accelerated, along which the
+        line search steps. Returns ``(ev, alpha, fresh, v, r_glue, ev_next)``: the evaluation
+        of this iterate (made again when the matrix had to be refreshed), the step length,
+        whether the direction came from a fresh matrix, and the next iterate."""
+        pivoted = False
+        while True:
+            dx = self._linear_solve(-ev.F)
+            if not np.all(np.isfinite(dx)) and not pivoted:
+                # an unstable factorisation (diagonal pivots): refresh, with pivoting if the
+                # matrix was fresh already
+                if self.on_slow is not None and not fresh:
+                    self.on_slow()
+                self.lu = None
+                pivoted = fresh
+                self._factorise(ev.tangents, pivoting=pivoted)
+                fresh = True
+                continue
+            if not np.all(np.isfinite(dx)):  # singular even with pivoting: no step
+                dx = np.zeros_like(dx)
+            x = np.concatenate([v[self.free], r_glue])
+            if fresh:
+                history.clear()
+            step = dx
+            if history.last is not None and self.anderson > 0:
+                step = self._anderson(x, dx, history.last, history.d_x, history.d_f,
+                                      history.weight)
+            history.last = (x, dx)
+            alpha, descent, v_try, r_try, ev_try = self._line_search(
+                residual, v, r_glue, step, ev.norm, fresh and step is dx)
+            if alpha != 1.0 or not descent:
+                history.clear()
+                if step is not dx:  # the accelerated step failed: the plain one
+                    alpha, descent, v_try, r_try, ev_try = self._line_search(
+                        residual, v, r_glue, dx, ev.norm, fresh)
+            if descent or fresh:
+                return ev, alpha, fresh, v_try, r_try, ev_try
+            # a direction from an older matrix that does not decrease the residual: the
+            # tangents moved (a joint or a material point began to soften); retry from the
+            # same point with the matrix of this iterate (evaluated again: the material's
+            # trial states must be those of this iterate, not of the last trial step)
+            ev = residual(v, r_glue)
+            self._refresh(ev.tangents)
+            fresh = True
+
+    def solve(self, v_free, u_old, U_old, params, uc_old, beta_old, T, dv_guess,
+              correction=None, t_end: float | None = None):
+        """Solve the step. Returns (v, T, uc, beta, status, iterations, residual).
+
+        ``t_end`` (s): the time the step ends at, for the predictor when the last steps had
+        another size (None: they had this one).
+
+        Each iteration: the law and its tangent at every joint point, the residual
+        (``step_residual.StepResidual``), a solve with the current factorisation
+        (refactorised when the iterations slow down), and a backtracking line search on the
+        residual norm (glue rows scaled to impulse units), which stops the cycling between
+        open and closed statuses that full steps show when the loads are tiny (the open joint
+        is some 300 times softer than the closed one).
+
+        ``correction(v) -> (c, scale)``: a material correction of the body residual (N s), for
+        blocks whose internal forces are not linear (ENDO3D), and the size of the internal
+        impulses it corrects; its relative change between iterates joins the convergence test.
+        """
+        residual = StepResidual(self, v_free, u_old, U_old, params, uc_old, beta_old, T,
+                                correction)
+        v, r_glue = self._predict(v_free, dv_guess, T, t_end)
+        ev = residual(v, r_glue)
+        T_prev, c_prev = T, None
         res = math.inf
         prev = prev2 = math.inf
         it = 0
-        # Anderson history: the iterate (free velocities, glue impulses) and its chord step at
-        # the last iterate, and the differences of both over the last full steps with this
-        # matrix; glue impulses weighted by 1 / glue_scale in the least squares (velocity units)
-        weight = np.concatenate([np.ones(nf), np.where(self.glue_rows, 1.0 / glue_scale,
-                                                       np.repeat(self.w, 3))])
-        last, d_x, d_f = None, [], []
+        # Anderson history: the last iterate and its chord step, and the differences of both
+        # over the last full steps with this matrix, weighted to velocity units
+        history = _ChordHistory(residual.weights())
         for it in range(1, self.max_iterations + 1):
-            Tn = state[0]
-            # the change of the tractions of the points with a law (a rigid contact's impulse
-            # can shift between redundant points at no cost: its rows below judge it)
-            num = np.sum((s.area[lawful, None] * (Tn[lawful] - T_prev[lawful])) ** 2)
-            den = np.sum((s.area[:, None] * Tn) ** 2)
-            res = math.sqrt(num / den) if den > 0 else (0.0 if num == 0 else math.inf)
-            if den > 0:
-                # and the momentum balance against the contact impulses: at the friction limit
-                # the tractions (mu N) stop changing before the velocities are right
-                res = max(res, math.sqrt(np.sum(F[:nf] ** 2) / den) / h)
-                if self.has_rigid:
-                    # and the rigid contacts' conditions, as the impulses that would meet them
-                    res = max(res, math.sqrt(rigid_sq(F) / den) / h)
-            cvec, cscale = state[5], state[6]
-            if cvec is not None and c_prev is not None:
-                dc = float(np.linalg.norm(cvec - c_prev))
-                res = max(res, dc / cscale if cscale > 0 else (0.0 if dc == 0 else math.inf))
+            res, num, den = residual.convergence(ev, T_prev, c_prev)
             if it > 1 and res <= self.tolerance:
                 break
             # refactorise only when two iterations in a row converged slower than slow_rate: an
@@ -797,55 +694,15 @@ class NewtonSolver:
             slow = it > 3 and res > self.slow_rate * prev and prev > self.slow_rate * prev2
             fresh = self.lu is None or slow
             if fresh:
-                self._refresh(state[4])
+                self._refresh(ev.tangents)
             prev2, prev = prev, res
-            pivoted = False
-            while True:
-                dx = self._linear_solve(-F)
-                if not np.all(np.isfinite(dx)) and not pivoted:
-                    # an unstable factorisation (diagonal pivots): refresh, with pivoting if
-                    # the matrix was fresh already
-                    if self.on_slow is not None and not fresh:
-                        self.on_slow()
-                    self.lu = None
-                    pivoted = fresh
-                    self._factorise(state[4], pivoting=pivoted)
-                    fresh = True
-                    continue
-                if not np.all(np.isfinite(dx)):  # singular even with pivoting: no step
-                    dx = np.zeros_like(dx)
-                x = np.concatenate([v[self.free], r_glue])
-                if fresh:
-                    last, d_x, d_f = None, [], []
-                step = dx
-                if last is not None and self.anderson > 0:
-                    step = self._anderson(x, dx, last, d_x, d_f, weight)
-                last = (x, dx)
-                alpha, descent, v_try, r_try, F_try, norm_try, state_try = self._line_search(
-                    evaluate, v, r_glue, step, norm, nf, fresh and step is dx)
-                if alpha != 1.0 or not descent:
-                    last, d_x, d_f = None, [], []
-                    if step is not dx:  # the accelerated step failed: the plain one
-                        alpha, descent, v_try, r_try, F_try, norm_try, state_try = \
-                            self._line_search(evaluate, v, r_glue, dx, norm, nf, fresh)
-                if descent or fresh:
-                    break
-                # a direction from an older matrix that does not decrease the residual: the
-                # tangents moved (a joint or a material point began to soften); retry from the
-                # same point with the matrix of this iterate (evaluated again: the material's
-                # trial states must be those of this iterate, not of the last trial step)
-                F, norm, state = evaluate(v, r_glue)
-                self._refresh(state[4])
-                fresh = True
+            T_prev, c_prev = ev.T, ev.correction
+            ev, alpha, fresh, v, r_glue, ev_next = self._move(residual, v, r_glue, ev, fresh,
+                                                               history)
             if self.trace is not None:
-                worst = int(np.argmax(np.abs(F)))
-                d = den if den > 0 else math.inf
-                self.trace.append((it, res, norm, alpha, fresh, worst, float(F[worst]),
-                                   math.sqrt(num / d), math.sqrt(np.sum(F[:nf] ** 2) / d) / h,
-                                   math.sqrt(rigid_sq(F) / d) / h))
-            T_prev = Tn
-            c_prev = cvec
-            v, r_glue, F, norm, state = v_try, r_try, F_try, norm_try, state_try
-        Tn, uc, beta, status = state[:4]
-        self._solutions = [*self._solutions[-1:], (t_end, v.copy(), r_glue.copy(), h)]
-        return v, Tn, uc, beta, status, it, res
+                worst = int(np.argmax(np.abs(ev.F)))
+                self.trace.append((it, res, ev.norm, alpha, fresh, worst, float(ev.F[worst]),
+                                   *residual.parts(ev, num, den)))
+            ev = ev_next
+        self._solutions = [*self._solutions[-1:], (t_end, v.copy(), r_glue.copy(), self.sys.h)]
+        return v, ev.T, ev.uc, ev.beta, ev.status, it, res

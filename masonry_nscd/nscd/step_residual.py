@@ -1,0 +1,266 @@
+r"""The residual of one Moreau-Jean step at an iterate of the Newton solver (``nscd/newton.py``).
+
+At body velocities ``v`` (m/s, every dof) and glue or rigid-contact impulses ``r`` (N s), with
+the step's data fixed (free velocities, the joints' displacements and states at its start):
+
+    R_v = M_hat (v - v_free) - sum_joints H_a r_a(v) - sum_mult H_m r_m [+ c(v)]     (N s)
+    F   = [ R_v on the free dofs ; the multipliers' rows ]
+
+where a joint point's impulse follows from its law, ``r_a = -h S_a T_a(u_a)``, at
+``u_a = u_a,n + h (1 - theta) U_a,n + h theta H_a^T v``, and ``c(v)`` is the material correction
+of blocks whose internal forces are not linear (ENDO3D). An evaluation also gives what the
+Newton matrix needs (the laws' tangents ``K``, the multipliers' derivatives ``Gu``, ``Gr``) and
+the merit norm of the line search, ``|F|`` with the glue rows scaled to impulse units and the
+rigid contacts' rows as impulses (``F / w``, N s).
+
+Convergence (:meth:`StepResidual.convergence`): the relative change of the contact forces
+between iterates, ``sqrt(sum |S dT|^2) / sqrt(sum |S T|^2)`` (the points with a law and the
+glue), the momentum residual ``|R_v| / (h sqrt(sum |S T|^2))``, the rigid contacts' rows as
+the impulses that would meet them, and the relative change of the material correction; the
+largest of them.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from masonry_nscd import threads, timing
+from masonry_nscd.contact import alart_curnier, laws
+from masonry_nscd.nscd import kernels
+
+
+@njit(cache=True, nogil=True)
+def evaluate_joints(u_pred, Hv, h, theta, mult_of, law, params, uc_old, beta_old,
+                    T, uc, beta, status, K):
+    """Law and consistent tangent at every joint point with a spring (``mult_of < 0``) for
+    ``u = u_pred + h theta H^T v`` (Hv = H^T v), from ``contact.laws.response``."""
+    npt = u_pred.shape[0]
+    A = np.zeros((3, 3))
+    u = np.empty(3)
+    t = np.empty(3)
+    c = np.empty(3)
+    co = np.empty(3)
+    Ka = np.empty((3, 3))
+    for a in range(npt):
+        if mult_of[a] >= 0:
+            continue
+        for i in range(3):
+            u[i] = u_pred[a, i] + h * theta * Hv[a, i]
+            co[i] = uc_old[a, i]
+        st, bn = laws.response(u, A, co, beta_old[a], params[law[a]], t, c, Ka)
+        for i in range(3):
+            T[a, i] = t[i]
+            uc[a, i] = c[i]
+            for j in range(3):
+                K[a, i, j] = Ka[i, j]
+        beta[a] = bn
+        status[a] = st
+
+
+@njit(cache=True)
+def evaluate_multipliers(u_pred, Hv, h, theta, mult, mu, rho, eps, uc_old, r, area, F, Gu, Gr,
+                         T, uc, status):
+    """Rows of the points whose impulses ``r`` (N s) are unknowns: glue (``mu < 0``) and rigid
+    Signorini-Coulomb contacts, at ``u = u_pred + h theta H^T v`` (Hv = H^T v), in velocity
+    units: ``F = Phi / (h theta) + eps r`` with ``Phi = u`` for the glue and the Alart-Curnier
+    function (``contact.alart_curnier``, with ``rho`` in N s/m) for a contact; ``Gu``, ``Gr``
+    the derivatives of ``F`` along ``H^T v`` and ``r``. The tractions ``T = -r / (h S)`` (Pa),
+    the cohesive displacements and the statuses of these points are written too."""
+    phi = np.empty(3)
+    u = np.empty(3)
+    gu = np.empty((3, 3))
+    gr = np.empty((3, 3))
+    c = np.empty(3)
+    ht = h * theta
+    for m in range(mult.shape[0]):
+        a = mult[m]
+        e = eps[m]
+        if mu[m] < 0.0:
+            for i in range(3):
+                F[3 * m + i] = Hv[a, i] + u_pred[a, i] / ht + e * r[3 * m + i]
+                for j in range(3):
+                    Gu[m, i, j] = 1.0 if i == j else 0.0
+                    Gr[m, i, j] = e if i == j else 0.0
+                uc[a, i] = 0.0
+            status[a] = laws.ST_GLUED
+        else:
+            for i in range(3):
+                u[i] = u_pred[a, i] + ht * Hv[a, i]
+            status[a] = alart_curnier.residual(u, r[3 * m:3 * m + 3], uc_old[a], mu[m], rho[m],
+                                               phi, gu, gr, c)
+            for i in range(3):
+                F[3 * m + i] = phi[i] / ht + e * r[3 * m + i]
+                for j in range(3):
+                    Gu[m, i, j] = gu[i, j]
+                    Gr[m, i, j] = gr[i, j] / ht + (e if i == j else 0.0)
+                uc[a, i] = c[i]
+        for i in range(3):
+            T[a, i] = -r[3 * m + i] / (h * area[a])
+
+
+@njit(cache=True)
+def subtract_impulses(side_dofs, side_coef, mult_of, area, T, r_mult, h, R):
+    """``R -= H r``: the contact impulses (N s) of every point taken from the residual, the
+    points with a law from their tractions (``r = -h S T``), the multipliers' from ``r_mult``."""
+    for a in range(side_dofs.shape[0]):
+        g = mult_of[a]
+        if g < 0:
+            f = -h * area[a]
+            r0 = f * T[a, 0]
+            r1 = f * T[a, 1]
+            r2 = f * T[a, 2]
+        else:
+            r0 = r_mult[3 * g]
+            r1 = r_mult[3 * g + 1]
+            r2 = r_mult[3 * g + 2]
+        for s in range(2):
+            for j in range(side_dofs.shape[2]):
+                d = side_dofs[a, s, j]
+                if d < 0:
+                    break
+                R[d] -= side_coef[a, s, j, 0] * r0 + side_coef[a, s, j, 1] * r1 \
+                    + side_coef[a, s, j, 2] * r2
+
+
+class Evaluation(NamedTuple):
+    """The residual at one iterate and what comes with it."""
+
+    F: np.ndarray  # residual (free dofs, N s; then 3 rows per multiplier point, m/s)
+    norm: float  # merit norm (N s)
+    T: np.ndarray  # tractions of every point (npt, 3), Pa
+    uc: np.ndarray  # cohesive displacements (npt, 3), m
+    beta: np.ndarray  # integrities (npt,)
+    status: np.ndarray  # statuses (npt,)
+    tangents: tuple  # (K, Gu, Gr): the laws' tangents, the multipliers' derivatives
+    correction: np.ndarray | None  # material correction c(v) (ndof), N s; None without
+    correction_scale: float  # the size of the internal impulses it corrects, N s
+
+
+class StepResidual:
+    """The residual of one step as a function of the iterate (``__call__``), for the solver
+    ``solver`` (a ``NewtonSolver``: the system, the multipliers and their scales).
+
+    ``correction(v) -> (c, scale)``: the material correction (N s) and the size of the
+    internal impulses it corrects (None: linear blocks).
+    """
+
+    def __init__(self, solver, v_free, u_old, U_old, params, uc_old, beta_old, T,
+                 correction=None):
+        s = solver.sys
+        self.solver = solver
+        self.sys = s
+        self.v_free = v_free
+        self.params = params
+        self.uc_old = uc_old
+        self.beta_old = beta_old
+        self.T_old = T
+        self.correction = correction
+        self.u_pred = u_old + s.h * (1.0 - s.theta) * U_old
+        self.nf = nf = len(solver.free)
+        self.glue_scale = float(np.mean(np.abs(solver.mhat))) * 10.0 if len(solver.mhat) else 1.0
+        # the rows of the rigid contacts in impulse units (N s): F / w
+        self.rigid_w = np.repeat(solver.w, 3)[solver.rigid_rows]
+        self.glue_rows = nf + np.flatnonzero(solver.glue_rows)
+        self.rigid_rows = nf + np.flatnonzero(solver.rigid_rows)
+        # the points whose tractions' change is judged: all but the rigid contacts
+        self.lawful = slice(None)
+        if solver.has_rigid:
+            self.lawful = np.ones(s.npt, dtype=bool)
+            self.lawful[solver.mult[solver.mu >= 0.0]] = False
+        self._Hv = np.empty((s.npt, 3))
+        self._R = np.empty(s.ndof)
+
+    def weights(self) -> np.ndarray:
+        """Weights of the unknowns (free velocities, then the multipliers' impulses) that put
+        them in velocity units: 1, ``1 / glue_scale`` for the glue, ``w`` for rigid contacts."""
+        sv = self.solver
+        return np.concatenate([np.ones(self.nf), np.where(sv.glue_rows, 1.0 / self.glue_scale,
+                                                          np.repeat(sv.w, 3))])
+
+    def rigid_sq(self, F: np.ndarray) -> float:
+        """Sum of squares of the rigid contacts' rows as impulses (F / w, N s)."""
+        return np.sum((F[self.rigid_rows] / self.rigid_w) ** 2)
+
+    def __call__(self, v: np.ndarray, r_glue: np.ndarray) -> Evaluation:
+        """The residual at body velocities ``v`` (m/s) and multipliers' impulses ``r_glue``
+        (N s)."""
+        sv, s = self.solver, self.sys
+        h, th, npt, nf = s.h, s.theta, s.npt, self.nf
+        g = sv.mult
+        u_pred, uc_old, beta_old, params = self.u_pred, self.uc_old, self.beta_old, self.params
+        Hv, R = self._Hv, self._R
+        out_T = self.T_old.copy()
+        out_uc = np.zeros((npt, 3))
+        out_beta = beta_old.copy()
+        out_status = np.full(npt, laws.ST_GLUED, dtype=np.int64)
+        K = np.zeros((npt, 3, 3))
+        Gu = np.empty((len(g), 3, 3))
+        Gr = np.empty((len(g), 3, 3))
+        F = np.empty(nf + 3 * len(g))
+        kernels.local_velocities(s.side_dofs, s.side_coef, v, Hv)
+        mo = sv.mult_of
+
+        def joints(lo, hi):
+            evaluate_joints(u_pred[lo:hi], Hv[lo:hi], h, th, mo[lo:hi], s.law[lo:hi], params,
+                            uc_old[lo:hi], beta_old[lo:hi], out_T[lo:hi], out_uc[lo:hi],
+                            out_beta[lo:hi], out_status[lo:hi], K[lo:hi])
+
+        with timing.part("joint law"):
+            threads.run_ranges(joints, npt)
+        with timing.part("glue and rigid contacts"):
+            evaluate_multipliers(u_pred, Hv, h, th, g, sv.mu, sv.rho, sv.eps, uc_old, r_glue,
+                                 s.area, F[nf:], Gu, Gr, out_T, out_uc, out_status)
+        with timing.part("bodies' residual"):
+            # R_v = M_hat (v - v_free) - H r over all dofs (imposed ones included)
+            sv.mhat_op.matvec(v - self.v_free, R)
+            subtract_impulses(s.side_dofs, s.side_coef, mo, s.area, out_T, r_glue, h, R)
+        cvec, cscale = (None, 0.0) if self.correction is None else self.correction(v)
+        if cvec is not None:
+            R[:] += cvec
+        F[:nf] = R[sv.free]
+        gs = self.glue_scale
+        if sv.has_rigid:
+            norm = math.sqrt(np.sum(F[:nf] ** 2) + gs ** 2 * np.sum(F[self.glue_rows] ** 2)
+                             + self.rigid_sq(F))
+        else:
+            norm = math.sqrt(np.sum(F[:nf] ** 2) + gs ** 2 * np.sum(F[nf:] ** 2))
+        return Evaluation(F, norm, out_T, out_uc, out_beta, out_status, (K, Gu, Gr), cvec,
+                          cscale)
+
+    def convergence(self, ev: Evaluation, T_prev: np.ndarray,
+                    c_prev: np.ndarray | None) -> tuple[float, float, float]:
+        """The convergence measure at ``ev`` against the tractions ``T_prev`` (Pa) and the
+        material correction ``c_prev`` of the iterate before (module docstring). Returns
+        ``(measure, num, den)``: ``num`` and ``den`` the sums of squares of the traction
+        change and of the tractions (N^2), for :meth:`parts`."""
+        s, lawful, h, nf = self.sys, self.lawful, self.sys.h, self.nf
+        Tn, F = ev.T, ev.F
+        # the change of the tractions of the points with a law (a rigid contact's impulse
+        # can shift between redundant points at no cost: its rows below judge it)
+        num = np.sum((s.area[lawful, None] * (Tn[lawful] - T_prev[lawful])) ** 2)
+        den = np.sum((s.area[:, None] * Tn) ** 2)
+        res = math.sqrt(num / den) if den > 0 else (0.0 if num == 0 else math.inf)
+        if den > 0:
+            # and the momentum balance against the contact impulses: at the friction limit
+            # the tractions (mu N) stop changing before the velocities are right
+            res = max(res, math.sqrt(np.sum(F[:nf] ** 2) / den) / h)
+            if self.solver.has_rigid:
+                # and the rigid contacts' conditions, as the impulses that would meet them
+                res = max(res, math.sqrt(self.rigid_sq(F) / den) / h)
+        cvec, cscale = ev.correction, ev.correction_scale
+        if cvec is not None and c_prev is not None:
+            dc = float(np.linalg.norm(cvec - c_prev))
+            res = max(res, dc / cscale if cscale > 0 else (0.0 if dc == 0 else math.inf))
+        return res, num, den
+
+    def parts(self, ev: Evaluation, num: float, den: float) -> tuple[float, float, float]:
+        """The three parts of the measure (change of the tractions, momentum, rigid
+        contacts' rows), for the solver's trace."""
+        d = den if den > 0 else math.inf
+        h, F = self.sys.h, ev.F
+        return (math.sqrt(num / d), math.sqrt(np.sum(F[:self.nf] ** 2) / d) / h,
+                math.sqrt(self.rigid_sq(F) / d) / h)
