@@ -80,7 +80,7 @@ from masonry_nscd.contact import laws
 from masonry_nscd.nscd import linear as linear_solvers
 from masonry_nscd.nscd import pardiso as pardiso_solver
 from masonry_nscd.nscd.block_diagonal import BlockDiagonal
-from masonry_nscd.nscd.step_residual import Evaluation, StepResidual
+from masonry_nscd.nscd.step_residual import Evaluation, Scales, StepResidual
 
 
 @njit(cache=True, inline="always")
@@ -384,6 +384,7 @@ class NewtonSolver:
         # of the bodies they hold (4 points on a face of a rigid block), and moves the glue or
         # the contact by 1e-9 of the relative displacement it resists.
         self.eps = 1e-9 * trace / 3.0
+        self.scales = Scales(self)
         self.lu = None
         self.factorisations = 0
         # the linear solver, resolved by size; Krylov solves made again by LU, and why
@@ -683,7 +684,7 @@ class NewtonSolver:
         it = 0
         # Anderson history: the last iterate and its chord step, and the differences of both
         # over the last full steps with this matrix, weighted to velocity units
-        history = _ChordHistory(residual.weights())
+        history = _ChordHistory(self.scales.weight)
         for it in range(1, self.max_iterations + 1):
             res, num, den = residual.convergence(ev, T_prev, c_prev)
             if it > 1 and res <= self.tolerance:

@@ -140,9 +140,39 @@ class Evaluation(NamedTuple):
     correction_scale: float  # the size of the internal impulses it corrects, N s
 
 
+class Scales:
+    """How the residual's rows are weighed, fixed for a solver (built once by it): the glue
+    rows scaled to impulse units by ``glue_scale`` (10 times the mean entry of ``M_hat``,
+    kg), the rigid contacts' rows divided by ``w`` (the mean diagonal of their Delassus
+    matrices, 1/kg), and the points whose tractions' change is judged (``lawful``: all but
+    the rigid contacts, whose impulse can shift between redundant points at no cost)."""
+
+    def __init__(self, solver):
+        s = solver.sys
+        nf = len(solver.free)
+        self.glue_scale = float(np.mean(np.abs(solver.mhat))) * 10.0 if len(solver.mhat) else 1.0
+        # the rows of the rigid contacts in impulse units (N s): F / w
+        self.rigid_w = np.repeat(solver.w, 3)[solver.rigid_rows]
+        self.glue_rows = nf + np.flatnonzero(solver.glue_rows)
+        self.rigid_rows = nf + np.flatnonzero(solver.rigid_rows)
+        self.lawful = slice(None)
+        if solver.has_rigid:
+            self.lawful = np.ones(s.npt, dtype=bool)
+            self.lawful[solver.mult[solver.mu >= 0.0]] = False
+        # the unknowns (free velocities, then the multipliers' impulses) in velocity units:
+        # 1, 1 / glue_scale for the glue, w for rigid contacts (Anderson's least squares)
+        self.weight = np.concatenate([np.ones(nf), np.where(solver.glue_rows,
+                                                            1.0 / self.glue_scale,
+                                                            np.repeat(solver.w, 3))])
+
+    def rigid_sq(self, F: np.ndarray) -> float:
+        """Sum of squares of the rigid contacts' rows as impulses (F / w, N s)."""
+        return np.sum((F[self.rigid_rows] / self.rigid_w) ** 2)
+
+
 class StepResidual:
     """The residual of one step as a function of the iterate (``__call__``), for the solver
-    ``solver`` (a ``NewtonSolver``: the system, the multipliers and their scales).
+    ``solver`` (a ``NewtonSolver``: the system, the multipliers, their ``scales``).
 
     ``correction(v) -> (c, scale)``: the material correction (N s) and the size of the
     internal impulses it corrects (None: linear blocks).
@@ -153,6 +183,7 @@ class StepResidual:
         s = solver.sys
         self.solver = solver
         self.sys = s
+        self.scales = solver.scales
         self.v_free = v_free
         self.params = params
         self.uc_old = uc_old
@@ -160,30 +191,9 @@ class StepResidual:
         self.T_old = T
         self.correction = correction
         self.u_pred = u_old + s.h * (1.0 - s.theta) * U_old
-        self.nf = nf = len(solver.free)
-        self.glue_scale = float(np.mean(np.abs(solver.mhat))) * 10.0 if len(solver.mhat) else 1.0
-        # the rows of the rigid contacts in impulse units (N s): F / w
-        self.rigid_w = np.repeat(solver.w, 3)[solver.rigid_rows]
-        self.glue_rows = nf + np.flatnonzero(solver.glue_rows)
-        self.rigid_rows = nf + np.flatnonzero(solver.rigid_rows)
-        # the points whose tractions' change is judged: all but the rigid contacts
-        self.lawful = slice(None)
-        if solver.has_rigid:
-            self.lawful = np.ones(s.npt, dtype=bool)
-            self.lawful[solver.mult[solver.mu >= 0.0]] = False
+        self.nf = len(solver.free)
         self._Hv = np.empty((s.npt, 3))
         self._R = np.empty(s.ndof)
-
-    def weights(self) -> np.ndarray:
-        """Weights of the unknowns (free velocities, then the multipliers' impulses) that put
-        them in velocity units: 1, ``1 / glue_scale`` for the glue, ``w`` for rigid contacts."""
-        sv = self.solver
-        return np.concatenate([np.ones(self.nf), np.where(sv.glue_rows, 1.0 / self.glue_scale,
-                                                          np.repeat(sv.w, 3))])
-
-    def rigid_sq(self, F: np.ndarray) -> float:
-        """Sum of squares of the rigid contacts' rows as impulses (F / w, N s)."""
-        return np.sum((F[self.rigid_rows] / self.rigid_w) ** 2)
 
     def __call__(self, v: np.ndarray, r_glue: np.ndarray) -> Evaluation:
         """The residual at body velocities ``v`` (m/s) and multipliers' impulses ``r_glue``
@@ -222,10 +232,11 @@ class StepResidual:
         if cvec is not None:
             R[:] += cvec
         F[:nf] = R[sv.free]
-        gs = self.glue_scale
+        sc = self.scales
+        gs = sc.glue_scale
         if sv.has_rigid:
-            norm = math.sqrt(np.sum(F[:nf] ** 2) + gs ** 2 * np.sum(F[self.glue_rows] ** 2)
-                             + self.rigid_sq(F))
+            norm = math.sqrt(np.sum(F[:nf] ** 2) + gs ** 2 * np.sum(F[sc.glue_rows] ** 2)
+                             + sc.rigid_sq(F))
         else:
             norm = math.sqrt(np.sum(F[:nf] ** 2) + gs ** 2 * np.sum(F[nf:] ** 2))
         return Evaluation(F, norm, out_T, out_uc, out_beta, out_status, (K, Gu, Gr), cvec,
@@ -237,7 +248,7 @@ class StepResidual:
         material correction ``c_prev`` of the iterate before (module docstring). Returns
         ``(measure, num, den)``: ``num`` and ``den`` the sums of squares of the traction
         change and of the tractions (N^2), for :meth:`parts`."""
-        s, lawful, h, nf = self.sys, self.lawful, self.sys.h, self.nf
+        s, lawful, h, nf = self.sys, self.scales.lawful, self.sys.h, self.nf
         Tn, F = ev.T, ev.F
         # the change of the tractions of the points with a law (a rigid contact's impulse
         # can shift between redundant points at no cost: its rows below judge it)
@@ -250,7 +261,7 @@ class StepResidual:
             res = max(res, math.sqrt(np.sum(F[:nf] ** 2) / den) / h)
             if self.solver.has_rigid:
                 # and the rigid contacts' conditions, as the impulses that would meet them
-                res = max(res, math.sqrt(self.rigid_sq(F) / den) / h)
+                res = max(res, math.sqrt(self.scales.rigid_sq(F) / den) / h)
         cvec, cscale = ev.correction, ev.correction_scale
         if cvec is not None and c_prev is not None:
             dc = float(np.linalg.norm(cvec - c_prev))
@@ -263,4 +274,4 @@ class StepResidual:
         d = den if den > 0 else math.inf
         h, F = self.sys.h, ev.F
         return (math.sqrt(num / d), math.sqrt(np.sum(F[:self.nf] ** 2) / d) / h,
-                math.sqrt(self.rigid_sq(F) / d) / h)
+                math.sqrt(self.scales.rigid_sq(F) / d) / h)
