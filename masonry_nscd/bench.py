@@ -94,6 +94,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from masonry_nscd import timing
+
 FloatArray = NDArray[np.float64]
 
 #: The reference run: time step times this factor...
@@ -519,6 +521,7 @@ def _child_steps(spec: Mapping[str, Any]) -> dict[str, Any]:
     scene_s = time.perf_counter() - t0
     integ = scene.integrator()
     build_s = time.perf_counter() - t0
+    timing.reset()  # the steps' parts only
     out: dict[str, Any] = {
         "status": "ok", "message": "", "scene_s": scene_s, "build_s": build_s, "step_s": [],
         "sweeps": [], "counts": [integ.solver_counts()], "units": len(scene.structure),
@@ -534,6 +537,7 @@ def _child_steps(spec: Mapping[str, Any]) -> dict[str, Any]:
         out["step_s"].append(time.perf_counter() - t1)
         out["sweeps"].append(rep.sweeps)
         out["counts"].append(integ.solver_counts())
+        out["parts"] = [[r.name, r.calls, r.total_s, r.median_ms] for r in timing.table()]
         _write_partial(spec, out)
     return out
 
@@ -988,6 +992,31 @@ class ScalingRow:
 SCALING_COLUMNS = [f.name for f in fields(ScalingRow)]
 
 
+@dataclass
+class PartRow:
+    """One row of ``scaling_parts.csv``: where a wall's step time went (``masonry_nscd.timing``)
+    over all its steps; ``share`` of the summed step times."""
+
+    wall: str
+    part: str
+    calls: int
+    total_s: float
+    median_ms: float
+    share: float
+
+
+PARTS_COLUMNS = [f.name for f in fields(PartRow)]
+
+
+def scaling_parts(name: str, res: Mapping[str, Any]) -> list[PartRow]:
+    """The rows of ``scaling_parts.csv`` of one wall from its child's result (none when it
+    made no step)."""
+    steps_s = float(sum(res.get("step_s", [])))
+    return [PartRow(name, part, calls, total, median,
+                    total / steps_s if steps_s > 0 else math.nan)
+            for part, calls, total, median in res.get("parts", [])]
+
+
 def loglog_slope(x: Sequence[float], y: Sequence[float]) -> float:
     """Least-squares slope of ``log y`` against ``log x`` over the positive pairs; NaN with
     fewer than two."""
@@ -1069,23 +1098,32 @@ def bench_scaling(case_path: Path | str, outdir: Path | str, *, overrides: Seque
     run_in_child(spec(1, 1))  # warms the numba cache: no compilation in the measured runs
     kill_s = None if time_limit_s is None else float(time_limit_s) + 60.0
     rows: list[ScalingRow] = []
+    parts: list[PartRow] = []
     for name, c, n in walls:
         if rows and rows[-1].status in ("memory", "skipped"):
             rows.append(ScalingRow(name, c, n, status="skipped",
                                    message=f"not tried: {rows[-1].wall} hit its limit"))
             echo(f"{name}: skipped ({rows[-1].message})")
             continue
-        row = _scaling_row(name, c, n, run_in_child(spec(c, n), timeout_s=kill_s), skip)
+        res = run_in_child(spec(c, n), timeout_s=kill_s)
+        row = _scaling_row(name, c, n, res, skip)
         rows.append(row)
+        parts += scaling_parts(name, res)
         echo(f"{name}: {c} courses x {n} units per course, {row.units} units, "
              f"{row.contact_points} contact points: {row.status}, build {row.build_s:.3g} s, "
              f"{row.step_ms_median:.3g} ms per step, {row.factorisations_per_step:.2g} "
              f"factorisations per step, {row.peak_rss_MiB:.0f} MiB"
              + (f": {row.message}" if row.message else ""))
+        top = [p for p in parts if p.wall == name][:4]
+        if top:
+            echo("  of the step time: " + ", ".join(
+                f"{p.part} {100 * p.share:.0f} % ({p.calls} x {p.median_ms:.3g} ms)"
+                for p in top))
     base = rows[0].peak_rss_MiB
     for r in rows[1:]:
         r.rss_above_baseline_MiB = r.peak_rss_MiB - base
     write_rows(outdir / "scaling.csv", rows, SCALING_COLUMNS)
+    write_rows(outdir / "scaling_parts.csv", parts, PARTS_COLUMNS)
     plot_scaling(rows, outdir / "scaling.png", f"{case.name}: {steps} steps per wall")
     return rows, scaling_statements(rows)
 

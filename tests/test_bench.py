@@ -221,6 +221,16 @@ def test_scaling_on_the_smoke_wall(tmp_path):
     assert all(math.isfinite(float(r["peak_rss_MiB"])) for r in rows)
     assert (tmp_path / "scaling.png").read_bytes()[:8] == PNG_SIGNATURE
     assert "KiB per contact point" in res.output and "log-log slope" in res.output
+    # where each wall's step time went: every wall that stepped has its factorisations and
+    # joint-law calls, and the parts are inside its steps (shares at most 1 in all)
+    header, parts = _read_csv(tmp_path / "scaling_parts.csv")
+    assert header == bm.PARTS_COLUMNS
+    for r in rows:
+        mine = {p["part"]: p for p in parts if p["wall"] == r["wall"]}
+        assert int(mine["joint law"]["calls"]) >= int(r["steps"])
+        assert "factorisation" in mine
+        assert sum(float(p["share"]) for p in mine.values()) <= 1.0 + 1e-9
+    assert "of the step time:" in res.output
 
 
 def test_the_reference_run_gets_a_longer_time_limit(tmp_path, monkeypatch):
