@@ -59,6 +59,27 @@ def smoke_scene():
     return build_scene(load_case(SMOKE, QUIET))
 
 
+def test_the_local_preconditioner_inverts_each_bodys_diagonal_block():
+    """The local part of the Krylov preconditioner is the inverse of every body's diagonal
+    block of ``S`` (bodies of 7, 6, 8 and 6 dofs, coupled to one another), and its coarse part
+    solves ``R^T S R`` (six modes per body)."""
+    body_of = np.repeat(np.arange(4), [7, 6, 8, 6])
+    rng = np.random.default_rng(4)
+    n = len(body_of)
+    S = rng.normal(size=(n, n)) * (rng.random((n, n)) < 0.6) + 6.0 * np.eye(n)
+    ks = linear.KrylovSolver(body_of, rng.normal(size=(n, 6)))
+    pre = ks._preconditioner(sp.csr_matrix(S))
+    r = rng.normal(size=n)
+    expected = np.empty(n)
+    for b in np.unique(body_of):
+        d = np.flatnonzero(body_of == b)
+        expected[d] = np.linalg.solve(S[np.ix_(d, d)], r[d])
+    assert np.allclose(pre._local(r), expected, rtol=1e-12, atol=1e-12)
+    R = ks.R.toarray()
+    coarse = R @ np.linalg.solve(R.T @ S @ R, R.T @ r)
+    assert np.allclose(pre._coarse(r), coarse, rtol=1e-8, atol=1e-8 * np.abs(coarse).max())
+
+
 def test_rigid_body_modes_are_the_null_space_of_each_blocks_stiffness(smoke_scene):
     integ = smoke_scene.integrator()
     s = integ.sys

@@ -31,11 +31,17 @@ inside each block, the coarse one the motion of the blocks against one another, 
 one-level (block-Jacobi) method would need about as many iterations as there are blocks across
 the wall to carry. Each iteration costs two products with ``S``, one with ``S_loc^-1`` and two
 coarse solves: all linear in the bodies for a wall (the coarse LU has 6 unknowns per block and
-the two-dimensional connectivity of a wall). The setup (``factorise``) is redone only where
-the LU would be refactorised. The solution of the previous solve (the iteration or the step
-before) starts GMRES when its residual is below that of zero. A solve whose relative residual
-``|rhs - S v| / |rhs|`` stays above ``rtol`` after ``max_iterations`` is reported
-(``KrylovFailure``): the Newton solver then factorises the same matrix by LU and says so.
+the two-dimensional connectivity of a wall). The local inverses are kept as dense blocks
+grouped by size and applied by one stacked product per size (a sparse matrix of them took
+most of the set-up: 8 times the study's wall, 0.63 s against 0.19 s per set-up). The setup
+(``factorise``) is redone only where the LU would be refactorised; keeping a preconditioner
+of an earlier matrix for the new one was tried and lost (8 times the study's wall, 12 steps:
+2,905 GMRES iterations against 278, the steps 40 % slower: the joints' springs change by
+orders of magnitude when they open or close). The solution of the previous solve (the
+iteration or the step before) starts GMRES when its residual is below that of zero. A solve
+whose relative residual ``|rhs - S v| / |rhs|`` stays above ``rtol`` after ``max_iterations``
+is reported (``KrylovFailure``): the Newton solver then factorises the same matrix by LU and
+says so.
 
 ``pardiso``: the sparse LU of Intel MKL (``nscd/pardiso.py``), in the same fixed pattern as
 ``lu``: the same solutions to round-off, two to three times faster factorisations.
@@ -51,7 +57,9 @@ import math
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from numba import njit
 
+from masonry_nscd import timing
 from masonry_nscd.nscd import pardiso
 
 LINEAR_SOLVERS = ("auto", "lu", "pardiso", "krylov")
@@ -144,17 +152,32 @@ class KrylovSolver:
         starts = np.flatnonzero(np.r_[True, body_of[1:] != body_of[:-1]]) if nf else \
             np.zeros(0, dtype=np.int64)
         sizes = np.diff(np.r_[starts, nf])
+        # the bodies' dense diagonal blocks laid end to end, grouped by size: group (k,
+        # starts) at _group_off, its body i's block at _group_off + i k^2, row-major
         self.groups = [(int(k), starts[sizes == k]) for k in np.unique(sizes)]
-        # per free dof: the size of its body and the place of its body in that size's group
-        self._group_of = np.repeat(sizes, sizes)
-        self._slot = np.empty(nf, dtype=np.int64)
-        for _, st in self.groups:
-            self._slot[st] = np.arange(len(st))
-        self._slot = self._slot[np.repeat(starts, sizes)]
+        self._group_off = np.cumsum([0] + [len(st) * k * k for k, st in self.groups])
+        block_off = np.empty(len(starts), dtype=np.int64)  # per body, in the order of starts
+        for (k, st), off in zip(self.groups, self._group_off[:-1], strict=True):
+            block_off[np.searchsorted(starts, st)] = off + k * k * np.arange(len(st))
+        # per free dof: its body's block, its place in the body, its body's size
+        self._block_of = np.repeat(block_off, sizes)
+        self._local = (np.arange(nf) - np.repeat(starts, sizes)).astype(np.int64)
+        self._size_of = np.repeat(sizes, sizes).astype(np.int64)
+        # PARDISO's analysis of the coarse matrix's pattern (indptr, indices, handle), kept
+        self._coarse_pattern = None
 
     def factorise(self, J: sp.spmatrix) -> _KrylovOperator:
         """The preconditioner of ``J`` (free dofs first, then three rows per multiplier
         point) and the object whose ``solve`` answers ``J x = b``."""
+        with timing.part("Krylov operator"):
+            S, B, C, Dinv = self._body_system(J)
+        with timing.part("preconditioner set-up"):
+            preconditioner = self._preconditioner(S)
+        return _KrylovOperator(self, S, B, C, Dinv, preconditioner)
+
+    def _body_system(self, J: sp.spmatrix):
+        """``(S, B, C, D^-1)``: the body system ``S = A + B D^-1 C`` of ``J`` and the blocks
+        that eliminate the multipliers (None without multipliers)."""
         nf = self.nf
         J = sp.csr_matrix(J)
         A = J[:nf, :nf]
@@ -167,25 +190,47 @@ class KrylovSolver:
         else:
             B = C = Dinv = None
             S = A.tocsr()
+        return S, B, C, Dinv
+
+    def _preconditioner(self, S: sp.csr_matrix) -> _Preconditioner:
+        """The two-level preconditioner of ``S``."""
         # local: the dense diagonal block of every body, inverted in batches of equal size
-        coo = S.tocoo()
-        same = self.body_of[coo.row] == self.body_of[coo.col]
-        r, c, val = coo.row[same], coo.col[same], coo.data[same]
-        rows, cols, vals = [], [], []
-        for k, starts in self.groups:
-            blocks = np.zeros((len(starts), k, k))
-            sel = self._group_of[r] == k
-            g = self._slot[r[sel]]
-            blocks[g, r[sel] - starts[g], c[sel] - starts[g]] = val[sel]
+        flat = np.zeros(self._group_off[-1])
+        diagonal_blocks(S.indptr, S.indices, S.data, self.body_of, self._block_of,
+                        self._local, self._size_of, flat)
+        groups = []
+        for (k, starts), off in zip(self.groups, self._group_off[:-1], strict=True):
+            blocks = flat[off:off + len(starts) * k * k].reshape(len(starts), k, k)
             idx = starts[:, None] + np.arange(k)[None, :]  # (g, k) dofs of each body
-            rows.append(np.repeat(idx, k, axis=1).ravel())
-            cols.append(np.tile(idx, (1, k)).ravel())
-            vals.append(np.linalg.inv(blocks).ravel())
-        S_loc_inv = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows),
-                                                          np.concatenate(cols))),
-                                  shape=(nf, nf)) if rows else sp.csr_matrix((nf, nf))
-        coarse = spla.splu((self.RT @ S @ self.R).tocsc())
-        return _KrylovOperator(self, S, B, C, Dinv, S_loc_inv, coarse)
+            groups.append((idx, np.linalg.inv(blocks)))
+        return _Preconditioner(self, S, groups, self._coarse_lu((self.RT @ S @ self.R).tocsc()))
+
+    def _coarse_lu(self, S0: sp.csc_matrix):
+        """The LU of the coarse matrix: PARDISO where MKL is installed (its analysis kept
+        while the pattern stays; at 32 times the study's wall, 12,937 unknowns: 59 ms a
+        factorisation, 160 ms with the analysis, against 413 ms for SuperLU), else SuperLU."""
+        if not pardiso.available():
+            return spla.splu(S0)
+        S0.sort_indices()
+        kept = self._coarse_pattern
+        if kept is None or not (np.array_equal(kept[0], S0.indptr)
+                                and np.array_equal(kept[1], S0.indices)):
+            kept = (S0.indptr.copy(), S0.indices.copy(),
+                    pardiso.Pardiso(S0.indptr, S0.indices, S0.shape[0]))
+            self._coarse_pattern = kept
+        return kept[2].factorise(S0.data)
+
+
+@njit(cache=True)
+def diagonal_blocks(indptr, indices, data, body_of, block_of, local, size_of, flat):
+    """The entries of a CSR matrix that couple two dofs of one body, written into that body's
+    dense block: ``flat[block_of[i] + local[i] size_of[i] + local[j]] = S_ij``."""
+    for i in range(indptr.shape[0] - 1):
+        b, o, k, li = body_of[i], block_of[i], size_of[i], local[i]
+        for p in range(indptr[i], indptr[i + 1]):
+            j = indices[p]
+            if body_of[j] == b:
+                flat[o + li * k + local[j]] = data[p]
 
 
 def _block_diagonal(blocks: np.ndarray) -> sp.csr_matrix:
@@ -205,23 +250,40 @@ def _diagonal_blocks(D: sp.spmatrix, m: int) -> np.ndarray:
     return out
 
 
-class _KrylovOperator:
-    """The body system ``S``, the elimination of the multipliers and the preconditioner;
-    ``solve(b)`` answers ``J x = b``."""
+class _Preconditioner:
+    """The two-level preconditioner of one matrix ``S`` (module docstring): the inverses of
+    its bodies' diagonal blocks, by size (``groups``: the dofs ``(g, k)`` and the inverses
+    ``(g, k, k)`` of the bodies of ``k`` free dofs), and the LU of its coarse matrix."""
 
-    def __init__(self, owner: KrylovSolver, S, B, C, Dinv, S_loc_inv, coarse):
-        self.owner, self.S, self.B, self.C, self.Dinv = owner, S, B, C, Dinv
-        self.S_loc_inv, self.coarse = S_loc_inv, coarse
+    def __init__(self, owner: KrylovSolver, S, groups, coarse):
+        self.owner, self.S, self.groups, self.coarse = owner, S, groups, coarse
 
     def _coarse(self, r: np.ndarray) -> np.ndarray:
         o = self.owner
         return o.R @ self.coarse.solve(o.RT @ r)
 
-    def _precondition(self, r: np.ndarray) -> np.ndarray:
+    def _local(self, r: np.ndarray) -> np.ndarray:
+        """``S_loc^-1 r``, one stacked product per body size."""
+        out = np.empty_like(r)
+        for idx, inv in self.groups:
+            out[idx] = np.matmul(inv, r[idx][:, :, None])[:, :, 0]
+        return out
+
+    def apply(self, r: np.ndarray) -> np.ndarray:
+        """``P^-1 r``."""
         r = np.ravel(r)
         y = self._coarse(r)
-        z = y + self.S_loc_inv @ (r - self.S @ y)
+        z = y + self._local(r - self.S @ y)
         return z + self._coarse(r - self.S @ z)
+
+
+class _KrylovOperator:
+    """The body system ``S``, the elimination of the multipliers and the preconditioner;
+    ``solve(b)`` answers ``J x = b``."""
+
+    def __init__(self, owner: KrylovSolver, S, B, C, Dinv, preconditioner: _Preconditioner):
+        self.owner, self.S, self.B, self.C, self.Dinv = owner, S, B, C, Dinv
+        self.preconditioner = preconditioner
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """``x`` with ``|rhs - S v| <= rtol |rhs|`` on the body system; ``KrylovFailure`` when
@@ -237,13 +299,8 @@ class _KrylovOperator:
             x0 = None
             if o._x is not None and np.linalg.norm(rhs - self.S @ o._x) < rnorm:
                 x0 = o._x
-            count = [0]
-
-            def callback(_):
-                count[0] += 1
-
-            v, count = gmres(self.S.dot, self._precondition, rhs, x0, o.rtol, o.restart,
-                             o.max_iterations)
+            v, count = gmres(self.S.dot, self.preconditioner.apply, rhs, x0, o.rtol,
+                             o.restart, o.max_iterations)
             res = float(np.linalg.norm(rhs - self.S @ v)) / rnorm
             o.iterations += count
             o.last_iterations, o.last_residual = count, res

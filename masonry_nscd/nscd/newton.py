@@ -506,8 +506,7 @@ class NewtonSolver:
             with timing.part("Newton matrix"):
                 data = jacobian_values(pat.slot, len(pat.indices), *args)
         if krylov:
-            with timing.part("preconditioner set-up"):
-                self.lu = self._krylov.factorise(pat.matrix(data))
+            self.lu = self._krylov.factorise(pat.matrix(data))
             self.factorisations += 1
             return
         self.lu = None
