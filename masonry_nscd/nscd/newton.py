@@ -105,13 +105,36 @@ def _full(k, need, slot):
 
 
 @njit(cache=True)
+def _inverse3(A, out):
+    """``out = A^-1`` of a 3 x 3 matrix (the adjugate over the determinant)."""
+    out[0, 0] = A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1]
+    out[0, 1] = A[0, 2] * A[2, 1] - A[0, 1] * A[2, 2]
+    out[0, 2] = A[0, 1] * A[1, 2] - A[0, 2] * A[1, 1]
+    out[1, 0] = A[1, 2] * A[2, 0] - A[1, 0] * A[2, 2]
+    out[1, 1] = A[0, 0] * A[2, 2] - A[0, 2] * A[2, 0]
+    out[1, 2] = A[0, 2] * A[1, 0] - A[0, 0] * A[1, 2]
+    out[2, 0] = A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0]
+    out[2, 1] = A[0, 1] * A[2, 0] - A[0, 0] * A[2, 1]
+    out[2, 2] = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
+    det = A[0, 0] * out[0, 0] + A[0, 1] * out[1, 0] + A[0, 2] * out[2, 0]
+    for i in range(3):
+        for j in range(3):
+            out[i, j] /= det
+
+
+@njit(cache=True)
 def _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_coef,
-                      mult_of, area, K, Gu, Gr, full_block, h, theta, keep_zeros, slot, rows,
-                      cols, vals, data):
+                      mult_of, area, K, Gu, Gr, full_block, h, theta, keep_zeros, eliminate,
+                      slot, rows, cols, vals, data):
     """The entries of the Newton matrix, in a fixed order (``jacobian_coo``): as triplets
     into ``rows, cols, vals`` when ``slot`` is empty, else summed into ``data[slot[k]]`` (every
     entry, zeros included; ``data`` zeroed first). Returns the number of entries, or
-    ``slot.shape[0] + 1`` when they would not fit the pattern (nothing written past it)."""
+    ``slot.shape[0] + 1`` when they would not fit the pattern (nothing written past it).
+
+    ``eliminate``: the body system with the multipliers eliminated instead,
+    ``S = A + B D^-1 C`` (free dofs only, ``linear.py``): a multiplier point adds
+    ``coef_i . (D^-1 Gu) . coef_j`` between its dofs, with ``D`` its block as the Newton
+    matrix holds it (``Gr``, or its diagonal unless ``full_block``)."""
     if slot.shape[0] > 0:
         data[:] = 0.0
         keep_zeros = True
@@ -142,6 +165,9 @@ def _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, s
                     k = _emit(k, fi, fj, val, rows, cols, vals, slot, data)
     dofs = np.empty(ms, dtype=np.int64)
     coef = np.empty((ms, 3))
+    Dg = np.empty((3, 3))
+    Di = np.empty((3, 3))
+    E = np.empty((3, 3))
     for a in range(npt):
         m = 0
         for s in range(2):
@@ -156,9 +182,27 @@ def _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, s
                     coef[m, c] = side_coef[a, s, j, c]
                 m += 1
         g = mult_of[a]
-        if _full(k, m * m if g < 0 else 6 * m, slot):
+        if _full(k, m * m if g < 0 or eliminate else 6 * m, slot):
             return slot.shape[0] + 1
-        if g < 0:
+        if g >= 0 and eliminate:
+            # E = D^-1 Gu, then row_i = coef_i . E and the entries row_i . coef_j (all of
+            # them: the pattern of S does not depend on the values)
+            for c in range(3):
+                for d in range(3):
+                    Dg[c, d] = Gr[g, c, d] if c == d or full_block[g] else 0.0
+            _inverse3(Dg, Di)
+            for c in range(3):
+                for d in range(3):
+                    E[c, d] = Di[c, 0] * Gu[g, 0, d] + Di[c, 1] * Gu[g, 1, d] \
+                        + Di[c, 2] * Gu[g, 2, d]
+            for i in range(m):
+                e0 = coef[i, 0] * E[0, 0] + coef[i, 1] * E[1, 0] + coef[i, 2] * E[2, 0]
+                e1 = coef[i, 0] * E[0, 1] + coef[i, 1] * E[1, 1] + coef[i, 2] * E[2, 1]
+                e2 = coef[i, 0] * E[0, 2] + coef[i, 1] * E[1, 2] + coef[i, 2] * E[2, 2]
+                for j in range(m):
+                    val = e0 * coef[j, 0] + e1 * coef[j, 1] + e2 * coef[j, 2]
+                    k = _emit(k, dofs[i], dofs[j], val, rows, cols, vals, slot, data)
+        elif g < 0:
             w = h * h * theta * area[a]
             for i in range(m):
                 # row_i = coef_i . K
@@ -180,7 +224,7 @@ def _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, s
                                   data)
                     if val != 0.0 or keep_zeros:
                         k = _emit(k, row0 + c, dofs[i], val, rows, cols, vals, slot, data)
-    for gi in range(Gr.shape[0]):
+    for gi in range(0 if eliminate else Gr.shape[0]):
         if _full(k, 9 if full_block[gi] else 3, slot):
             return slot.shape[0] + 1
         for c in range(3):
@@ -197,14 +241,15 @@ _NO_FLOAT = np.zeros(0)
 
 
 def jacobian_coo(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_coef, mult_of,
-                 area, K, Gu, Gr, full_block, h, theta, keep_zeros=False):
+                 area, K, Gu, Gr, full_block, h, theta, keep_zeros=False, eliminate=False):
     """COO triplets of the Newton matrix (free dofs, then 3 impulses per multiplier point: glue
     and rigid contacts, rows ``Gu H^T`` and ``Gr``, of which only the diagonal unless
     ``full_block``).
 
     ``keep_zeros``: emit every entry that can be non-zero, zeros included, always in the same
     order; the triplets then fit the fixed pattern of ``NewtonSolver`` (``_Pattern``), and
-    later matrices are summed straight into its values (``jacobian_values``)."""
+    later matrices are summed straight into its values (``jacobian_values``). ``eliminate``:
+    the body system ``S`` of the Krylov solver instead (``_jacobian_entries``)."""
     ms = 2 * side_dofs.shape[2]
     cap = int(np.sum(np.diff(body_dof0) ** 2)) + side_dofs.shape[0] * (ms * ms + 6 * ms) \
         + 9 * Gr.shape[0]
@@ -212,20 +257,22 @@ def jacobian_coo(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_c
     cols = np.empty(cap, dtype=np.int64)
     vals = np.empty(cap)
     k = _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_coef,
-                          mult_of, area, K, Gu, Gr, full_block, h, theta, keep_zeros, _NO_SLOT,
-                          rows, cols, vals, _NO_FLOAT)
+                          mult_of, area, K, Gu, Gr, full_block, h, theta, keep_zeros, eliminate,
+                          _NO_SLOT, rows, cols, vals, _NO_FLOAT)
     return rows[:k], cols[:k], vals[:k]
 
 
 def jacobian_values(slot, nnz, body_dof0, mhat_off, mhat, free_index, nfree, side_dofs,
-                    side_coef, mult_of, area, K, Gu, Gr, full_block, h, theta) -> np.ndarray:
+                    side_coef, mult_of, area, K, Gu, Gr, full_block, h, theta,
+                    eliminate=False) -> np.ndarray:
     """The values (``nnz``) of the Newton matrix in a fixed pattern whose entry ``k`` of
     ``jacobian_coo(..., keep_zeros=True)`` sits at ``slot[k]``: the same sums, without the
-    triplets (24 bytes per entry: 1.2 GB at 64 times the study's wall)."""
+    triplets (24 bytes per entry: 1.2 GB at 64 times the study's wall). ``eliminate``: of
+    the body system ``S``, in the pattern of ``jacobian_coo(..., True, True)``."""
     data = np.empty(nnz)
     k = _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_coef,
-                          mult_of, area, K, Gu, Gr, full_block, h, theta, True, slot, _NO_INT,
-                          _NO_INT, _NO_FLOAT, data)
+                          mult_of, area, K, Gu, Gr, full_block, h, theta, True, eliminate, slot,
+                          _NO_INT, _NO_INT, _NO_FLOAT, data)
     if k > len(slot):
         raise RuntimeError(f"the Newton matrix has more entries than its pattern ({len(slot)})")
     if k < len(slot):
@@ -484,31 +531,24 @@ class NewtonSolver:
             return  # the same matrix: refactorising would not help
         self._K_factorised = (K.copy(), Gu.copy(), Gr.copy())
         n = len(self.free) + 3 * len(self.mult)
-        krylov = self._krylov is not None and not (pivoting or direct)
         args = self.jacobian_args(tangents)
-        # the Krylov solver has its own pattern, never reordered (the LU's is, at its first
-        # factorisation)
-        pat = self._krylov_pattern if krylov else self._pattern
+        if self._krylov is not None and not (pivoting or direct):
+            S = self._body_system(args)
+            with timing.part("Krylov operator"):
+                multipliers = self._multipliers(Gu, Gr)
+            self.lu = self._krylov.factorise_system(S, *multipliers)
+            self.factorisations += 1
+            return
+        pat = self._pattern
         if pat is None:
             with timing.part("Newton matrix pattern"):
                 r, c, v = jacobian_coo(*args, True)
-                pat = _Pattern(r, c, n, pardiso=self.linear == "pardiso" and not krylov)
+                pat = self._pattern = _Pattern(r, c, n, pardiso=self.linear == "pardiso")
                 data = pat.values(v)
                 del r, c, v
-            if krylov:
-                # kept for the reordering at an LU's first factorisation, which this pattern
-                # never has (16 bytes per triplet: 0.8 GB at 64 times the study's wall)
-                pat._rows = pat._cols = None
-                self._krylov_pattern = pat
-            else:
-                self._pattern = pat
         else:
             with timing.part("Newton matrix"):
                 data = jacobian_values(pat.slot, len(pat.indices), *args)
-        if krylov:
-            self.lu = self._krylov.factorise(pat.matrix(data))
-            self.factorisations += 1
-            return
         self.lu = None
         with timing.part("factorisation"):
             if not pivoting:
@@ -521,6 +561,52 @@ class NewtonSolver:
             if self.lu is None:
                 self.lu = pat.factorise(data, pivoting=True)
         self.factorisations += 1
+
+    def _body_system(self, args) -> sp.csr_matrix:
+        """The Krylov solver's body system ``S = A + B D^-1 C`` (free dofs, CSR), summed
+        straight into its own fixed pattern (``jacobian_values(..., eliminate=True)``; no
+        Newton matrix is made)."""
+        nf = len(self.free)
+        pat = self._krylov_pattern
+        if pat is None:
+            with timing.part("Newton matrix pattern"):
+                r, c, v = jacobian_coo(*args, True, True)
+                # the pattern of S^T in compressed columns: S in compressed rows
+                pat = self._krylov_pattern = _Pattern(c, r, nf)
+                pat._rows = pat._cols = None  # never reordered
+                data = pat.values(v)
+                del r, c, v
+        else:
+            with timing.part("Newton matrix"):
+                data = jacobian_values(pat.slot, len(pat.indices), *args, eliminate=True)
+        S = sp.csr_matrix((data, pat.indices.copy(), pat.indptr.copy()), shape=(nf, nf))
+        # the pattern holds every entry that can be non-zero (the bodies' blocks whole, the
+        # open joints' zeros): without the zeros the products of GMRES are a third cheaper
+        S.eliminate_zeros()
+        return S
+
+    def _multipliers(self, Gu, Gr):
+        """``(B, C, D^-1)`` of the multipliers (sparse; None when there are none): the blocks
+        of the Newton matrix that the Krylov solver's elimination needs for the right-hand side
+        and for the impulses, ``B = -J[:nf, nf:]``, ``C = J[nf:, :nf]``, ``D = J[nf:, nf:]``."""
+        m = len(self.mult)
+        if m == 0:
+            return None, None, None
+        s = self.sys
+        nf = len(self.free)
+        d = s.side_dofs[self.mult]  # (m, 2, j); -1 past a side's last dof
+        fi = np.where(d >= 0, self.free_index[np.maximum(d, 0)], -1)
+        on = fi >= 0
+        coef = s.side_coef[self.mult]  # (m, 2, j, 3)
+        g = np.broadcast_to(np.arange(m)[:, None, None], d.shape)[on]
+        rows = np.repeat(fi[on], 3)
+        cols = (3 * g[:, None] + np.arange(3)).ravel()
+        B = sp.csr_matrix((coef[on].ravel(), (rows, cols)), shape=(nf, 3 * m))
+        # C[3 g + c, j] = Gu[g, c, :] . coef_j
+        cv = np.einsum("gce,gsje->gsjc", Gu, coef)[on].ravel()
+        C = sp.csr_matrix((cv, (cols, rows)), shape=(3 * m, nf))
+        D = np.where(self.mu[:, None, None] >= 0.0, Gr, Gr * np.eye(3))
+        return B, C, linear_solvers.block_diagonal(np.linalg.inv(D))
 
     def _refresh(self, K) -> None:
         """Factorise the matrix of the current iterate: the material's part refreshed
