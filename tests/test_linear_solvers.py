@@ -78,6 +78,15 @@ def test_the_local_preconditioner_inverts_each_bodys_diagonal_block():
     R = ks.R.toarray()
     coarse = R @ np.linalg.solve(R.T @ S @ R, R.T @ r)
     assert np.allclose(pre._coarse(r), coarse, rtol=1e-8, atol=1e-8 * np.abs(coarse).max())
+    # a later matrix in which only the third body's block changed: only that block is
+    # inverted again, and every block's inverse is that of the new matrix
+    S[np.ix_(body_of == 2, body_of == 2)] += np.eye(8)
+    S[0, 20] += 1.0  # a coupling between two bodies: in no block
+    pre = ks._preconditioner(sp.csr_matrix(S))
+    assert ks.blocks_inverted == 1
+    d = np.flatnonzero(body_of == 2)
+    expected[d] = np.linalg.solve(S[np.ix_(d, d)], r[d])
+    assert np.allclose(pre._local(r), expected, rtol=1e-12, atol=1e-12)
 
 
 def test_rigid_body_modes_are_the_null_space_of_each_blocks_stiffness(smoke_scene):
