@@ -35,11 +35,11 @@ one-level (block-Jacobi) method would need about as many iterations as there are
 the wall to carry. Each iteration costs two products with ``S``, one with ``S_loc^-1`` and two
 coarse solves: all linear in the bodies for a wall (the coarse LU has 6 unknowns per block and
 the two-dimensional connectivity of a wall). The local inverses are kept as dense blocks
-grouped by size and applied by one stacked product per size (a sparse matrix of them took
-most of the set-up: 8 times the study's wall, 0.63 s against 0.19 s per set-up), and only
-the blocks that changed since the last set-up are inverted again (a body whose joints kept
-their tangents keeps its block: on the 8x wall's first 12 steps, 35 % of the blocks
-changed per set-up, 85 to 76 ms a set-up). The setup
+grouped by size and applied by one stacked product per size, not as a sparse matrix, and
+only the blocks that changed since the last set-up are inverted again (a body whose joints
+kept their tangents keeps its block: on the 8x wall's first 12 steps, 35 % of the blocks
+changed per set-up). Medians on the 8x wall's first 12 steps: 222 ms per set-up with the
+sparse matrix of inverses and SuperLU's coarse LU, 76 ms now. The setup
 (``factorise``) is redone only where the LU would be refactorised; keeping a preconditioner
 of an earlier matrix for the new one was tried and lost (8 times the study's wall, 12 steps:
 2,905 GMRES iterations against 278, the steps 40 % slower: the joints' springs change by
