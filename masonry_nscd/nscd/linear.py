@@ -38,8 +38,10 @@ the two-dimensional connectivity of a wall). The local inverses are kept as dens
 grouped by size and applied by one stacked product per size, not as a sparse matrix, and
 only the blocks that changed since the last set-up are inverted again (a body whose joints
 kept their tangents keeps its block: on the 8x wall's first 12 steps, 35 % of the blocks
-changed per set-up). Medians on the 8x wall's first 12 steps: 222 ms per set-up with the
-sparse matrix of inverses and SuperLU's coarse LU, 76 ms now. The setup
+changed per set-up). Medians on the 8x wall's first 12 steps, per refresh of the matrix
+and its preconditioner: 244 ms when the Newton matrix was filled (22 ms), then sliced and
+multiplied by scipy, its inverses kept as a sparse matrix and its coarse LU by SuperLU;
+101 ms now (``S`` filled directly, 25 ms; the preconditioner, 76 ms). The setup
 (``factorise``) is redone only where the LU would be refactorised; keeping a preconditioner
 of an earlier matrix for the new one was tried and lost (8 times the study's wall, 12 steps:
 2,905 GMRES iterations against 278, the steps 40 % slower: the joints' springs change by
