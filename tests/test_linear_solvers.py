@@ -182,6 +182,21 @@ def test_the_body_system_summed_directly_is_the_eliminated_newton_matrix(which):
         assert abs(M - M_ref).max() <= 1e-12 * abs(M_ref).max()
 
 
+def test_the_adaptive_steps_rungs_share_the_krylov_pattern():
+    """A rung of the adaptive step (another h, the same bodies and points) takes the body
+    system's pattern of the run's solver instead of making its own."""
+    case = load_case(SMOKE, [*QUIET, "solver.linear=krylov", "solver.max_time_step_s=8e-3",
+                             "solver.grow_after_steps=1", "solver.easy_iterations=20"])
+    integ = build_scene(case).integrator()
+    for _ in range(12):
+        integ.step()
+    assert integ._rungs, "the step did not grow"
+    pattern = integ.newton._krylov_pattern
+    assert pattern is not None
+    for rung in integ._rungs.values():
+        assert rung.newton._krylov_pattern is pattern
+
+
 def test_a_krylov_step_is_the_lu_step_to_the_newton_tolerance():
     """Five steps of the smoke case with each linear solver: the same contact tractions to
     the Newton tolerance (relative change of the forces 1e-8 in that case), and the Krylov

@@ -385,6 +385,7 @@ class Integrator:
             if rung.newton is not None:
                 rung.newton.max_iterations = min(rung.newton.max_iterations,
                                                  4 * self.control.easy_iterations)
+                rung.newton.share_pattern(self.newton)
             self._rungs[k] = rung
         return self._rungs[k]
 
@@ -432,6 +433,8 @@ class Integrator:
         if self._half is None:
             self._half = Integrator(self.bodies, self.points, self.params, self.loads,
                                     h=0.5 * self.sys.h, **self._half_args)
+            if self._half.newton is not None:
+                self._half.newton.share_pattern(self.newton)
         half = self._half
         restore_integrator(half, start)
         if half.newton is not None:
