@@ -105,24 +105,6 @@ def _full(k, need, slot):
 
 
 @njit(cache=True)
-def _inverse3(A, out):
-    """``out = A^-1`` of a 3 x 3 matrix (the adjugate over the determinant)."""
-    out[0, 0] = A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1]
-    out[0, 1] = A[0, 2] * A[2, 1] - A[0, 1] * A[2, 2]
-    out[0, 2] = A[0, 1] * A[1, 2] - A[0, 2] * A[1, 1]
-    out[1, 0] = A[1, 2] * A[2, 0] - A[1, 0] * A[2, 2]
-    out[1, 1] = A[0, 0] * A[2, 2] - A[0, 2] * A[2, 0]
-    out[1, 2] = A[0, 2] * A[1, 0] - A[0, 0] * A[1, 2]
-    out[2, 0] = A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0]
-    out[2, 1] = A[0, 1] * A[2, 0] - A[0, 0] * A[2, 1]
-    out[2, 2] = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
-    det = A[0, 0] * out[0, 0] + A[0, 1] * out[1, 0] + A[0, 2] * out[2, 0]
-    for i in range(3):
-        for j in range(3):
-            out[i, j] /= det
-
-
-@njit(cache=True)
 def _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_coef,
                       mult_of, area, K, Gu, Gr, full_block, h, theta, keep_zeros, eliminate,
                       slot, rows, cols, vals, data):
@@ -133,8 +115,8 @@ def _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, s
 
     ``eliminate``: the body system with the multipliers eliminated instead,
     ``S = A + B D^-1 C`` (free dofs only, ``linear.py``): a multiplier point adds
-    ``coef_i . (D^-1 Gu) . coef_j`` between its dofs, with ``D`` its block as the Newton
-    matrix holds it (``Gr``, or its diagonal unless ``full_block``)."""
+    ``coef_i . Gu[g] . coef_j`` between its dofs, the caller giving ``D^-1 Gu`` as ``Gu``
+    (``D`` the point's block of the Newton matrix, ``NewtonSolver._multipliers``)."""
     if slot.shape[0] > 0:
         data[:] = 0.0
         keep_zeros = True
@@ -165,9 +147,6 @@ def _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, s
                     k = _emit(k, fi, fj, val, rows, cols, vals, slot, data)
     dofs = np.empty(ms, dtype=np.int64)
     coef = np.empty((ms, 3))
-    Dg = np.empty((3, 3))
-    Di = np.empty((3, 3))
-    E = np.empty((3, 3))
     for a in range(npt):
         m = 0
         for s in range(2):
@@ -185,16 +164,9 @@ def _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, s
         if _full(k, m * m if g < 0 or eliminate else 6 * m, slot):
             return slot.shape[0] + 1
         if g >= 0 and eliminate:
-            # E = D^-1 Gu, then row_i = coef_i . E and the entries row_i . coef_j (all of
-            # them: the pattern of S does not depend on the values)
-            for c in range(3):
-                for d in range(3):
-                    Dg[c, d] = Gr[g, c, d] if c == d or full_block[g] else 0.0
-            _inverse3(Dg, Di)
-            for c in range(3):
-                for d in range(3):
-                    E[c, d] = Di[c, 0] * Gu[g, 0, d] + Di[c, 1] * Gu[g, 1, d] \
-                        + Di[c, 2] * Gu[g, 2, d]
+            # E = D^-1 Gu (given as Gu), row_i = coef_i . E and the entries row_i . coef_j
+            # (all of them: the pattern of S does not depend on the values)
+            E = Gu[g]
             for i in range(m):
                 e0 = coef[i, 0] * E[0, 0] + coef[i, 1] * E[1, 0] + coef[i, 2] * E[2, 0]
                 e1 = coef[i, 0] * E[0, 1] + coef[i, 1] * E[1, 1] + coef[i, 2] * E[2, 1]
@@ -542,14 +514,17 @@ class NewtonSolver:
             return  # the same matrix: refactorising would not help
         self._K_factorised = (K.copy(), Gu.copy(), Gr.copy())
         n = len(self.free) + 3 * len(self.mult)
-        args = self.jacobian_args(tangents)
         if self._krylov is not None and not (pivoting or direct):
-            S = self._body_system(args)
             with timing.part("Krylov operator"):
-                multipliers = self._multipliers(Gu, Gr)
-            self.lu = self._krylov.factorise_system(S, *multipliers)
+                B, C, Dinv = self._multipliers(Gu, Gr)
+            # the multipliers enter S as coef_i (D^-1 Gu) coef_j (``_jacobian_entries``)
+            S = self._body_system(self.jacobian_args((K, Gu if Dinv is None else Dinv @ Gu,
+                                                      Gr)))
+            self.lu = self._krylov.factorise_system(
+                S, B, C, None if Dinv is None else linear_solvers.block_diagonal(Dinv))
             self.factorisations += 1
             return
+        args = self.jacobian_args(tangents)
         pat = self._pattern
         if pat is None:
             with timing.part("Newton matrix pattern"):
@@ -576,7 +551,7 @@ class NewtonSolver:
     def _body_system(self, args) -> sp.csr_matrix:
         """The Krylov solver's body system ``S = A + B D^-1 C`` (free dofs, CSR), summed
         straight into its own fixed pattern (``jacobian_values(..., eliminate=True)``; no
-        Newton matrix is made)."""
+        Newton matrix is made); ``args``: ``jacobian_args`` with ``D^-1 Gu`` for ``Gu``."""
         nf = len(self.free)
         pat = self._krylov_pattern
         if pat is None:
@@ -597,9 +572,10 @@ class NewtonSolver:
         return S
 
     def _multipliers(self, Gu, Gr):
-        """``(B, C, D^-1)`` of the multipliers (sparse; None when there are none): the blocks
-        of the Newton matrix that the Krylov solver's elimination needs for the right-hand side
-        and for the impulses, ``B = -J[:nf, nf:]``, ``C = J[nf:, :nf]``, ``D = J[nf:, nf:]``."""
+        """``(B, C, D^-1)`` of the multipliers (None when there are none): the blocks of the
+        Newton matrix that the Krylov solver's elimination needs, ``B = -J[:nf, nf:]`` and
+        ``C = J[nf:, :nf]`` (sparse), and the inverses ``(m, 3, 3)`` of the blocks of
+        ``D = J[nf:, nf:]`` (``Gr``, or its diagonal unless the point is a rigid contact)."""
         m = len(self.mult)
         if m == 0:
             return None, None, None
@@ -617,7 +593,7 @@ class NewtonSolver:
         cv = np.einsum("gce,gsje->gsjc", Gu, coef)[on].ravel()
         C = sp.csr_matrix((cv, (cols, rows)), shape=(3 * m, nf))
         D = np.where(self.mu[:, None, None] >= 0.0, Gr, Gr * np.eye(3))
-        return B, C, linear_solvers.block_diagonal(np.linalg.inv(D))
+        return B, C, np.linalg.inv(D)
 
     def _refresh(self, K) -> None:
         """Factorise the matrix of the current iterate: the material's part refreshed
