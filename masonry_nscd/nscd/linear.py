@@ -173,7 +173,8 @@ class KrylovSolver:
         self._size_of = np.repeat(sizes, sizes).astype(np.int64)
         # PARDISO's analysis of the coarse matrix's pattern (indptr, indices, handle), kept
         self._coarse_pattern = None
-        # the last set-up's blocks and their inverses, per group; blocks inverted since
+        # the last set-up's blocks (laid out as above) and their inverses, per group; blocks
+        # inverted again since
         self._last_blocks = None
         self.blocks_inverted = 0
 
@@ -216,27 +217,25 @@ class KrylovSolver:
         diagonal_blocks(S.indptr, S.indices, S.data, self.body_of, self._block_of,
                         self._local, self._size_of, flat)
         groups = []
-        last = self._last_blocks
         for n, ((k, starts), off) in enumerate(zip(self.groups, self._group_off[:-1],
                                                     strict=True)):
-            blocks = flat[off:off + len(starts) * k * k].reshape(len(starts), k, k)
+            shape = (len(starts), k, k)
+            blocks = flat[off:off + len(starts) * k * k].reshape(shape)
             idx = starts[:, None] + np.arange(k)[None, :]  # (g, k) dofs of each body
-            if last is None:
+            if self._last_blocks is None:
                 inv = np.linalg.inv(blocks)
             else:
                 # only the blocks that changed since the last set-up (a body whose joints kept
                 # their tangents keeps its block): the same inverses, bit for bit
-                old_blocks, old_inv = last[0][n], last[1][n]
-                changed = np.flatnonzero(np.any(blocks != old_blocks, axis=(1, 2)))
-                inv = old_inv.copy()
+                last_flat, last_inv = self._last_blocks
+                old = last_flat[off:off + len(starts) * k * k].reshape(shape)
+                changed = np.flatnonzero(np.any(blocks != old, axis=(1, 2)))
+                inv = last_inv[n].copy()
                 if len(changed):
                     inv[changed] = np.linalg.inv(blocks[changed])
                 self.blocks_inverted += len(changed)
             groups.append((idx, inv))
-        self._last_blocks = ([flat[off:off + len(st) * k * k].reshape(len(st), k, k)
-                              for (k, st), off in zip(self.groups, self._group_off[:-1],
-                                                      strict=True)],
-                             [inv for _, inv in groups])
+        self._last_blocks = (flat, [inv for _, inv in groups])
         return _Preconditioner(self, S, groups, self._coarse_lu((self.RT @ S @ self.R).tocsc()))
 
     def _coarse_lu(self, S0: sp.csc_matrix):
