@@ -62,6 +62,7 @@ from masonry_nscd.contact.laws.common import (  # noqa: F401 (re-exported for th
     ST_SLIDE,
     ST_STICK,
     solve3,
+    solve3_values,
 )
 
 NAMES = ("fczm", "coulomb", "dry")  # the case's joint.law values this module serves
@@ -301,12 +302,14 @@ def _tangential_slip(r1, r2, h11, h12, h22, hmin, hmax, phi, lam):
 
 
 @njit(cache=True)
-def _slide(D, v, T, u0_1, u0_2, kt, mu_eff, uc) -> int:
+def _slide(a, b, c, d, e, f, v0, v1, v2, T, u0_1, u0_2, kt, mu_eff, uc) -> int:
     """Sliding contact: ``u_c,n = 0``, Coulomb at its limit, slip along the friction traction.
 
-    On entry ``v = (u~_n, u~_t - u0)`` (m), with ``u0`` the cohesive slip at the start of the
-    step, and ``T`` holds the stick traction ``T0 = D^-1 v`` (Pa) from the solve of the stick
-    status; on success ``T`` and ``uc`` hold the slide.
+    On entry ``a, b, c`` are the diagonal of the compliance ``D`` (m/Pa) and ``d, e, f`` the
+    entries (0, 1), (0, 2), (1, 2) of its symmetric part, ``v = (u~_n, u~_t - u0)`` (m), with
+    ``u0`` the cohesive slip at the start of the step, and ``T`` holds the stick traction
+    ``T0 = D^-1 v`` (Pa) from the solve of the stick status; on success ``T`` and ``uc`` hold
+    the slide.
     Equations, with ``G = D^-1`` (Pa/m; D symmetric positive definite) and the slip ``s`` (m)
     of the step, ``u_c,t = u0 + s``::
 
@@ -348,12 +351,6 @@ def _slide(D, v, T, u0_1, u0_2, kt, mu_eff, uc) -> int:
     when no slide exists; ``T`` is then left as it came.
     """
     # G = D^-1 by cofactors of the symmetric part of D
-    a = D[0, 0]
-    b = D[1, 1]
-    c = D[2, 2]
-    d = 0.5 * (D[0, 1] + D[1, 0])
-    e = 0.5 * (D[0, 2] + D[2, 0])
-    f = 0.5 * (D[1, 2] + D[2, 1])
     c00 = b * c - f * f
     c01 = e * f - d * c
     c02 = d * f - b * e
@@ -383,9 +380,9 @@ def _slide(D, v, T, u0_1, u0_2, kt, mu_eff, uc) -> int:
         # tangential compliances differ by orders, can take T0_n from a cancelling difference
         # (a relative error of 1e-12 where |T0_n| ~ |D_nt T_t| / D_nn); the cofactors are
         # invariant under a diagonal scaling of D, and their terms bound the round-off of h
-        T0n = c00 * idet * v[0] + g1 * v[1] + g2 * v[2]
-        T0t1 = g1 * v[0] + g11 * v[1] + g12 * v[2]
-        T0t2 = g2 * v[0] + g12 * v[1] + g22 * v[2]
+        T0n = c00 * idet * v0 + g1 * v1 + g2 * v2
+        T0t1 = g1 * v0 + g11 * v1 + g12 * v2
+        T0t2 = g2 * v0 + g12 * v1 + g22 * v2
     N0 = -T0n
     r1 = T0t1 - kt * u0_1
     r2 = T0t2 - kt * u0_2
@@ -415,7 +412,7 @@ def _slide(D, v, T, u0_1, u0_2, kt, mu_eff, uc) -> int:
         h = N0 + gs
         # the round-off of h = -G_nn v_n - g.(v_t - s) (Pa), a normal traction within it of
         # zero being zero: that of the terms it sums
-        tiny = 1e-13 * (abs(c00 * idet * v[0]) + abs(g1 * v[1]) + abs(g2 * v[2])
+        tiny = 1e-13 * (abs(c00 * idet * v0) + abs(g1 * v1) + abs(g2 * v2)
                         + abs(g1 * s1) + abs(g2 * s2))
         N = max(h, 0.0)
         if mu_eff <= 0.0 or abs(h) <= tiny:
@@ -518,42 +515,47 @@ def local_solve(
     Outputs written in place: traction ``T`` (Pa, tension positive) and cohesive displacement
     ``uc`` (m) at the end of the step. Returns the status code (ST_*).
     """
-    D = np.empty((3, 3))
     b = P[P_B]
     kn = beta * b * P[P_KI]
     kt = beta * b * P[P_KII]
     mu_eff = P[P_MU] * (1.0 - beta * b) ** P[P_P]
+    # scalars, not 3x3 arrays: the joint law runs this several times per point and evaluation
 
     # --- open: no friction, Signorini inactive ------------------------------------------
-    for i in range(3):
-        for j in range(3):
-            D[i, j] = A[i, j]
-    D[0, 0] += P[P_CN_T]
-    D[1, 1] += P[P_CT]
-    D[2, 2] += P[P_CT]
-    M = np.empty((3, 3))
-    for i in range(3):
-        M[i, 0] = (1.0 if i == 0 else 0.0) + D[i, 0] * kn
-        M[i, 1] = (1.0 if i == 1 else 0.0) + D[i, 1] * kt
-        M[i, 2] = (1.0 if i == 2 else 0.0) + D[i, 2] * kt
-    x = np.empty(3)
-    if solve3(M, ut, x) and x[0] > 0.0:
-        uc[0] = x[0]
-        uc[1] = x[1]
-        uc[2] = x[2]
-        T[0] = kn * x[0]
-        T[1] = kt * x[1]
-        T[2] = kt * x[2]
+    # the compliance D = A + diag(c_n,t, c_t, c_t)
+    d00 = A[0, 0] + P[P_CN_T]
+    d01 = A[0, 1]
+    d02 = A[0, 2]
+    d10 = A[1, 0]
+    d11 = A[1, 1] + P[P_CT]
+    d12 = A[1, 2]
+    d20 = A[2, 0]
+    d21 = A[2, 1]
+    d22 = A[2, 2] + P[P_CT]
+    # (I + D diag(kn, kt, kt)) u_c = u~
+    solved, x0, x1, x2 = solve3_values(
+        1.0 + d00 * kn, 0.0 + d01 * kt, 0.0 + d02 * kt,
+        0.0 + d10 * kn, 1.0 + d11 * kt, 0.0 + d12 * kt,
+        0.0 + d20 * kn, 0.0 + d21 * kt, 1.0 + d22 * kt, ut[0], ut[1], ut[2])
+    if solved and x0 > 0.0:
+        uc[0] = x0
+        uc[1] = x1
+        uc[2] = x2
+        T[0] = kn * x0
+        T[1] = kt * x1
+        T[2] = kt * x2
         return ST_OPEN
-    open_uc = x.copy()
 
     # --- closed: stick ----------------------------------------------------------------------
-    D[0, 0] += P[P_CN_C] - P[P_CN_T]
-    rhs = np.empty(3)
-    rhs[0] = ut[0]
-    rhs[1] = ut[1] - uc_old[1]
-    rhs[2] = ut[2] - uc_old[2]
-    if solve3(D, rhs, T):
+    d00 += P[P_CN_C] - P[P_CN_T]
+    v0 = ut[0]
+    v1 = ut[1] - uc_old[1]
+    v2 = ut[2] - uc_old[2]
+    solved, t0, t1, t2 = solve3_values(d00, d01, d02, d10, d11, d12, d20, d21, d22, v0, v1, v2)
+    if solved:
+        T[0] = t0
+        T[1] = t1
+        T[2] = t2
         if T[0] <= 0.0:
             r1 = T[1] - kt * uc_old[1]
             r2 = T[2] - kt * uc_old[2]
@@ -563,7 +565,8 @@ def local_solve(
                 uc[2] = uc_old[2]
                 return ST_STICK
         # --- closed: slide ----------------------------------------------------------------
-        st = _slide(D, rhs, T, uc_old[1], uc_old[2], kt, mu_eff, uc)
+        st = _slide(d00, d11, d22, 0.5 * (d01 + d10), 0.5 * (d02 + d20), 0.5 * (d12 + d21),
+                    v0, v1, v2, T, uc_old[1], uc_old[2], kt, mu_eff, uc)
         if st >= 0:
             return st
     # No status fits every condition. With the slide solved as a root of h(N) (``_slide``)
@@ -573,7 +576,10 @@ def local_solve(
     # may miss). Take the stick solution with the friction projected radially onto the
     # Coulomb disk (or, under tension, the open solution); the Gauss-Seidel sweeps go on
     # from there, and the caller counts these points.
-    if solve3(D, rhs, T) and T[0] < 0.0:
+    if solved and t0 < 0.0:
+        T[0] = t0
+        T[1] = t1
+        T[2] = t2
         r1 = T[1] - kt * uc_old[1]
         r2 = T[2] - kt * uc_old[2]
         rn = _norm2(r1, r2)
@@ -585,9 +591,9 @@ def local_solve(
         uc[1] = uc_old[1]
         uc[2] = uc_old[2]
         return ST_AMBIGUOUS
-    uc[0] = max(open_uc[0], 0.0)
-    uc[1] = open_uc[1]
-    uc[2] = open_uc[2]
+    uc[0] = max(x0, 0.0)
+    uc[1] = x1
+    uc[2] = x2
     T[0] = kn * uc[0]
     T[1] = kt * uc[1]
     T[2] = kt * uc[2]
