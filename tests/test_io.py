@@ -413,3 +413,34 @@ def test_vtu_arrays_of_many_blocks_round_trip(tmp_path, compression):
         np.testing.assert_array_equal(m.point_data[k], v.astype(np.uint8) if k == "flag" else v)
     with pytest.raises(ValueError, match="compression"):
         vtu.write_points_vtu(path, pts, pd, compression="gzip")
+
+
+def test_repeated_arrays_are_compressed_once_into_the_same_bytes(tmp_path, monkeypatch):
+    """The nodes and cells written at every output step: from their second file on, their
+    compressed bytes are reused (``vtu._Repeats``), and every file is byte for byte the file
+    written without reuse; the kept bytes stay within the budget, the oldest dropped first."""
+    pts, hexes = two_hexes()
+    rng = np.random.default_rng(3)
+    fields = [{"u": rng.normal(size=(12, 3))} for _ in range(3)]
+    monkeypatch.setattr(vtu, "_REPEATS", vtu._Repeats(budget=0))
+    for i, pd in enumerate(fields):
+        vtu.write_blocks_vtu(tmp_path / f"plain{i}.vtu", pts, hexes, pd)
+    calls = []
+    monkeypatch.setattr(vtu, "_REPEATS", vtu._Repeats())
+    real = vtu._compressed
+    monkeypatch.setattr(vtu, "_compressed", lambda raw, c: calls.append(len(raw)) or real(raw, c))
+    for i, pd in enumerate(fields):
+        vtu.write_blocks_vtu(tmp_path / f"kept{i}.vtu", pts, hexes, pd)
+        assert (tmp_path / f"kept{i}.vtu").read_bytes() == (tmp_path / f"plain{i}.vtu").read_bytes()
+    # 5 arrays per file (points, connectivity, offsets, types, u): all 5 compressed in the first
+    # two files (the second sighting keeps them), then only u
+    assert len(calls) == 5 + 5 + 1
+    small = vtu._Repeats(budget=4 * 3000)
+    for k in range(10):  # 1500 bytes each: 8 fit
+        raw = bytes([k]) * 1000
+        small.put(raw, "zlib", b"x" * 500)
+        small.put(raw, "zlib", b"x" * 500)
+        assert small.size <= small.budget
+    assert small.get(bytes([9]) * 1000, "zlib") == b"x" * 500
+    assert small.get(bytes([2]) * 1000, "zlib") == b"x" * 500
+    assert small.get(bytes([1]) * 1000, "zlib") is None
