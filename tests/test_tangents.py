@@ -3,7 +3,7 @@
 * ENDO3D blocks: ``Endo3dBlocks.tangent_stiffness`` (forward differences of the kernel per Gauss
   point, assembled with B) against central differences of the blocks' internal forces, in states
   that are elastic, cracked in tension and crushed in compression.
-* Joints: the consistent tangent of ``step_residual.evaluate_joints`` against central differences of the
+* Joints: the consistent tangent of ``step_residual.joint_tangents`` against central differences of the
   implicit law, on points that open and soften within the step, and the closed-form tangent
   where the integrity does not move.
 """
@@ -16,7 +16,7 @@ from masonry_nscd.fe import hex8
 from masonry_nscd.materials.blocks import Endo3dBlocks
 from masonry_nscd.materials.endo3d import endo3d_params
 from masonry_nscd.model import MAT_ENDO3D, Block
-from masonry_nscd.nscd.step_residual import evaluate_joints
+from masonry_nscd.nscd.step_residual import evaluate_joints, joint_tangents
 
 E, NU = 11.1e9, 0.2
 
@@ -81,8 +81,10 @@ def _joint_case(u_now, beta_old):
 def _evaluate(params, u, uc_old, beta_old):
     T, uc, beta = np.zeros((1, 3)), np.zeros((1, 3)), beta_old.copy()
     status, K = np.zeros(1, dtype=np.int64), np.zeros((1, 3, 3))
-    evaluate_joints(u, np.zeros((1, 3)), 1.0, 1.0, np.array([-1]),  # not a multiplier
-                    np.array([0]), params, uc_old, beta_old, T, uc, beta, status, K)
+    args = (u, np.zeros((1, 3)), 1.0, 1.0, np.array([-1]),  # not a multiplier
+            np.array([0]), params, uc_old, beta_old)
+    evaluate_joints(*args, T, uc, beta, status)
+    joint_tangents(*args, T, beta, status, K)
     return T[0], K[0], beta[0]
 
 

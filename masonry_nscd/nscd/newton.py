@@ -49,7 +49,7 @@ the contact impulses, ``|R_v| / (h sqrt(sum |S T|^2))``, both at most the tolera
 first alone is not enough at the friction limit, where ``T_t = mu N`` stops changing while the
 slip rate is still wrong.
 
-The tangent per status is the law's (``contact.laws.response``; for the FCZM,
+The tangent per status is the law's (``contact.laws.response_tangent``; for the FCZM,
 ``contact.laws.fczm.tangent``); a law with a spring in series has a finite ``T(u)`` (``fczm``,
 ``dry``).
 
@@ -698,7 +698,7 @@ class NewtonSolver:
                     self.on_slow()
                 self.lu = None
                 pivoted = fresh
-                self._factorise(ev.tangents, pivoting=pivoted)
+                self._factorise(residual.tangents(ev), pivoting=pivoted)
                 fresh = True
                 continue
             if not np.all(np.isfinite(dx)):  # singular even with pivoting: no step
@@ -725,7 +725,7 @@ class NewtonSolver:
             # same point with the matrix of this iterate (evaluated again: the material's
             # trial states must be those of this iterate, not of the last trial step)
             ev = residual(v, r_glue)
-            self._refresh(ev.tangents)
+            self._refresh(residual.tangents(ev))
             fresh = True
 
     def solve(self, v_free, u_old, U_old, params, uc_old, beta_old, T, dv_guess,
@@ -767,7 +767,7 @@ class NewtonSolver:
             slow = it > 3 and res > self.slow_rate * prev and prev > self.slow_rate * prev2
             fresh = self.lu is None or slow
             if fresh:
-                self._refresh(ev.tangents)
+                self._refresh(residual.tangents(ev))
             prev2, prev = prev, res
             T_prev, c_prev = ev.T, ev.correction
             ev, alpha, fresh, v, r_glue, ev_next = self._move(residual, v, r_glue, ev, fresh,

@@ -8,9 +8,10 @@ the step's data fixed (free velocities, the joints' displacements and states at 
 
 where a joint point's impulse follows from its law, ``r_a = -h S_a T_a(u_a)``, at
 ``u_a = u_a,n + h (1 - theta) U_a,n + h theta H_a^T v``, and ``c(v)`` is the material correction
-of blocks whose internal forces are not linear (ENDO3D). An evaluation also gives what the
-Newton matrix needs (the laws' tangents ``K``, the multipliers' derivatives ``Gu``, ``Gr``) and
-the merit norm of the line search, ``|F|`` with the glue rows scaled to impulse units and the
+of blocks whose internal forces are not linear (ENDO3D). An evaluation also gives the
+multipliers' derivatives ``Gu``, ``Gr`` that the Newton matrix needs, the laws' tangents ``K``
+when asked (:meth:`StepResidual.tangents`: the line search's trial points need none), and the
+merit norm of the line search, ``|F|`` with the glue rows scaled to impulse units and the
 rigid contacts' rows as impulses (``F / w``, N s).
 
 Convergence (:meth:`StepResidual.convergence`): the relative change of the contact forces
@@ -35,30 +36,33 @@ from masonry_nscd.nscd import kernels
 
 @njit(cache=True, nogil=True)
 def evaluate_joints(u_pred, Hv, h, theta, mult_of, law, params, uc_old, beta_old,
-                    T, uc, beta, status, K):
-    """Law and consistent tangent at every joint point with a spring (``mult_of < 0``) for
-    ``u = u_pred + h theta H^T v`` (Hv = H^T v), from ``contact.laws.response``."""
+                    T, uc, beta, status):
+    """The law at every joint point with a spring (``mult_of < 0``) for
+    ``u = u_pred + h theta H^T v`` (Hv = H^T v), from ``contact.laws.solve_points``:
+    tractions ``T`` (Pa), cohesive displacements ``uc`` (m), integrities and statuses. The
+    tangents are :func:`joint_tangents`'."""
+    u = np.empty_like(u_pred)
+    for a in range(u_pred.shape[0]):
+        for i in range(3):
+            u[a, i] = u_pred[a, i] + h * theta * Hv[a, i]
+    laws.solve_points(u, mult_of, law, params, uc_old, beta_old, T, uc, beta, status)
+
+
+@njit(cache=True, nogil=True)
+def joint_tangents(u_pred, Hv, h, theta, mult_of, law, params, uc_old, beta_old, T, beta,
+                   status, K):
+    """Consistent tangents ``K`` (npt, 3, 3; Pa/m) of the joint points at the solution
+    (``T``, ``beta``, ``status``) that :func:`evaluate_joints` found for the same ``Hv``, from
+    ``contact.laws.response_tangent``; the rows of the other points are left as they are."""
     npt = u_pred.shape[0]
-    A = np.zeros((3, 3))
     u = np.empty(3)
-    t = np.empty(3)
-    c = np.empty(3)
-    co = np.empty(3)
-    Ka = np.empty((3, 3))
     for a in range(npt):
         if mult_of[a] >= 0:
             continue
         for i in range(3):
             u[i] = u_pred[a, i] + h * theta * Hv[a, i]
-            co[i] = uc_old[a, i]
-        st, bn = laws.response(u, A, co, beta_old[a], params[law[a]], t, c, Ka)
-        for i in range(3):
-            T[a, i] = t[i]
-            uc[a, i] = c[i]
-            for j in range(3):
-                K[a, i, j] = Ka[i, j]
-        beta[a] = bn
-        status[a] = st
+        laws.response_tangent(u, T[a], uc_old[a], beta_old[a], beta[a], status[a],
+                              params[law[a]], K[a])
 
 
 @njit(cache=True)
@@ -135,9 +139,12 @@ class Evaluation(NamedTuple):
     uc: np.ndarray  # cohesive displacements (npt, 3), m
     beta: np.ndarray  # integrities (npt,)
     status: np.ndarray  # statuses (npt,)
-    tangents: tuple  # (K, Gu, Gr): the laws' tangents, the multipliers' derivatives
+    Hv: np.ndarray  # the points' relative velocities H^T v (npt, 3), m/s
+    Gu: np.ndarray  # the multipliers' derivatives along H^T v (m, 3, 3)
+    Gr: np.ndarray  # and along their impulses (m, 3, 3)
     correction: np.ndarray | None  # material correction c(v) (ndof), N s; None without
     correction_scale: float  # the size of the internal impulses it corrects, N s
+    K: list  # [the joints' tangents (npt, 3, 3), Pa/m], once StepResidual.tangents made them
 
 
 class Scales:
@@ -207,7 +214,6 @@ class StepResidual:
         out_uc = np.zeros((npt, 3))
         out_beta = beta_old.copy()
         out_status = np.full(npt, laws.ST_GLUED, dtype=np.int64)
-        K = np.zeros((npt, 3, 3))
         Gu = np.empty((len(g), 3, 3))
         Gr = np.empty((len(g), 3, 3))
         F = np.empty(nf + 3 * len(g))
@@ -217,7 +223,7 @@ class StepResidual:
         def joints(lo, hi):
             evaluate_joints(u_pred[lo:hi], Hv[lo:hi], h, th, mo[lo:hi], s.law[lo:hi], params,
                             uc_old[lo:hi], beta_old[lo:hi], out_T[lo:hi], out_uc[lo:hi],
-                            out_beta[lo:hi], out_status[lo:hi], K[lo:hi])
+                            out_beta[lo:hi], out_status[lo:hi])
 
         with timing.part("joint law"):
             threads.run_ranges(joints, npt)
@@ -239,8 +245,28 @@ class StepResidual:
                              + sc.rigid_sq(F))
         else:
             norm = math.sqrt(np.sum(F[:nf] ** 2) + gs ** 2 * np.sum(F[nf:] ** 2))
-        return Evaluation(F, norm, out_T, out_uc, out_beta, out_status, (K, Gu, Gr), cvec,
-                          cscale)
+        return Evaluation(F, norm, out_T, out_uc, out_beta, out_status, Hv.copy(), Gu, Gr, cvec,
+                          cscale, [None])
+
+    def tangents(self, ev: Evaluation) -> tuple:
+        """``(K, Gu, Gr)`` at the iterate of ``ev`` for the Newton matrix: the joints'
+        tangents (:func:`joint_tangents`, made at the first call and kept in ``ev``) and the
+        multipliers' derivatives."""
+        if ev.K[0] is None:
+            s, sv = self.sys, self.solver
+            K = np.zeros((s.npt, 3, 3))
+            u_pred, uc_old, beta_old, params = self.u_pred, self.uc_old, self.beta_old, self.params
+            mo = sv.mult_of
+
+            def joints(lo, hi):
+                joint_tangents(u_pred[lo:hi], ev.Hv[lo:hi], s.h, s.theta, mo[lo:hi], s.law[lo:hi],
+                               params, uc_old[lo:hi], beta_old[lo:hi], ev.T[lo:hi],
+                               ev.beta[lo:hi], ev.status[lo:hi], K[lo:hi])
+
+            with timing.part("joint tangents"):
+                threads.run_ranges(joints, s.npt)
+            ev.K[0] = K
+        return ev.K[0], ev.Gu, ev.Gr
 
     def convergence(self, ev: Evaluation, T_prev: np.ndarray,
                     c_prev: np.ndarray | None) -> tuple[float, float, float]:
