@@ -418,3 +418,31 @@ def test_newton_matrix_values_fill_the_pattern_as_its_triplets_do(smoke_scene):
         jacobian_values(pat.slot[:-1], len(pat.indices), *args)
     with pytest.raises(RuntimeError, match="entries, its pattern"):
         jacobian_values(np.append(pat.slot, 0), len(pat.indices), *args)
+
+
+@pytest.mark.skipif(not pardiso.available(), reason="PARDISO needs MKL")
+def test_the_adaptive_steps_rungs_share_the_newton_pattern_with_handles_of_their_own(
+        monkeypatch):
+    """With PARDISO the rungs take the Newton matrix's pattern (its slots) of the run's solver,
+    each with a PARDISO handle of its own (a handle keeps one factorisation), and step to the
+    same states as rungs that made their own."""
+    from masonry_nscd.nscd.newton import NewtonSolver
+
+    sets = [*QUIET, "solver.linear=pardiso", "solver.max_time_step_s=8e-3",
+            "solver.grow_after_steps=1", "solver.easy_iterations=20"]
+    runs = []
+    for share in (True, False):
+        if not share:
+            monkeypatch.setattr(NewtonSolver, "share_pattern", lambda self, other: None)
+        integ = build_scene(load_case(SMOKE, sets)).integrator()
+        for _ in range(12):
+            integ.step()
+        assert integ._rungs, "the step did not grow"
+        runs.append(integ)
+    for integ, share in zip(runs, (True, False), strict=True):
+        base = integ.newton._pattern
+        for rung in integ._rungs.values():
+            assert (rung.newton._pattern.slot is base.slot) == share
+            assert rung.newton._pattern._pardiso is not base._pardiso
+    shared, own = runs
+    assert np.array_equal(shared.u, own.u) and np.array_equal(shared.joints.T, own.joints.T)

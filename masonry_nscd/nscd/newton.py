@@ -307,6 +307,19 @@ class _Pattern:
         self._rows, self._cols = rows, cols
         return slot.astype(np.int64)
 
+    def sibling(self) -> _Pattern | None:
+        """The same pattern with a PARDISO handle of its own (its own analysis and
+        factorisation), for a solver of the same scene with another step size; None for a
+        SuperLU pattern (its order and slots change at its first factorisation)."""
+        if self._pardiso is None:
+            return None
+        other = object.__new__(_Pattern)
+        other.n, other.slot, other.order = self.n, self.slot, None
+        other.indptr, other.indices = self.indptr, self.indices
+        other._rows = other._cols = None
+        other._pardiso = pardiso_solver.Pardiso(self.indptr, self.indices, self.n)
+        return other
+
     def values(self, vals: np.ndarray) -> np.ndarray:
         """The CSC values of the matrix of the triplet values ``vals`` (in the current order)."""
         data = np.empty(len(self.indices))
@@ -478,15 +491,18 @@ class NewtonSolver:
         self.remember(other.remembered())
 
     def share_pattern(self, other: NewtonSolver) -> None:
-        """Use the Krylov body system's pattern of ``other``, a solver of the same scene with
-        another step size: the pattern depends on the bodies, the points and the free dofs
-        only (the adaptive step's rungs and the halves need not make theirs: 2.3 s each at 8
-        times the study's wall, 16 s at 64 times, and the slots' memory, 8 bytes per
-        triplet)."""
-        if self._krylov is not None and other._krylov_pattern is not None \
-                and np.array_equal(self.free, other.free) \
-                and np.array_equal(self.mult, other.mult):
+        """Use the patterns of ``other``, a solver of the same scene with another step size:
+        they depend on the bodies, the points and the free dofs only (the adaptive step's
+        rungs and the halves need not make theirs: the Krylov body system's took 2.3 s at 8
+        times the study's wall, 16 s at 64 times, and the slots' memory, 8 bytes per triplet;
+        the Newton matrix's 50 to 200 ms on the study's wall). A PARDISO pattern is shared
+        with a handle of its own (``_Pattern.sibling``): a handle keeps one factorisation."""
+        if not (np.array_equal(self.free, other.free) and np.array_equal(self.mult, other.mult)):
+            return
+        if self._krylov is not None and other._krylov_pattern is not None:
             self._krylov_pattern = other._krylov_pattern
+        if self._pattern is None and other._pattern is not None:
+            self._pattern = other._pattern.sibling()
 
     def set_iteration_mhat(self, mhat_jac: np.ndarray) -> None:
         """Use other body blocks (same layout as ``mhat``) in the Newton matrix."""
