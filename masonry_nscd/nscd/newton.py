@@ -49,7 +49,7 @@ the contact impulses, ``|R_v| / (h sqrt(sum |S T|^2))``, both at most the tolera
 first alone is not enough at the friction limit, where ``T_t = mu N`` stops changing while the
 slip rate is still wrong.
 
-The tangent per status is the law's (``contact.laws.response_tangent``; for the FCZM,
+The tangent per status is the law's (``contact.laws.tangent_points``; for the FCZM,
 ``contact.laws.fczm.tangent``); a law with a spring in series has a finite ``T(u)`` (``fczm``,
 ``dry``).
 

@@ -34,35 +34,23 @@ from masonry_nscd.contact import alart_curnier, laws
 from masonry_nscd.nscd import kernels
 
 
-@njit(cache=True, nogil=True)
 def evaluate_joints(u_pred, Hv, h, theta, mult_of, law, params, uc_old, beta_old,
                     T, uc, beta, status):
     """The law at every joint point with a spring (``mult_of < 0``) for
-    ``u = u_pred + h theta H^T v`` (Hv = H^T v), from ``contact.laws.solve_points``:
-    tractions ``T`` (Pa), cohesive displacements ``uc`` (m), integrities and statuses. The
-    tangents are :func:`joint_tangents`'."""
-    u = np.empty_like(u_pred)
-    for a in range(u_pred.shape[0]):
-        for i in range(3):
-            u[a, i] = u_pred[a, i] + h * theta * Hv[a, i]
-    laws.solve_points(u, mult_of, law, params, uc_old, beta_old, T, uc, beta, status)
+    ``u = u_pred + h theta H^T v`` (Hv = H^T v), by the kernel ``contact.laws.solve_points``:
+    tractions ``T`` (Pa), cohesive displacements ``uc`` (m), integrities and statuses."""
+    laws.solve_points(u_pred, Hv, h * theta, mult_of, law, params, uc_old, beta_old, T, uc,
+                      beta, status)
 
 
-@njit(cache=True, nogil=True)
 def joint_tangents(u_pred, Hv, h, theta, mult_of, law, params, uc_old, beta_old, T, beta,
                    status, K):
     """Consistent tangents ``K`` (npt, 3, 3; Pa/m) of the joint points at the solution
-    (``T``, ``beta``, ``status``) that :func:`evaluate_joints` found for the same ``Hv``, from
-    ``contact.laws.response_tangent``; the rows of the other points are left as they are."""
-    npt = u_pred.shape[0]
-    u = np.empty(3)
-    for a in range(npt):
-        if mult_of[a] >= 0:
-            continue
-        for i in range(3):
-            u[i] = u_pred[a, i] + h * theta * Hv[a, i]
-        laws.response_tangent(u, T[a], uc_old[a], beta_old[a], beta[a], status[a],
-                              params[law[a]], K[a])
+    (``T``, ``beta``, ``status``) that :func:`evaluate_joints` found for the same ``Hv``, by
+    the kernel ``contact.laws.tangent_points``; the rows of the other points are left as they
+    are."""
+    laws.tangent_points(u_pred, Hv, h * theta, mult_of, law, params, uc_old, beta_old, T, beta,
+                        status, K)
 
 
 @njit(cache=True)

@@ -18,9 +18,9 @@ A law module provides, besides its own documentation and checks:
   traction (``masonry point joint --path sliding``).
 
 Adding a law: its module here, its section in ``case.Joint``, and a line in ``_MODULES`` and a
-branch in the three dispatches below (``solve_joint``, ``solve_points``, ``response_tangent``).
-The Gauss-Seidel kernel calls ``solve`` of this module, the Newton kernels ``solve_points`` for
-the residual and ``response_tangent`` for the matrix; glued points are solved here
+branch in the three dispatches below (``solve_joint``, ``solve_points``, ``tangent_points``).
+The Gauss-Seidel kernel calls ``solve`` of this module, the Newton solver ``solve_points`` for
+the residual and ``tangent_points`` for the matrix; glued points are solved here
 (``common.glue_solve``).
 """
 
@@ -47,8 +47,8 @@ from masonry_nscd.contact.laws.common import (
 
 __all__ = ["KIND_GLUED", "KIND_JOINT", "LAWS", "N_COLUMNS", "P_LAW", "ST_AMBIGUOUS", "ST_GLUED",
            "ST_OPEN", "ST_SLIDE", "ST_STICK", "initial_damage", "law_module", "newton_ready",
-           "normal_displacement", "params_from_case", "response_tangent", "rigid_friction", "solve",
-           "solve_joint", "solve_points", "tangent_fd"]
+           "normal_displacement", "params_from_case", "rigid_friction", "solve", "solve_joint",
+           "solve_points", "tangent_fd", "tangent_points"]
 
 _MODULES = (fczm,)
 #: joint.law value -> law module
@@ -129,26 +129,27 @@ def tangent_fd(u, T, uc_old, beta_old, P, K):
 
 
 @njit(cache=True, nogil=True)
-def solve_points(u, skip, law, params, uc_old, beta_old, T, uc, beta, status):
+def solve_points(u0, du, scale, skip, law, params, uc_old, beta_old, T, uc, beta, status):
     """The local problems of the points ``a`` with ``skip[a] < 0``, each driven by its total
-    relative displacement ``u[a]`` (m; ``A = 0``), for the Newton residual: tractions ``T``
-    (Pa), cohesive displacements ``uc`` (m), integrities and statuses, as :func:`solve_joint`
-    gives them. One loop with the dispatch written in it: the same dispatch as a function
-    called per point, even inlined, made the joint law 25 % slower (``docs/performance.md``)."""
+    relative displacement ``u = u0[a] + scale du[a]`` (m; ``A = 0``), for the Newton residual:
+    tractions ``T`` (Pa), cohesive displacements ``uc`` (m), integrities and statuses, as
+    :func:`solve_joint` gives them. One loop with the dispatch written in it: the same dispatch
+    as a function called per point, even inlined, made the joint law 25 % slower
+    (``docs/performance.md``)."""
     A = np.zeros((3, 3))
-    ua = np.empty(3)
+    u = np.empty(3)
     t = np.empty(3)
     c = np.empty(3)
     co = np.empty(3)
-    for a in range(u.shape[0]):
+    for a in range(u0.shape[0]):
         if skip[a] >= 0:
             continue
         P = params[law[a]]
         for i in range(3):
-            ua[i] = u[a, i]
+            u[i] = u0[a, i] + scale * du[a, i]
             co[i] = uc_old[a, i]
         if P[P_LAW] == fczm.CODE:
-            st, bn = fczm.solve(ua, A, co, beta_old[a], P, t, c)
+            st, bn = fczm.solve(u, A, co, beta_old[a], P, t, c)
         else:
             st, bn = ST_AMBIGUOUS, math.nan
         for i in range(3):
@@ -158,18 +159,25 @@ def solve_points(u, skip, law, params, uc_old, beta_old, T, uc, beta, status):
         status[a] = st
 
 
-@njit(cache=True, inline="always")
-def response_tangent(u, T, uc_old, beta_old, beta, status, P, K):
-    """Consistent tangent ``K = dT/du`` (Pa/m) of the law of ``P`` driven by its total relative
-    displacement ``u`` (``A = 0``), at the solution ``(T, beta, status)`` that
-    :func:`solve_joint` gave for it, for the Newton matrix: the law's own ``tangent`` with the
-    integrity frozen where it did not drop within the step, differences of the implicit law
-    (:func:`tangent_fd`) where it did (the frozen one misses the softening, by 100 % and in
-    sign on opening joints). Apart from the solve: the residual is evaluated far more often
-    than the matrix is made, and at a softening point the differences cost three more solves.
-    An unknown law leaves ``K`` as it is."""
-    if P[P_LAW] == fczm.CODE:
-        if beta >= beta_old:
-            fczm.tangent(u, T, uc_old, beta, status, P, K)
-        else:
-            tangent_fd(u, T, uc_old, beta_old, P, K)
+@njit(cache=True, nogil=True)
+def tangent_points(u0, du, scale, skip, law, params, uc_old, beta_old, T, beta, status, K):
+    """Consistent tangents ``K[a] = dT/du`` (Pa/m) of the points of :func:`solve_points` at
+    the solutions ``(T, beta, status)`` it gave for the same ``u``, for the Newton matrix: the
+    law's own ``tangent`` with the integrity frozen where it did not drop within the step,
+    differences of the implicit law (:func:`tangent_fd`) where it did (the frozen one misses
+    the softening, by 100 % and in sign on opening joints). Apart from the solve: the residual
+    is evaluated far more often than the matrix is made, and at a softening point the
+    differences cost three more solves. The rows of the skipped points, and of a point of an
+    unknown law, are left as they are."""
+    u = np.empty(3)
+    for a in range(u0.shape[0]):
+        if skip[a] >= 0:
+            continue
+        P = params[law[a]]
+        for i in range(3):
+            u[i] = u0[a, i] + scale * du[a, i]
+        if P[P_LAW] == fczm.CODE:
+            if beta[a] >= beta_old[a]:
+                fczm.tangent(u, T[a], uc_old[a], beta[a], status[a], P, K[a])
+            else:
+                tangent_fd(u, T[a], uc_old[a], beta_old[a], P, K[a])
