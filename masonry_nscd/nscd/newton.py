@@ -68,6 +68,7 @@ the point's Delassus matrix), at most the tolerance.
 from __future__ import annotations
 
 import contextlib
+import copy
 import math
 
 import numpy as np
@@ -313,10 +314,7 @@ class _Pattern:
         SuperLU pattern (its order and slots change at its first factorisation)."""
         if self._pardiso is None:
             return None
-        other = object.__new__(_Pattern)
-        other.n, other.slot, other.order = self.n, self.slot, None
-        other.indptr, other.indices = self.indptr, self.indices
-        other._rows = other._cols = None
+        other = copy.copy(self)  # the arrays shared, not copied
         other._pardiso = pardiso_solver.Pardiso(self.indptr, self.indices, self.n)
         return other
 
