@@ -446,3 +446,18 @@ def test_the_adaptive_steps_rungs_share_the_newton_pattern_with_handles_of_their
             assert rung.newton._pattern._pardiso is not base._pardiso
     shared, own = runs
     assert np.array_equal(shared.u, own.u) and np.array_equal(shared.joints.T, own.joints.T)
+
+
+def test_nonzero_csr_drops_the_patterns_zeros_as_scipy_does():
+    """A fixed pattern's CSR arrays with structural zeros: the same matrix as scipy's
+    ``eliminate_zeros`` (entries, order and values), with 32-bit indices."""
+    rng = np.random.default_rng(5)
+    A = sp.random(40, 40, density=0.3, random_state=6, format="csr")
+    A.data[rng.uniform(size=A.nnz) < 0.4] = 0.0  # zeros kept in the pattern
+    A.data[0] = -0.0
+    ref = A.copy()
+    ref.eliminate_zeros()
+    S = linear.nonzero_csr(A.indptr, A.indices, A.data, 40)
+    assert S.indices.dtype == np.int32 and S.indptr.dtype == np.int32
+    assert np.array_equal(S.indptr, ref.indptr) and np.array_equal(S.indices, ref.indices)
+    assert np.array_equal(S.data, ref.data) and S.nnz == ref.nnz < A.nnz

@@ -266,6 +266,37 @@ def diagonal_blocks(indptr, indices, data, body_of, block_of, local, size_of, fl
                 flat[o + li * k + local[j]] = data[p]
 
 
+@njit(cache=True)
+def nonzero_entries(indptr, indices, data, out_indptr, out_indices, out_data):
+    """The entries of a CSR matrix whose value is not zero, in their order, written into
+    ``out_*`` (``out_indices`` and ``out_data`` of exactly that many entries)."""
+    k = 0
+    out_indptr[0] = 0
+    for i in range(indptr.shape[0] - 1):
+        for p in range(indptr[i], indptr[i + 1]):
+            if data[p] != 0.0:
+                out_indices[k] = indices[p]
+                out_data[k] = data[p]
+                k += 1
+        out_indptr[i + 1] = k
+
+
+def nonzero_csr(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
+                n: int) -> sp.csr_matrix:
+    """The ``n x n`` CSR matrix of the non-zero entries of the CSR arrays given (a fixed
+    pattern that holds structural zeros), with 32-bit indices where they fit: one compiled pass
+    where scipy would copy the pattern, check it, narrow its indices and drop the zeros in four
+    (the Krylov body system of 16 times the study's wall: 4.4 M entries, 2.3 M of them not
+    zero)."""
+    nnz = int(np.count_nonzero(data))
+    kind = np.int32 if max(nnz, n) < np.iinfo(np.int32).max else np.int64
+    out_indptr = np.empty(n + 1, dtype=kind)
+    out_indices = np.empty(nnz, dtype=kind)
+    out_data = np.empty(nnz)
+    nonzero_entries(indptr, indices, data, out_indptr, out_indices, out_data)
+    return sp.csr_matrix((out_data, out_indices, out_indptr), shape=(n, n))
+
+
 def block_diagonal(blocks: np.ndarray) -> sp.csr_matrix:
     """The block-diagonal CSR matrix of ``(m, 3, 3)`` blocks."""
     m = len(blocks)

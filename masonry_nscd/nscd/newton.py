@@ -579,11 +579,9 @@ class NewtonSolver:
         else:
             with timing.part("Newton matrix"):
                 data = jacobian_values(pat.slot, len(pat.indices), *args, eliminate=True)
-        S = sp.csr_matrix((data, pat.indices.copy(), pat.indptr.copy()), shape=(nf, nf))
         # the pattern holds every entry that can be non-zero (the bodies' blocks whole, the
         # open joints' zeros): without the zeros the products of GMRES are a third cheaper
-        S.eliminate_zeros()
-        return S
+        return linear_solvers.nonzero_csr(pat.indptr, pat.indices, data, nf)
 
     def _multipliers(self, Gu, Gr):
         """``(B, C, D^-1)`` of the multipliers (None when there are none): the blocks of the
