@@ -461,3 +461,20 @@ def test_nonzero_csr_drops_the_patterns_zeros_as_scipy_does():
     assert S.indices.dtype == np.int32 and S.indptr.dtype == np.int32
     assert np.array_equal(S.indptr, ref.indptr) and np.array_equal(S.indices, ref.indices)
     assert np.array_equal(S.data, ref.data) and S.nnz == ref.nnz < A.nnz
+
+
+def test_the_compiled_pattern_sort_gives_numpys_pattern():
+    """``newton.csc_slots`` (the large patterns' sort) against ``np.unique`` of the keys
+    ``cols n + rows`` (the small ones'): the same compressed columns and slots, duplicates and
+    empty columns included."""
+    from masonry_nscd.nscd.newton import csc_slots
+
+    rng = np.random.default_rng(8)
+    n, count = 300, 20_000
+    rows, cols = rng.integers(0, n, count), rng.integers(0, n - 5, count)  # 5 empty columns
+    uniq, slot = np.unique(cols * n + rows, return_inverse=True)
+    indptr = np.empty(n + 1, dtype=np.int64)
+    got_slot, got_indices = csc_slots(rows, cols, n, indptr)
+    assert np.array_equal(got_slot, slot)
+    assert np.array_equal(got_indices, uniq % n)
+    assert np.array_equal(indptr, np.searchsorted(uniq // n, np.arange(n + 1)))
