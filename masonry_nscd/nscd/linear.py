@@ -241,7 +241,11 @@ class KrylovSolver:
     def _coarse_lu(self, S0: sp.csc_matrix):
         """The LU of the coarse matrix: PARDISO where MKL is installed (its analysis kept
         while the pattern stays; at 32 times the study's wall, 12,937 unknowns: 59 ms a
-        factorisation, 160 ms with the analysis, against 413 ms for SuperLU), else SuperLU."""
+        factorisation, 160 ms with the analysis, against 413 ms for SuperLU), else SuperLU.
+        Ordered by nested dissection: the bodies' 6 x 6 blocks make a graph like the wall's,
+        where it halves the fill of the minimum degree order (64 times the study's wall, 25,609
+        unknowns: 7.3 M against 12.6 M entries in L + U, 100 against 204 ms a factorisation,
+        7.5 against 13 ms a solve)."""
         if not pardiso.available():
             return spla.splu(S0)
         S0.sort_indices()
@@ -249,7 +253,7 @@ class KrylovSolver:
         if kept is None or not (np.array_equal(kept[0], S0.indptr)
                                 and np.array_equal(kept[1], S0.indices)):
             kept = (S0.indptr.copy(), S0.indices.copy(),
-                    pardiso.Pardiso(S0.indptr, S0.indices, S0.shape[0]))
+                    pardiso.Pardiso(S0.indptr, S0.indices, S0.shape[0], order=2))
             self._coarse_pattern = kept
         return kept[2].factorise(S0.data)
 

@@ -111,9 +111,11 @@ class Pardiso:
 
     ``indptr``, ``indices``: the pattern in compressed columns (n + 1 and nnz entries, zero
     based, sorted within each column), the same for every matrix given to :meth:`factorise`.
+    ``order``: PARDISO's fill-reducing order, ``iparm[1]`` (0 minimum degree, the default:
+    module docstring; 2 nested dissection by METIS).
     """
 
-    def __init__(self, indptr: np.ndarray, indices: np.ndarray, n: int):
+    def __init__(self, indptr: np.ndarray, indices: np.ndarray, n: int, order: int = 0):
         lib = library()
         if lib is None:
             raise PardisoError(MISSING)
@@ -128,7 +130,7 @@ class Pardiso:
         mtype = ctypes.c_int32(MTYPE_REAL_NONSYMMETRIC)
         lib.pardisoinit(self._pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)),
                         ctypes.byref(mtype), self.iparm.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)))
-        self.iparm[1] = 0  # minimum degree order (module docstring)
+        self.iparm[1] = order  # minimum degree by default (module docstring)
         self.iparm[7] = 0  # iterative refinement only after a perturbed pivot (two steps)
         self.iparm[11] = 2  # solve with the transposed matrix (the CSC arrays as CSR: J^T)
         self.iparm[34] = 1  # zero-based indices
