@@ -814,12 +814,13 @@ class NewtonSolver:
         ``t_end`` (s): the time the step ends at, for the predictor when the last steps had
         another size (None: they had this one).
 
-        Each iteration: the law and its tangent at every joint point, the residual
+        Each iteration: the law at every joint point and the residual
         (``step_residual.StepResidual``), a solve with the current factorisation
-        (refactorised when the iterations slow down), and a backtracking line search on the
-        residual norm (glue rows scaled to impulse units), which stops the cycling between
-        open and closed statuses that full steps show when the loads are tiny (the open joint
-        is some 300 times softer than the closed one).
+        (refactorised, with the joints' tangents at that iterate, when the iterations slow
+        down), and a backtracking line search on the residual norm (glue rows scaled to
+        impulse units), which stops the cycling between open and closed statuses that full
+        steps show when the loads are tiny (the open joint is some 300 times softer than the
+        closed one).
 
         ``correction(v) -> (c, scale)``: a material correction of the body residual (N s), for
         blocks whose internal forces are not linear (ENDO3D), and the size of the internal

@@ -187,7 +187,6 @@ class StepResidual:
         self.correction = correction
         self.u_pred = u_old + s.h * (1.0 - s.theta) * U_old
         self.nf = len(solver.free)
-        self._Hv = np.empty((s.npt, 3))
         self._R = np.empty(s.ndof)
 
     def __call__(self, v: np.ndarray, r_glue: np.ndarray) -> Evaluation:
@@ -197,7 +196,8 @@ class StepResidual:
         h, th, npt, nf = s.h, s.theta, s.npt, self.nf
         g = sv.mult
         u_pred, uc_old, beta_old, params = self.u_pred, self.uc_old, self.beta_old, self.params
-        Hv, R = self._Hv, self._R
+        R = self._R
+        Hv = np.empty((npt, 3))  # kept by the evaluation, for its tangents
         out_T = self.T_old.copy()
         out_uc = np.zeros((npt, 3))
         out_beta = beta_old.copy()
@@ -233,8 +233,8 @@ class StepResidual:
                              + sc.rigid_sq(F))
         else:
             norm = math.sqrt(np.sum(F[:nf] ** 2) + gs ** 2 * np.sum(F[nf:] ** 2))
-        return Evaluation(F, norm, out_T, out_uc, out_beta, out_status, Hv.copy(), Gu, Gr, cvec,
-                          cscale, [None])
+        return Evaluation(F, norm, out_T, out_uc, out_beta, out_status, Hv, Gu, Gr, cvec, cscale,
+                          [None])
 
     def tangents(self, ev: Evaluation) -> tuple:
         """``(K, Gu, Gr)`` at the iterate of ``ev`` for the Newton matrix: the joints'
