@@ -1108,13 +1108,14 @@ def bench_scaling(case_path: Path | str, outdir: Path | str, *, overrides: Seque
         res = run_in_child(spec(c, n), timeout_s=kill_s)
         row = _scaling_row(name, c, n, res, skip)
         rows.append(row)
-        parts += scaling_parts(name, res)
+        wall_parts = scaling_parts(name, res)
+        parts += wall_parts
         echo(f"{name}: {c} courses x {n} units per course, {row.units} units, "
              f"{row.contact_points} contact points: {row.status}, build {row.build_s:.3g} s, "
              f"{row.step_ms_median:.3g} ms per step, {row.factorisations_per_step:.2g} "
              f"factorisations per step, {row.peak_rss_MiB:.0f} MiB"
              + (f": {row.message}" if row.message else ""))
-        top = [p for p in parts if p.wall == name][:4]
+        top = wall_parts[:4]  # the longest first (timing.table)
         if top:
             echo("  of the step time: " + ", ".join(
                 f"{p.part} {100 * p.share:.0f} % ({p.calls} x {p.median_ms:.3g} ms)"

@@ -325,14 +325,15 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
             if round(rep.time / h) % case.output.every_steps == 0 or done:
                 with timing.part("outputs"):  # the fields and their files
                     sig = fields.element_stress()
+                    disp = fields.nodal_displacement()
                     j = integ.joints
                     step_out = StepOutput(
-                        block_points={"displacement_m": fields.nodal_displacement()},
+                        block_points={"displacement_m": disp},
                         block_cells={"block": mesh.block_of_element.astype(float), "stress_Pa": sig,
                                      "von_mises_Pa": von_mises(sig), **damage},
                         joint_points=fields.joint_fields(),
                         h5={"u": integ.u, "v": integ.v, "element_stress_Pa": sig,
-                            "nodal_displacement_m": fields.nodal_displacement(),
+                            "nodal_displacement_m": disp,
                             **{f"element_{k}": v for k, v in damage.items()},
                             "joint_u_m": j.u, "joint_uc_m": j.uc, "joint_beta": j.beta,
                             "joint_T_Pa": j.T, "joint_status": j.status})
