@@ -170,8 +170,10 @@ def run(
         "(case from OUTDIR/case.yaml).")] = None,
     n_threads: Annotated[int | None, typer.Option(
         "--threads", min=1, metavar="N",
-        help="Threads for the joint law and the ENDO3D kernels (default: NUMBA_NUM_THREADS, "
-        "else every core); the results are the same on any number.")] = None,
+        help="Threads for the joint law and the ENDO3D kernels, and for PARDISO's "
+        "factorisations unless MKL_NUM_THREADS is set (default: NUMBA_NUM_THREADS, else every "
+        "core); the kernels give the same results on any number, PARDISO the same to "
+        "round-off.")] = None,
 ) -> None:
     """Run a wall case to its target displacement and write CSV, HDF5 and VTU results."""
     if n_threads is not None:

@@ -19,9 +19,12 @@ takes less than half of SuperLU's time with the same fill (docs/performance.md),
 factorisations are half of an elastic run; a solve costs the same. The solutions agree with
 SuperLU's to round-off (the same Newton iterations; curves within 1e-12).
 
-Threads: MKL's OpenMP threads are set to ``MKL_NUM_THREADS`` when it is set, else to one: the
-numba kernels of a step are serial, sweeps run one process per core, and one thread keeps the
-runs bit-reproducible.
+Threads: a factorisation runs on ``MKL_NUM_THREADS`` OpenMP threads when it is set, else on as
+many as the per-point kernels (``threads.count()``: the cores, one in a sweep's worker, ``--threads``).
+On the study's matrix two threads factorise in 6 ms against 9.7 (docs/performance.md); a solve
+takes the same time on either. MKL may not change the number during a run (``MKL_Set_Dynamic(0)``),
+so a run on a given number of threads is reproducible; runs on one and on two threads differ by
+round-off.
 
 MKL ships as the ``mkl`` wheel (x86_64); where it is missing, :func:`available` is False and
 ``solver.linear: auto`` keeps SuperLU.
@@ -39,6 +42,8 @@ from functools import cache
 from pathlib import Path
 
 import numpy as np
+
+from masonry_nscd import threads
 
 #: PARDISO's matrix type: real and nonsymmetric
 MTYPE_REAL_NONSYMMETRIC = 11
@@ -78,7 +83,8 @@ def _candidates() -> list[str]:
 @cache
 def library() -> ctypes.CDLL | None:
     """MKL's ``libmkl_rt`` with the PARDISO entry points typed, or None when it is not
-    installed (or cannot be loaded). Its OpenMP threads are set on loading (module docstring)."""
+    installed (or cannot be loaded). MKL's dynamic threads are turned off on loading (module
+    docstring)."""
     for path in _candidates():
         try:
             lib = ctypes.CDLL(path)
@@ -93,11 +99,25 @@ def library() -> ctypes.CDLL | None:
         lib.pardiso.argtypes = [p_i64, p_i32, p_i32, p_i32, p_i32, p_i32, p_f64, p_i32, p_i32,
                                 p_i32, p_i32, p_i32, p_i32, p_f64, p_f64, p_i32]
         lib.pardiso.restype = None
-        threads = os.environ.get("MKL_NUM_THREADS", "").strip()
         lib.MKL_Set_Num_Threads.argtypes = [ctypes.c_int]
-        lib.MKL_Set_Num_Threads(int(threads) if threads.isdigit() and int(threads) > 0 else 1)
+        lib.MKL_Set_Dynamic.argtypes = [ctypes.c_int]
+        lib.MKL_Set_Dynamic(0)
         return lib
     return None
+
+
+_threads_set = 0  # the OpenMP threads last given to MKL (0: none yet)
+
+
+def _use_threads(lib: ctypes.CDLL) -> None:
+    """Give MKL its threads before a factorisation: ``MKL_NUM_THREADS`` when set, else the
+    per-point kernels' count (module docstring); set only when it changed."""
+    global _threads_set
+    env = os.environ.get("MKL_NUM_THREADS", "").strip()
+    n = int(env) if env.isdigit() and int(env) > 0 else threads.count()
+    if n != _threads_set:
+        lib.MKL_Set_Num_Threads(n)
+        _threads_set = n
 
 
 def available() -> bool:
@@ -166,6 +186,7 @@ class Pardiso:
         data = np.ascontiguousarray(data, dtype=np.float64)
         if len(data) != len(self._ja):
             raise ValueError(f"{len(data)} values for a pattern of {len(self._ja)} entries")
+        _use_threads(self._lib)
         if not self._analysed:
             self._call(11, data)
             self._analysed = True
