@@ -67,7 +67,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numba import njit
 
-from masonry_nscd import timing
+from masonry_nscd import threads, timing
 from masonry_nscd.nscd import pardiso
 
 LINEAR_SOLVERS = ("auto", "lu", "pardiso", "krylov")
@@ -223,7 +223,7 @@ class KrylovSolver:
             blocks = flat[off:off + len(starts) * k * k].reshape(shape)
             idx = starts[:, None] + np.arange(k)[None, :]  # (g, k) dofs of each body
             if self._last_blocks is None:
-                inv = np.linalg.inv(blocks)
+                inv = _inverses(blocks)
             else:
                 # only the blocks that changed since the last set-up (a body whose joints kept
                 # their tangents keeps its block): the same inverses, bit for bit
@@ -232,7 +232,7 @@ class KrylovSolver:
                 changed = np.flatnonzero(np.any(blocks != old, axis=(1, 2)))
                 inv = last_inv[n].copy()
                 if len(changed):
-                    inv[changed] = np.linalg.inv(blocks[changed])
+                    inv[changed] = _inverses(blocks[changed])
                 self.blocks_inverted += len(changed)
             groups.append((idx, inv))
         self._last_blocks = (flat, [inv for _, inv in groups])
@@ -299,6 +299,24 @@ def nonzero_csr(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
     out_data = np.empty(nnz)
     nonzero_entries(indptr, indices, data, out_indptr, out_indices, out_data)
     return sp.csr_matrix((out_data, out_indices, out_indptr), shape=(n, n))
+
+
+#: the fewest blocks a thread inverts (a 54 x 54 block takes some 70 microseconds)
+MIN_BLOCKS_PER_THREAD = 16
+
+
+def _inverses(blocks: np.ndarray) -> np.ndarray:
+    """The inverses of the stacked blocks ``(g, k, k)``, the stack cut into ranges inverted on
+    the kernels' threads (``threads.run_ranges``: numpy's LAPACK loop releases the interpreter),
+    each block by the same LAPACK call as on one thread: the same inverses bit for bit. At 16
+    times the study's wall, 1,063 blocks of 54 x 54: 72 ms on one thread, 41 ms on two."""
+    out = np.empty_like(blocks)
+
+    def invert(lo, hi):
+        out[lo:hi] = np.linalg.inv(blocks[lo:hi])
+
+    threads.run_ranges(invert, len(blocks), min_size=MIN_BLOCKS_PER_THREAD)
+    return out
 
 
 def block_diagonal(blocks: np.ndarray) -> sp.csr_matrix:
