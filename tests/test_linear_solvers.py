@@ -478,3 +478,44 @@ def test_the_compiled_pattern_sort_gives_numpys_pattern():
     assert np.array_equal(got_slot, slot)
     assert np.array_equal(got_indices, uniq % n)
     assert np.array_equal(indptr, np.searchsorted(uniq // n, np.arange(n + 1)))
+
+
+def test_block_inverses_on_threads_are_the_inverses_on_one():
+    """The preconditioner's block inverses cut into ranges on threads are numpy's inverses of
+    the whole stack, bit for bit (each block by the same LAPACK call)."""
+    from masonry_nscd import threads
+
+    rng = np.random.default_rng(3)
+    blocks = rng.normal(size=(37, 9, 9)) + 9.0 * np.eye(9)
+    try:
+        threads.set_count(3)
+        assert len(threads.ranges(len(blocks), min_size=linear.MIN_BLOCKS_PER_THREAD)) == 2
+        assert np.array_equal(linear._inverses(blocks), np.linalg.inv(blocks))
+    finally:
+        threads.set_count(None)
+
+
+def test_pardiso_takes_the_kernels_thread_count_unless_mkl_num_threads(monkeypatch):
+    """A factorisation gives MKL the kernels' thread count (``--threads``), or
+    ``MKL_NUM_THREADS`` when it is set; MKL is told again only when the number changes."""
+    from masonry_nscd import threads
+
+    calls = []
+
+    class Lib:
+        def MKL_Set_Num_Threads(self, n):
+            calls.append(n)
+
+    monkeypatch.setattr(pardiso, "_threads_set", 0)
+    monkeypatch.delenv("MKL_NUM_THREADS", raising=False)
+    try:
+        threads.set_count(3)
+        pardiso._use_threads(Lib())
+        pardiso._use_threads(Lib())
+        threads.set_count(1)
+        pardiso._use_threads(Lib())
+        monkeypatch.setenv("MKL_NUM_THREADS", "2")
+        pardiso._use_threads(Lib())
+    finally:
+        threads.set_count(None)
+    assert calls == [3, 1, 2]
