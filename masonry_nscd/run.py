@@ -17,7 +17,6 @@ written. Ctrl-C and SIGTERM (:data:`TERMINATE`) do the same with KeyboardInterru
 from __future__ import annotations
 
 import contextlib
-import math
 import threading
 import time
 import traceback
@@ -230,8 +229,10 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
         monitor = CollapseMonitor(scene, integ, outdir, log,
                                   resume_step=point.step if point else None)
     h = scene.solver.h
-    n_est = math.ceil(scene.expected_end_s / h)
-    every = progress_every or max(1, n_est // 40)
+    t_end = scene.expected_end_s
+    # a progress line every progress_every steps, else at each fortieth of the expected end
+    # (steps of adaptive size: the time says how far the run is, the step count does not)
+    next_line = integ.t + t_end / 40
     unconverged, worst = (point.unconverged, point.worst_residual) if point else (0, 0.0)
     subdivided = 0  # steps made again as smaller ones (the log shows the first five)
     linear_fallbacks = 0  # steps with a Krylov solve made again by LU (the first five shown)
@@ -346,9 +347,13 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
                                          energy_row(rep.step, rep.time, energy))
                     except ValueError as exc:
                         raise failure(rep.step, rep.time, f"{exc} (not written)") from exc
-            if rep.step % every == 0 or done:
+            if (rep.step % progress_every == 0 if progress_every else
+                    rep.time >= next_line - 1e-9 * h) or done:
+                while next_line <= rep.time + 1e-9 * h:
+                    next_line += t_end / 40
                 stage = scene.stage_at(rep.time)
-                log(f"[{stage:10s}] step {rep.step:6d}/{n_est} t {rep.time:7.4f} s  "
+                log(f"[{stage:10s}] step {rep.step:6d}  t {rep.time:7.4f}/{t_end:.4f} s "
+                    f"({100 * rep.time / t_end:3.0f} %)  "
                     f"Ux {1e3 * ux:8.4f} mm  Fx {1e-3 * top[0]:9.3f} kN  "
                     f"Fy {1e-3 * top[1]:9.3f} kN  sweeps {rep.sweeps:6d}  res {rep.residual:.2e}")
             if done:
