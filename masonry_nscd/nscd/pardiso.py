@@ -24,7 +24,9 @@ many as the per-point kernels (``threads.count()``: the cores, one in a sweep's 
 On the study's matrix two threads factorise in 6 ms against 9.7 (docs/performance.md); a solve
 takes the same time on either. MKL may not change the number during a run (``MKL_Set_Dynamic(0)``),
 so a run on a given number of threads is reproducible; runs on one and on two threads differ by
-round-off.
+round-off. MKL's OpenMP threads sleep as soon as a factorisation ends (``KMP_BLOCKTIME=0`` unless
+the environment sets it): by default they spin for 200 ms, on the cores the kernels' threads
+need next; on the ENDO3D wall to 3 mm the trial took 5.5 to 6.0 s instead of 4.7 s then.
 
 MKL ships as the ``mkl`` wheel (x86_64); where it is missing, :func:`available` is False and
 ``solver.linear: auto`` keeps SuperLU.
@@ -85,6 +87,8 @@ def library() -> ctypes.CDLL | None:
     """MKL's ``libmkl_rt`` with the PARDISO entry points typed, or None when it is not
     installed (or cannot be loaded). MKL's dynamic threads are turned off on loading (module
     docstring)."""
+    # read by Intel's OpenMP runtime when it starts, at the first factorisation (docstring)
+    os.environ.setdefault("KMP_BLOCKTIME", "0")
     for path in _candidates():
         try:
             lib = ctypes.CDLL(path)
