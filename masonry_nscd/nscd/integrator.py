@@ -137,6 +137,7 @@ class Integrator:
         easy_damage: float = math.inf,
         step_limit=None,
         linear: str = "lu",
+        layout=None,
     ):
         if max_halvings < 0:
             raise ValueError(f"max_halvings must be >= 0, got {max_halvings}")
@@ -174,7 +175,9 @@ class Integrator:
         self.points = points
         self.params = np.ascontiguousarray(np.atleast_2d(params), dtype=float)
         self.loads = loads
-        self.sys = build_system(bodies, points, h, theta)
+        # ``layout``: the system's parts that do not depend on h, shared with the integrators
+        # of the other step sizes (``nscd.system.Layout``; None: made here)
+        self.sys = build_system(bodies, points, h, theta, layout)
         self.tolerance = tolerance
         self.max_iterations = max_iterations
         self.check_every = check_every
@@ -380,7 +383,8 @@ class Integrator:
         ``4 easy_iterations`` iterations, a step that hard being made faster as smaller ones."""
         if k not in self._rungs:
             rung = Integrator(self.bodies, self.points, self.params, self.loads,
-                              h=self.sys.h * (1 << k), **{**self._half_args, "max_halvings": 0})
+                              h=self.sys.h * (1 << k), layout=self.sys.layout,
+                              **{**self._half_args, "max_halvings": 0})
             rung.finish_by_sweeps = False
             if rung.newton is not None:
                 rung.newton.max_iterations = min(rung.newton.max_iterations,
@@ -432,7 +436,8 @@ class Integrator:
             before = [] if self.newton is None else self.newton.remembered()
         if self._half is None:
             self._half = Integrator(self.bodies, self.points, self.params, self.loads,
-                                    h=0.5 * self.sys.h, **self._half_args)
+                                    h=0.5 * self.sys.h, layout=self.sys.layout,
+                                    **self._half_args)
             if self._half.newton is not None:
                 self._half.newton.share_pattern(self.newton)
         half = self._half

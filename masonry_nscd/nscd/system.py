@@ -18,6 +18,11 @@ so that a change ``dr`` of the local impulse of ``a`` changes the velocities of 
 ``Y_aB dr`` and nothing else. The Delassus operator is never assembled beyond its diagonal
 blocks: the off-diagonal coupling is carried by the body velocities (cost per point and sweep
 ~ 2 ndof_B, memory linear in the number of points).
+
+What does not depend on h (the numbering, the blocks' K and masses, the points' sides) is a
+:class:`Layout`, made once per scene and shared by the systems of the adaptive step's sizes
+and of the halved steps (each built in 22 ms on the study's wall, after a 25 ms layout,
+instead of 100 ms each).
 """
 
 from __future__ import annotations
@@ -60,6 +65,7 @@ class System:
     W: np.ndarray  # (npt, 3, 3)
     h: float
     theta: float
+    layout: Layout | None = None  # what it was built from (the systems of other steps share it)
 
     def __post_init__(self):
         # the products by M_hat^-1 and K of the free velocity and the internal forces (views
@@ -72,101 +78,154 @@ class System:
         return len(self.area)
 
 
-def body_matrices(body, h: float, theta: float, with_mhat: bool = False):
-    """Stiffness K (or None), lumped mass per dof, and M_hat^-1 (and M_hat) of one body."""
-    if isinstance(body, Block):
-        C = hex8.elastic_matrix(body.E, body.nu)
-        K, m = hex8.assemble_block(body.X, body.conn, C, body.density)
-        Mhat = np.diag(m) + (theta * h) ** 2 * K
-        out = K, m, np.linalg.inv(Mhat)
+@dataclass
+class Layout:
+    """What the systems of one scene share whatever their step: the dofs' numbering, each
+    block's stiffness ``K`` (N/m) and every body's lumped mass, the contact points' sides. The
+    integrators of the adaptive step's sizes and of the halved steps build their
+    :class:`System` from one layout (:func:`build_system`)."""
+
+    bodies: list
+    body_dof0: np.ndarray  # (nb + 1,)
+    deformable: np.ndarray  # (nb,) bool
+    minv_off: np.ndarray  # (nb,) offsets of the bodies' dense blocks (grouped by size)
+    k_off: np.ndarray  # (nb,) offsets into k (-1 for rigid bodies)
+    k: np.ndarray  # flat, dense K per deformable block (N/m)
+    mass: np.ndarray  # (ndof,) lumped mass (kg, kg m^2)
+    imposed_dofs: np.ndarray  # (ni,)
+    kind: np.ndarray  # (npt,)
+    law: np.ndarray  # (npt,)
+    area: np.ndarray  # (npt,) m^2
+    frame: np.ndarray  # (npt, 3, 3)
+    side_dofs: np.ndarray  # (npt, 2, 12), -1 padded
+    side_coef: np.ndarray  # (npt, 2, 12, 3)
+    side_body: np.ndarray  # (npt, 2), -1 for none
+
+    @classmethod
+    def of(cls, bodies, points: list[ContactPoint]) -> Layout:
+        nb = len(bodies)
+        body_dof0 = np.zeros(nb + 1, dtype=np.int64)
+        for i, b in enumerate(bodies):
+            body_dof0[i + 1] = body_dof0[i] + b.ndof
+        sizes = np.diff(body_dof0)
+        deformable = np.array([isinstance(b, Block) for b in bodies], dtype=bool)
+        # the blocks of one size one after the other (block_diagonal.grouped_offsets)
+        minv_off = grouped_offsets(sizes)
+        k_off = grouped_offsets(sizes, deformable)
+        k = np.zeros(int(np.sum(sizes[deformable] ** 2)))
+        mass = np.zeros(int(body_dof0[-1]))
+        imposed = []
+        for i, b in enumerate(bodies):
+            if isinstance(b, Block):
+                K, m = hex8.assemble_block(b.X, b.conn, hex8.elastic_matrix(b.E, b.nu),
+                                           b.density)
+                k[k_off[i]:k_off[i] + K.size] = K.ravel()
+            else:
+                assert isinstance(b, RigidBody)
+                m = np.diag(b.mass_matrix()).copy()
+                imposed += [body_dof0[i] + d for d in range(6) if b.dof_mode[d] == DOF_IMPOSED]
+            mass[body_dof0[i]:body_dof0[i + 1]] = m
+        npt = len(points)
+        side_dofs = np.full((npt, 2, MAX_SIDE_DOFS), -1, dtype=np.int64)
+        side_coef = np.zeros((npt, 2, MAX_SIDE_DOFS, 3))
+        side_body = np.full((npt, 2), -1, dtype=np.int64)
+        for a, p in enumerate(points):
+            for s, ((dofs, coef), bi) in enumerate(zip(p.sides, p.bodies)):
+                side_dofs[a, s, :len(dofs)] = dofs
+                side_coef[a, s, :len(dofs)] = coef
+                side_body[a, s] = bi
+        return cls(bodies=bodies, body_dof0=body_dof0, deformable=deformable,
+                   minv_off=minv_off, k_off=k_off, k=k, mass=mass,
+                   imposed_dofs=np.array(imposed, dtype=np.int64),
+                   kind=np.array([p.kind for p in points], dtype=np.int64),
+                   law=np.array([p.law for p in points], dtype=np.int64),
+                   area=np.array([p.area for p in points], dtype=float),
+                   frame=np.array([p.frame for p in points], dtype=float).reshape(npt, 3, 3),
+                   side_dofs=side_dofs, side_coef=side_coef, side_body=side_body)
+
+
+def _rigid_inverse(body: RigidBody) -> tuple[np.ndarray, np.ndarray]:
+    """``(M_hat, M_hat^-1)`` of a rigid body (6, 6): its mass matrix, and the inverse of its
+    free block with zero rows and columns at the imposed dofs."""
+    Mhat = body.mass_matrix()
+    m = np.diag(Mhat)
+    free = body.dof_mode != DOF_IMPOSED
+    minv = np.zeros((6, 6))
+    if np.count_nonzero(Mhat - np.diag(m)):  # reference point off the centre of mass
+        minv[np.ix_(free, free)] = np.linalg.inv(Mhat[np.ix_(free, free)])
     else:
-        assert isinstance(body, RigidBody)
-        Mhat = body.mass_matrix()
-        m = np.diag(Mhat).copy()
-        free = body.dof_mode != DOF_IMPOSED
-        minv = np.zeros((6, 6))
-        if np.count_nonzero(Mhat - np.diag(m)):  # reference point off the centre of mass
-            minv[np.ix_(free, free)] = np.linalg.inv(Mhat[np.ix_(free, free)])
-        else:
-            minv[free, free] = 1.0 / m[free]
-        out = None, m, minv
-    return (*out, Mhat) if with_mhat else out
+        minv[free, free] = 1.0 / m[free]
+    return Mhat, minv
 
 
-def build_system(bodies, points: list[ContactPoint], h: float, theta: float) -> System:
-    """Number the dofs, factor each body and precompute the Delassus blocks."""
-    nb = len(bodies)
-    body_dof0 = np.zeros(nb + 1, dtype=np.int64)
-    for i, b in enumerate(bodies):
-        body_dof0[i + 1] = body_dof0[i] + b.ndof
-    ndof = int(body_dof0[-1])
-    sizes = np.diff(body_dof0)
-    deformable = np.array([isinstance(b, Block) for b in bodies], dtype=bool)
-    # the blocks of one size one after the other (block_diagonal.grouped_offsets)
-    minv_off = grouped_offsets(sizes)
-    k_off = grouped_offsets(sizes, deformable)
+def build_system(bodies, points: list[ContactPoint], h: float, theta: float,
+                 layout: Layout | None = None) -> System:
+    """The system of steps ``h``: each body's ``M_hat`` and its inverse, and the Delassus
+    blocks of the contact points (module docstring), from ``layout`` (made from ``bodies``
+    and ``points`` when None). The products are those of a body and a point at a time, batched
+    per body (numpy's stacked LAPACK and BLAS calls, the same per block)."""
+    lay = Layout.of(bodies, points) if layout is None else layout
+    body_dof0, sizes = lay.body_dof0, np.diff(lay.body_dof0)
+    minv_off = lay.minv_off
     minv = np.zeros(int(np.sum(sizes ** 2)))
     mhat_flat = np.zeros_like(minv)
-    k = np.zeros(int(np.sum(sizes[deformable] ** 2)))
-    mass = np.zeros(ndof)
-    imposed = []
-    for i, b in enumerate(bodies):
-        K, m, minv_b, mhat_b = body_matrices(b, h, theta, with_mhat=True)
-        o, n2 = minv_off[i], minv_b.size
-        mhat_flat[o:o + n2] = mhat_b.ravel()
-        minv[o:o + n2] = minv_b.ravel()
-        mass[body_dof0[i]:body_dof0[i + 1]] = m
-        if K is not None:
-            k[k_off[i]:k_off[i] + K.size] = K.ravel()
-        if isinstance(b, RigidBody):
-            imposed += [body_dof0[i] + d for d in range(6) if b.dof_mode[d] == DOF_IMPOSED]
-    npt = len(points)
-    side_dofs = np.full((npt, 2, MAX_SIDE_DOFS), -1, dtype=np.int64)
-    side_coef = np.zeros((npt, 2, MAX_SIDE_DOFS, 3))
-    side_body = np.full((npt, 2), -1, dtype=np.int64)
-    y_off = np.full((npt, 2), -1, dtype=np.int64)
+    c = (theta * h) ** 2
+    # the blocks' M_hat = diag(m) + (theta h)^2 K, inverted by size group
+    for n in np.unique(sizes[lay.deformable]):
+        group = np.flatnonzero(lay.deformable & (sizes == n))
+        o0 = minv_off[group[0]]
+        ko = lay.k_off[group[0]]
+        Mhat = c * lay.k[ko:ko + len(group) * n * n].reshape(len(group), n, n)
+        dofs = body_dof0[group][:, None] + np.arange(n)
+        Mhat[:, np.arange(n), np.arange(n)] += lay.mass[dofs]
+        mhat_flat[o0:o0 + Mhat.size] = Mhat.ravel()
+        minv[o0:o0 + Mhat.size] = np.linalg.inv(Mhat).ravel()
+    for i in np.flatnonzero(~lay.deformable):
+        Mhat, minv_b = _rigid_inverse(lay.bodies[i])
+        mhat_flat[minv_off[i]:minv_off[i] + 36] = Mhat.ravel()
+        minv[minv_off[i]:minv_off[i] + 36] = minv_b.ravel()
+    # Y = M_hat^-1 H of each side and W_aa = sum of H^T Y, body by body
+    npt = len(lay.area)
+    side_body = lay.side_body
     W = np.zeros((npt, 3, 3))
-    ys = []
-    yo = 0
-    for a, p in enumerate(points):
-        for s, ((dofs, coef), bi) in enumerate(zip(p.sides, p.bodies)):
-            n = len(dofs)
-            side_dofs[a, s, :n] = dofs
-            side_coef[a, s, :n] = coef
-            side_body[a, s] = bi
-            d0, d1 = body_dof0[bi], body_dof0[bi + 1]
-            nB = d1 - d0
-            o = minv_off[bi]
-            H = np.zeros((nB, 3))
-            H[dofs - d0] = coef
-            Y = minv[o:o + nB * nB].reshape(nB, nB) @ H
-            if not np.any(Y):
-                continue  # a fixed body: impulses do not move it
-            y_off[a, s] = yo
-            yo += Y.size
-            ys.append(Y.ravel())
-            W[a] += H.T @ Y
+    Y_of = {}  # (a, s) arrays of the sides of a body -> their Y (k, nB, 3)
+    moving = np.zeros((npt, 2), dtype=bool)
+    for b in np.unique(side_body[side_body >= 0]):
+        a, s = np.nonzero(side_body == b)
+        d0, nB = body_dof0[b], sizes[b]
+        H = np.zeros((len(a), nB, 3))
+        sd = lay.side_dofs[a, s]
+        i, j = np.nonzero(sd >= 0)
+        H[i, sd[i, j] - d0] = lay.side_coef[a, s][i, j]
+        Y = np.matmul(minv[minv_off[b]:minv_off[b] + nB * nB].reshape(nB, nB), H)
+        nz = np.any(Y, axis=(1, 2))  # a fixed body: impulses do not move it
+        moving[a[nz], s[nz]] = True
+        Y_of[b] = (a[nz], s[nz], Y[nz], np.matmul(H[nz].transpose(0, 2, 1), Y[nz]))
+    for side in (0, 1):  # W = (0 + side 0) + side 1, as the sum point by point
+        for a, s, _, HtY in Y_of.values():
+            on = s == side
+            W[a[on]] += HtY[on]
+    # Y laid end to end in the order of the points and their sides
+    y_size = np.where(moving, 3 * sizes[np.maximum(side_body, 0)], 0)
+    y_off = np.where(moving, np.cumsum(y_size.ravel()).reshape(npt, 2) - y_size, -1)
+    y = np.empty(int(y_size.sum()))
+    for a, s, Y, _ in Y_of.values():
+        if len(a):
+            y[y_off[a, s][:, None] + np.arange(Y[0].size)] = Y.reshape(len(a), -1)
     # A direction along which no free body can move (an imposed dof of a rigid body, say) has a
     # zero row in W_aa: the relative motion there is kinematic and the point carries no traction
     # in it. Give it a finite compliance in the local problem (the predictor along it is zero,
     # so the traction comes out zero); the velocity maps Y are untouched.
-    for a in range(npt):
-        dmax = np.abs(np.diag(W[a])).max()
-        for i in range(3):
-            if W[a, i, i] <= 1e-12 * dmax:
-                W[a, i, :] = 0.0
-                W[a, :, i] = 0.0
-                W[a, i, i] = dmax if dmax > 0 else 1.0
-    cat = lambda xs: np.concatenate(xs) if xs else np.zeros(0)
+    dmax = np.abs(np.diagonal(W, axis1=1, axis2=2)).max(axis=1) if npt else np.zeros(0)
+    for i in range(3):
+        stuck = np.flatnonzero(W[:, i, i] <= 1e-12 * dmax)
+        W[stuck, i, :] = 0.0
+        W[stuck, :, i] = 0.0
+        W[stuck, i, i] = np.where(dmax[stuck] > 0, dmax[stuck], 1.0)
     return System(
-        ndof=ndof, body_dof0=body_dof0,
-        body_deformable=deformable,
-        minv_off=minv_off, minv=minv, mhat=mhat_flat, k_off=k_off, k=k, mass=mass,
-        imposed_dofs=np.array(imposed, dtype=np.int64),
-        kind=np.array([p.kind for p in points], dtype=np.int64),
-        law=np.array([p.law for p in points], dtype=np.int64),
-        area=np.array([p.area for p in points], dtype=float),
-        frame=np.array([p.frame for p in points], dtype=float).reshape(npt, 3, 3),
-        side_dofs=side_dofs, side_coef=side_coef, side_body=side_body, y_off=y_off,
-        y=cat(ys), W=W, h=h, theta=theta,
+        ndof=int(body_dof0[-1]), body_dof0=body_dof0, body_deformable=lay.deformable,
+        minv_off=minv_off, minv=minv, mhat=mhat_flat, k_off=lay.k_off, k=lay.k,
+        mass=lay.mass, imposed_dofs=lay.imposed_dofs, kind=lay.kind, law=lay.law,
+        area=lay.area, frame=lay.frame, side_dofs=lay.side_dofs, side_coef=lay.side_coef,
+        side_body=side_body, y_off=y_off, y=y, W=W, h=h, theta=theta, layout=lay,
     )
