@@ -176,7 +176,7 @@ class Integrator:
         self.params = np.ascontiguousarray(np.atleast_2d(params), dtype=float)
         self.loads = loads
         # ``layout``: the system's parts that do not depend on h, shared with the integrators
-        # of the other step sizes (``nscd.system.Layout``; None: made here)
+        # of the other step sizes (``nscd.system.DofLayout``, or their system; None: made here)
         self.sys = build_system(bodies, points, h, theta, layout)
         self.tolerance = tolerance
         self.max_iterations = max_iterations
@@ -383,7 +383,7 @@ class Integrator:
         ``4 easy_iterations`` iterations, a step that hard being made faster as smaller ones."""
         if k not in self._rungs:
             rung = Integrator(self.bodies, self.points, self.params, self.loads,
-                              h=self.sys.h * (1 << k), layout=self.sys.layout,
+                              h=self.sys.h * (1 << k), layout=self.sys,
                               **{**self._half_args, "max_halvings": 0})
             rung.finish_by_sweeps = False
             if rung.newton is not None:
@@ -436,7 +436,7 @@ class Integrator:
             before = [] if self.newton is None else self.newton.remembered()
         if self._half is None:
             self._half = Integrator(self.bodies, self.points, self.params, self.loads,
-                                    h=0.5 * self.sys.h, layout=self.sys.layout,
+                                    h=0.5 * self.sys.h, layout=self.sys,
                                     **self._half_args)
             if self._half.newton is not None:
                 self._half.newton.share_pattern(self.newton)

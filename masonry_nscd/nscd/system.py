@@ -20,14 +20,14 @@ blocks: the off-diagonal coupling is carried by the body velocities (cost per po
 ~ 2 ndof_B, memory linear in the number of points).
 
 What does not depend on h (the numbering, the blocks' K and masses, the points' sides) is a
-:class:`Layout`, made once per scene and shared by the systems of the adaptive step's sizes
+:class:`DofLayout`, made once per scene and shared by the systems of the adaptive step's sizes
 and of the halved steps (each built in 22 ms on the study's wall, after a 25 ms layout,
 instead of 100 ms each).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -39,17 +39,19 @@ MAX_SIDE_DOFS = 12
 
 
 @dataclass
-class System:
-    """Flat arrays shared by the kernels (read-only during a step)."""
+class DofLayout:
+    """What the systems of one scene share whatever their step: the dofs' numbering, each
+    block's stiffness ``K`` (N/m) and every body's lumped mass, the contact points' sides. The
+    integrators of the adaptive step's sizes and of the halved steps build their
+    :class:`System` from one layout (:func:`build_system`; a system is a layout too)."""
 
+    bodies: list
     ndof: int
     body_dof0: np.ndarray  # (nb + 1,)
     body_deformable: np.ndarray  # (nb,) bool
-    minv_off: np.ndarray  # (nb,) offsets into minv (the blocks grouped by size)
-    minv: np.ndarray  # flat, dense M_hat^-1 per body (row-major)
-    mhat: np.ndarray  # flat, dense M_hat per body (same offsets as minv)
+    minv_off: np.ndarray  # (nb,) offsets of the bodies' dense blocks (grouped by size)
     k_off: np.ndarray  # (nb,) offsets into k (-1 for rigid bodies)
-    k: np.ndarray  # flat, dense K per deformable block
+    k: np.ndarray  # flat, dense K per deformable block (N/m)
     mass: np.ndarray  # (ndof,) lumped mass (translations kg, rotations kg m^2)
     imposed_dofs: np.ndarray  # (ni,)
     # contact points
@@ -60,49 +62,13 @@ class System:
     side_dofs: np.ndarray  # (npt, 2, 12), -1 padded
     side_coef: np.ndarray  # (npt, 2, 12, 3)
     side_body: np.ndarray  # (npt, 2), -1 for none
-    y_off: np.ndarray  # (npt, 2) offsets into y, -1 where the side cannot move
-    y: np.ndarray  # flat Y_aB blocks (ndof_B, 3)
-    W: np.ndarray  # (npt, 3, 3)
-    h: float
-    theta: float
-    layout: Layout | None = None  # what it was built from (the systems of other steps share it)
-
-    def __post_init__(self):
-        # the products by M_hat^-1 and K of the free velocity and the internal forces (views
-        # of the flat arrays above); the Newton solver makes its own by the M_hat it is given
-        self.minv_op = BlockDiagonal(self.body_dof0, self.minv_off, self.minv)
-        self.k_op = BlockDiagonal(self.body_dof0, self.k_off, self.k)
 
     @property
     def npt(self) -> int:
         return len(self.area)
 
-
-@dataclass
-class Layout:
-    """What the systems of one scene share whatever their step: the dofs' numbering, each
-    block's stiffness ``K`` (N/m) and every body's lumped mass, the contact points' sides. The
-    integrators of the adaptive step's sizes and of the halved steps build their
-    :class:`System` from one layout (:func:`build_system`)."""
-
-    bodies: list
-    body_dof0: np.ndarray  # (nb + 1,)
-    deformable: np.ndarray  # (nb,) bool
-    minv_off: np.ndarray  # (nb,) offsets of the bodies' dense blocks (grouped by size)
-    k_off: np.ndarray  # (nb,) offsets into k (-1 for rigid bodies)
-    k: np.ndarray  # flat, dense K per deformable block (N/m)
-    mass: np.ndarray  # (ndof,) lumped mass (kg, kg m^2)
-    imposed_dofs: np.ndarray  # (ni,)
-    kind: np.ndarray  # (npt,)
-    law: np.ndarray  # (npt,)
-    area: np.ndarray  # (npt,) m^2
-    frame: np.ndarray  # (npt, 3, 3)
-    side_dofs: np.ndarray  # (npt, 2, 12), -1 padded
-    side_coef: np.ndarray  # (npt, 2, 12, 3)
-    side_body: np.ndarray  # (npt, 2), -1 for none
-
     @classmethod
-    def of(cls, bodies, points: list[ContactPoint]) -> Layout:
+    def of(cls, bodies, points: list[ContactPoint]) -> DofLayout:
         nb = len(bodies)
         body_dof0 = np.zeros(nb + 1, dtype=np.int64)
         for i, b in enumerate(bodies):
@@ -134,14 +100,34 @@ class Layout:
                 side_dofs[a, s, :len(dofs)] = dofs
                 side_coef[a, s, :len(dofs)] = coef
                 side_body[a, s] = bi
-        return cls(bodies=bodies, body_dof0=body_dof0, deformable=deformable,
-                   minv_off=minv_off, k_off=k_off, k=k, mass=mass,
+        return cls(bodies=bodies, ndof=int(body_dof0[-1]), body_dof0=body_dof0,
+                   body_deformable=deformable, minv_off=minv_off, k_off=k_off, k=k, mass=mass,
                    imposed_dofs=np.array(imposed, dtype=np.int64),
                    kind=np.array([p.kind for p in points], dtype=np.int64),
                    law=np.array([p.law for p in points], dtype=np.int64),
                    area=np.array([p.area for p in points], dtype=float),
                    frame=np.array([p.frame for p in points], dtype=float).reshape(npt, 3, 3),
                    side_dofs=side_dofs, side_coef=side_coef, side_body=side_body)
+
+
+@dataclass
+class System(DofLayout):
+    """A layout and what steps of ``h`` add to it: flat arrays shared by the kernels
+    (read-only during a step)."""
+
+    minv: np.ndarray  # flat, dense M_hat^-1 per body (row-major, at minv_off)
+    mhat: np.ndarray  # flat, dense M_hat per body (same offsets as minv)
+    y_off: np.ndarray  # (npt, 2) offsets into y, -1 where the side cannot move
+    y: np.ndarray  # flat Y_aB blocks (ndof_B, 3)
+    W: np.ndarray  # (npt, 3, 3)
+    h: float
+    theta: float
+
+    def __post_init__(self):
+        # the products by M_hat^-1 and K of the free velocity and the internal forces (views
+        # of the flat arrays above); the Newton solver makes its own by the M_hat it is given
+        self.minv_op = BlockDiagonal(self.body_dof0, self.minv_off, self.minv)
+        self.k_op = BlockDiagonal(self.body_dof0, self.k_off, self.k)
 
 
 def _rigid_inverse(body: RigidBody) -> tuple[np.ndarray, np.ndarray]:
@@ -159,20 +145,20 @@ def _rigid_inverse(body: RigidBody) -> tuple[np.ndarray, np.ndarray]:
 
 
 def build_system(bodies, points: list[ContactPoint], h: float, theta: float,
-                 layout: Layout | None = None) -> System:
+                 layout: DofLayout | None = None) -> System:
     """The system of steps ``h``: each body's ``M_hat`` and its inverse, and the Delassus
     blocks of the contact points (module docstring), from ``layout`` (made from ``bodies``
-    and ``points`` when None). The products are those of a body and a point at a time, batched
+    and ``points`` when None; another step's system will do). The products are those of a body and a point at a time, batched
     per body (numpy's stacked LAPACK and BLAS calls, the same per block)."""
-    lay = Layout.of(bodies, points) if layout is None else layout
+    lay = DofLayout.of(bodies, points) if layout is None else layout
     body_dof0, sizes = lay.body_dof0, np.diff(lay.body_dof0)
     minv_off = lay.minv_off
     minv = np.zeros(int(np.sum(sizes ** 2)))
     mhat_flat = np.zeros_like(minv)
     c = (theta * h) ** 2
     # the blocks' M_hat = diag(m) + (theta h)^2 K, inverted by size group
-    for n in np.unique(sizes[lay.deformable]):
-        group = np.flatnonzero(lay.deformable & (sizes == n))
+    for n in np.unique(sizes[lay.body_deformable]):
+        group = np.flatnonzero(lay.body_deformable & (sizes == n))
         o0 = minv_off[group[0]]
         ko = lay.k_off[group[0]]
         Mhat = c * lay.k[ko:ko + len(group) * n * n].reshape(len(group), n, n)
@@ -180,7 +166,7 @@ def build_system(bodies, points: list[ContactPoint], h: float, theta: float,
         Mhat[:, np.arange(n), np.arange(n)] += lay.mass[dofs]
         mhat_flat[o0:o0 + Mhat.size] = Mhat.ravel()
         minv[o0:o0 + Mhat.size] = np.linalg.inv(Mhat).ravel()
-    for i in np.flatnonzero(~lay.deformable):
+    for i in np.flatnonzero(~lay.body_deformable):
         Mhat, minv_b = _rigid_inverse(lay.bodies[i])
         mhat_flat[minv_off[i]:minv_off[i] + 36] = Mhat.ravel()
         minv[minv_off[i]:minv_off[i] + 36] = minv_b.ravel()
@@ -222,10 +208,5 @@ def build_system(bodies, points: list[ContactPoint], h: float, theta: float,
         W[stuck, i, :] = 0.0
         W[stuck, :, i] = 0.0
         W[stuck, i, i] = np.where(dmax[stuck] > 0, dmax[stuck], 1.0)
-    return System(
-        ndof=int(body_dof0[-1]), body_dof0=body_dof0, body_deformable=lay.deformable,
-        minv_off=minv_off, minv=minv, mhat=mhat_flat, k_off=lay.k_off, k=lay.k,
-        mass=lay.mass, imposed_dofs=lay.imposed_dofs, kind=lay.kind, law=lay.law,
-        area=lay.area, frame=lay.frame, side_dofs=lay.side_dofs, side_coef=lay.side_coef,
-        side_body=side_body, y_off=y_off, y=y, W=W, h=h, theta=theta, layout=lay,
-    )
+    return System(**{f.name: getattr(lay, f.name) for f in fields(DofLayout)}, minv=minv,
+                  mhat=mhat_flat, y_off=y_off, y=y, W=W, h=h, theta=theta)
