@@ -148,8 +148,9 @@ def build_system(bodies, points: list[ContactPoint], h: float, theta: float,
                  layout: DofLayout | None = None) -> System:
     """The system of steps ``h``: each body's ``M_hat`` and its inverse, and the Delassus
     blocks of the contact points (module docstring), from ``layout`` (made from ``bodies``
-    and ``points`` when None; another step's system will do). The products are those of a body and a point at a time, batched
-    per body (numpy's stacked LAPACK and BLAS calls, the same per block)."""
+    and ``points`` when None; another step's system will do). The products are those of a
+    body and a point at a time, batched per body (numpy's stacked LAPACK and BLAS calls, the
+    same per block)."""
     lay = DofLayout.of(bodies, points) if layout is None else layout
     body_dof0, sizes = lay.body_dof0, np.diff(lay.body_dof0)
     minv_off = lay.minv_off
