@@ -145,20 +145,23 @@ def test_resume_drops_what_was_written_after_the_checkpoint(tmp_path, monkeypatc
     """A run killed between its HDF5 step and its checkpoint: the later outputs are dropped."""
     out = tmp_path / "run"
     import masonry_nscd.nscd.checkpoint as ck
+    from masonry_nscd.io import recorder
 
-    orig = ck.save_checkpoint
+    monkeypatch.setattr(recorder, "SYNC_EVERY_S", 0.0)  # a checkpoint at every output step
+    orig = ck.write_checkpoint
 
-    def save_until_20(path, integ, extra=None):
-        if integ.step_index > 20:
+    def write_until_20(path, arrays):
+        if int(arrays["run_step"]) > 20:
             raise KeyboardInterrupt  # "killed" after the outputs of step 30, before its checkpoint
-        orig(path, integ, extra)
+        orig(path, arrays)
 
-    monkeypatch.setattr(ck, "save_checkpoint", save_until_20)
+    monkeypatch.setattr(ck, "write_checkpoint", write_until_20)
     with pytest.raises(KeyboardInterrupt):
         run_case(load_case(SMOKE), out, **quiet)
     assert [s.step for s in read_results(out / "results.h5")["steps"]] == [10, 20, 30]
     assert (out / "vtu" / "blocks_000030.vtu").exists()
-    monkeypatch.setattr(ck, "save_checkpoint", orig)
+    assert read_resume_point(out).step == 20
+    monkeypatch.setattr(ck, "write_checkpoint", orig)
 
     energy = (out / "energy.csv").read_text().splitlines()
     assert [int(r.split(",")[0]) for r in energy[1:]] == [10, 20, 30]
@@ -172,6 +175,35 @@ def test_resume_drops_what_was_written_after_the_checkpoint(tmp_path, monkeypatc
     a = np.array([[float(x) for x in r.split(",")] for r in mine[1:]])
     b = np.array([[float(x) for x in r.split(",")] for r in ref[1:]])
     assert np.allclose(a[:, 2:-2], b[:, 2:-2], rtol=1e-5, atol=1e-9)
+
+
+def test_bookkeeping_is_written_at_most_once_a_second_and_at_the_end(tmp_path, monkeypatch):
+    """The PVD, the HDF5 curve and the checkpoint of an output step are written when
+    ``SYNC_EVERY_S`` of wall time has passed since they last were, and at the last output step:
+    every output step with 0 s, only the last with a day; the files at the end are the same."""
+    from masonry_nscd.io import recorder
+
+    steps = []
+    orig = recorder.Recorder._sync
+
+    def sync(self):
+        steps.append(int(self._unsynced[2]["run_step"]))
+        orig(self)
+
+    monkeypatch.setattr(recorder.Recorder, "_sync", sync)
+    outs = {}
+    for every in (0.0, 86400.0):
+        monkeypatch.setattr(recorder, "SYNC_EVERY_S", every)
+        steps.clear()
+        outs[every] = tmp_path / f"run_{every:g}"
+        run_case(load_case(SMOKE), outs[every], **quiet)
+        assert steps == (list(range(10, 101, 10)) if every == 0.0 else [100])
+    a, b = outs[0.0], outs[86400.0]
+    assert _pvd_files(a) == _pvd_files(b) and len(_pvd_files(a)) == 20
+    ra, rb = read_results(a / "results.h5"), read_results(b / "results.h5")
+    assert ra["curve"].keys() == rb["curve"].keys()
+    assert all(np.array_equal(ra["curve"][k], rb["curve"][k]) for k in ra["curve"])
+    assert read_resume_point(a).finished and read_resume_point(b).finished
 
 
 def test_resumed_endo3d_run_matches_within_the_solver_tolerance(tmp_path, monkeypatch):

@@ -9,7 +9,8 @@
       energy.csv                  the energy balance, one row per output step
       results.h5                  mesh, per output step the states, the curve
       wall.pvd, vtu/              ParaView time series: blocks_NNNNNN.vtu, joints_NNNNNN.vtu
-      checkpoint.npz              the state at the last output step (``masonry run --resume``)
+      checkpoint.npz              the state at the last output step (``masonry run --resume``;
+                                  at most a second behind it, ``io/recorder.py``)
       summary.json                stiffness, peak, damages (written at the end)
       cycles.csv, envelope.csv    per cycle, and the envelope (cyclic and tabulated histories)
       run.log

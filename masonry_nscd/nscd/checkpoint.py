@@ -125,7 +125,13 @@ def restore_integrator(integ, state: Mapping[str, ArrayLike]) -> None:
 
 def save_checkpoint(path: str | os.PathLike[str], integ,
                     extra: Mapping[str, ArrayLike] | None = None) -> None:
-    """Write the state of ``integ`` and the caller's ``extra`` arrays to ``path`` atomically.
+    """Write the state of ``integ`` and the caller's ``extra`` arrays to ``path`` atomically
+    (:func:`checkpoint_arrays`, then :func:`write_checkpoint`)."""
+    write_checkpoint(path, checkpoint_arrays(integ, extra))
+
+
+def checkpoint_arrays(integ, extra: Mapping[str, ArrayLike] | None = None) -> dict[str, NDArray]:
+    """What a checkpoint of ``integ`` holds, as copies: the arrays of a file written later.
 
     ``extra`` arrays must be numeric or unicode strings (no objects); they are read back by
     :func:`load_checkpoint` under their own names.
@@ -136,11 +142,16 @@ def save_checkpoint(path: str | os.PathLike[str], integ,
         **{k: np.int64(v) for k, v in integ.step_memory().items()},
     }
     for k, v in (extra or {}).items():
-        a = np.asarray(v)
+        a = np.array(v)
         if a.dtype.kind not in "biufU":
             raise TypeError(f"checkpoint extra {k!r}: numeric or str array expected, got "
                             f"dtype {a.dtype}")
         arrays[_EXTRA + k] = a
+    return arrays
+
+
+def write_checkpoint(path: str | os.PathLike[str], arrays: Mapping[str, NDArray]) -> None:
+    """Write the arrays of :func:`checkpoint_arrays` to ``path`` atomically."""
     def write(tmp: str) -> None:
         with open(tmp, "wb") as f:  # a file object: np.savez would add .npz to a name
             np.savez(f, **arrays)
