@@ -806,5 +806,25 @@ def sensitivity_cmd(
     typer.echo(f"wrote {result.samples_table}, {result.indices_csv} and {result.chart}")
 
 
+def main() -> None:
+    """The ``masonry`` console script: the app; ``masonry run`` then leaves by ``os._exit`` with
+    its exit code once its output is flushed (its files are closed by then). The interpreter's
+    teardown of numba, LLVM and scipy took 0.2 s of every run: the smoke case 1.55 against
+    1.36 s, the elastic study case 9.95 against 9.73 s. Other commands (a sweep's cluster, say)
+    end as Python ends them."""
+    import os
+    import sys
+
+    try:
+        app()
+    except SystemExit as exc:
+        code = 0 if exc.code is None else exc.code
+        if sys.argv[1:2] != ["run"] or not isinstance(code, int):
+            raise
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+
+
 if __name__ == "__main__":  # pragma: no cover
-    app()
+    main()
