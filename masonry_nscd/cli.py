@@ -808,10 +808,10 @@ def sensitivity_cmd(
 
 def main() -> None:
     """The ``masonry`` console script: the app; ``masonry run`` then leaves by ``os._exit`` with
-    its exit code once its output is flushed (its files are closed by then). The interpreter's
-    teardown of numba, LLVM and scipy took 0.2 s of every run: the smoke case 1.55 against
-    1.36 s, the elastic study case 9.95 against 9.73 s. Other commands (a sweep's cluster, say)
-    end as Python ends them."""
+    its exit code once its output is flushed (its files are closed by then), skipping the
+    interpreter's teardown of numba, LLVM and scipy, a fifth of a second of every run
+    (docs/performance.md, session 15). Other commands (a sweep's cluster, say) end as Python
+    ends them."""
     import os
     import sys
 

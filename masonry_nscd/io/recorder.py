@@ -52,13 +52,11 @@ from masonry_nscd.nscd.checkpoint import CheckpointError, load_checkpoint
 
 _INT_COLUMNS = ("step", "iterations", "converged", "failed_gauss_points", "substeps")
 
-
-
 #: The PVD collection, the curve of results.h5 and the checkpoint are brought up to the last
 #: output step when this much wall time (s) has passed since they last were (module
-#: docstring): on the elastic study case they took 5 ms of the 14 ms of an output step, written
-#: at all of its 165 output steps.
+#: docstring; why: docs/choices.md, "What a run writes, and when").
 SYNC_EVERY_S = 1.0
+
 
 @dataclass
 class ResumePoint:

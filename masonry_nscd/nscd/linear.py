@@ -301,15 +301,14 @@ def nonzero_csr(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
     return sp.csr_matrix((out_data, out_indices, out_indptr), shape=(n, n))
 
 
-#: the fewest blocks a thread inverts (a 54 x 54 block takes some 70 microseconds)
+#: the fewest blocks a thread inverts (a thread's hand-over costs about one 54 x 54 inverse)
 MIN_BLOCKS_PER_THREAD = 16
 
 
 def _inverses(blocks: np.ndarray) -> np.ndarray:
     """The inverses of the stacked blocks ``(g, k, k)``, the stack cut into ranges inverted on
     the kernels' threads (``threads.run_ranges``: numpy's LAPACK loop releases the interpreter),
-    each block by the same LAPACK call as on one thread: the same inverses bit for bit. At 16
-    times the study's wall, 1,063 blocks of 54 x 54: 72 ms on one thread, 41 ms on two."""
+    each block by the same LAPACK call as on one thread: the same inverses bit for bit."""
     out = np.empty_like(blocks)
 
     def invert(lo, hi):

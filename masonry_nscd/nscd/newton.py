@@ -730,7 +730,7 @@ class NewtonSolver:
         The least squares by the normal equations, ``G = (W dF)^T (W dF)`` (at most
         ``anderson`` x ``anderson``) diagonalised, its eigenvalues below 1e-14 of the largest
         left out (differences that the history repeats to 1e-7, where the rounding of ``G``
-        would decide the mixture): an SVD of the tall ``W dF`` took three times as long.
+        would decide the mixture), instead of an SVD of the tall ``W dF`` (docs/choices.md).
         """
         d_x.append(x - last[0])
         d_f.append(f - last[1])

@@ -20,13 +20,13 @@ factorisations are half of an elastic run; a solve costs the same. The solutions
 SuperLU's to round-off (the same Newton iterations; curves within 1e-12).
 
 Threads: a factorisation runs on ``MKL_NUM_THREADS`` OpenMP threads when it is set, else on as
-many as the per-point kernels (``threads.count()``: the cores, one in a sweep's worker, ``--threads``).
-On the study's matrix two threads factorise in 6 ms against 9.7 (docs/performance.md); a solve
-takes the same time on either. MKL may not change the number during a run (``MKL_Set_Dynamic(0)``),
-so a run on a given number of threads is reproducible; runs on one and on two threads differ by
-round-off. MKL's OpenMP threads sleep as soon as a factorisation ends (``KMP_BLOCKTIME=0`` unless
-the environment sets it): by default they spin for 200 ms, on the cores the kernels' threads
-need next; on the ENDO3D wall to 3 mm the trial took 5.5 to 6.0 s instead of 4.7 s then.
+many as the per-point kernels (``threads.count()``: the cores, one in a sweep's worker,
+``--threads``); two threads factorise the study's matrix in two thirds of the time of one, and
+a solve takes the same time on either (docs/performance.md, session 15). MKL may not change the
+number during a run (``MKL_Set_Dynamic(0)``), so a run on a given number of threads is
+reproducible; runs on one and on two threads differ by round-off. MKL's OpenMP threads sleep as
+soon as a factorisation ends (``KMP_BLOCKTIME=0`` unless the environment sets it): by default
+they spin for 200 ms on the cores that the kernels' threads need next (docs/choices.md).
 
 MKL ships as the ``mkl`` wheel (x86_64); where it is missing, :func:`available` is False and
 ``solver.linear: auto`` keeps SuperLU.
