@@ -150,10 +150,10 @@ def test_resume_drops_what_was_written_after_the_checkpoint(tmp_path, monkeypatc
     monkeypatch.setattr(recorder, "SYNC_EVERY_S", 0.0)  # a checkpoint at every output step
     orig = ck.write_checkpoint
 
-    def write_until_20(path, arrays):
-        if int(arrays["run_step"]) > 20:
+    def write_until_20(path, state, extra=None):
+        if int(extra["step"]) > 20:
             raise KeyboardInterrupt  # "killed" after the outputs of step 30, before its checkpoint
-        orig(path, arrays)
+        orig(path, state, extra)
 
     monkeypatch.setattr(ck, "write_checkpoint", write_until_20)
     with pytest.raises(KeyboardInterrupt):
@@ -187,7 +187,7 @@ def test_bookkeeping_is_written_at_most_once_a_second_and_at_the_end(tmp_path, m
     orig = recorder.Recorder._sync
 
     def sync(self):
-        steps.append(int(self._unsynced[2]["run_step"]))
+        steps.append(int(self._unsynced[3]["step"]))
         orig(self)
 
     monkeypatch.setattr(recorder.Recorder, "_sync", sync)

@@ -192,8 +192,8 @@ class Recorder:
         self.pvd: list[tuple[float, str, int]] = []
         self.curve: dict[str, list] = {c: [] for c in rf.CSV_COLUMNS}
         # the bookkeeping of the last output step not yet written (``_sync``): the number of
-        # PVD entries and of curve rows then, and the checkpoint's arrays
-        self._unsynced: tuple[int, int, dict[str, np.ndarray]] | None = None
+        # PVD entries and of curve rows then, the integrator's state and the run's scalars
+        self._unsynced: tuple[int, int, dict[str, np.ndarray], dict[str, Any]] | None = None
         self._synced = monotonic()
         self._pending = io.StringIO()  # CSV rows not yet in the file
         self._writer = csv.writer(self._pending)
@@ -327,15 +327,10 @@ class Recorder:
             with writing(self.h5_path):
                 self.h5.write_step(step, time, out.h5)
         self._unsynced = (len(self.pvd), len(self.curve[rf.CSV_COLUMNS[0]]),
-                         checkpoint.checkpoint_arrays(integ, {
-                             "step": np.int64(step), "finished": np.int64(done),
-                             "pvd_time": np.array([p[0] for p in self.pvd], dtype=float),
-                             "pvd_file": np.array([p[1] for p in self.pvd], dtype=str),
-                             "pvd_part": np.array([p[2] for p in self.pvd], dtype=np.int64),
-                             "unconverged": np.int64(unconverged),
-                             "worst_residual": np.float64(worst_residual),
-                             "case_yaml": np.array(self.case_yaml),
-                         }))
+                          checkpoint.checkpoint_arrays(integ), {
+                              "step": np.int64(step), "finished": np.int64(done),
+                              "unconverged": np.int64(unconverged),
+                              "worst_residual": np.float64(worst_residual)})
         if done or monotonic() - self._synced >= SYNC_EVERY_S:
             self._sync()
 
@@ -345,16 +340,23 @@ class Recorder:
         that what it points to is on disk before it)."""
         from masonry_nscd.io.vtu import write_pvd
 
-        entries, rows, arrays = self._unsynced
+        entries, rows, state, scalars = self._unsynced
+        pvd = self.pvd[:entries]
         if self.vtu:
             with writing(self.pvd_path):
-                write_pvd(self.pvd_path, self.pvd[:entries])
+                write_pvd(self.pvd_path, pvd)
         if self.h5 is not None:
             with writing(self.h5_path):
                 self.h5.write_curve({c: np.asarray(v[:rows], dtype=float)
                                      for c, v in self.curve.items()})
         with writing(self.ckpt_path):
-            checkpoint.write_checkpoint(self.ckpt_path, arrays)
+            checkpoint.write_checkpoint(self.ckpt_path, state, {
+                **scalars,
+                "pvd_time": np.array([p[0] for p in pvd], dtype=float),
+                "pvd_file": np.array([p[1] for p in pvd], dtype=str),
+                "pvd_part": np.array([p[2] for p in pvd], dtype=np.int64),
+                "case_yaml": np.array(self.case_yaml),
+            })
         self._unsynced = None
         self._synced = monotonic()
 

@@ -29,7 +29,7 @@ tolerance.
 The file is a NumPy ``.npz`` (no pickled objects), written atomically
 (:mod:`masonry_nscd.io.atomic`): a checkpoint on disk is always either the previous complete one
 or the new complete one. The caller may add its own arrays (prefixed
-``run_`` by :func:`save_checkpoint` to keep them apart).
+``run_`` by :func:`write_checkpoint` to keep them apart).
 """
 
 from __future__ import annotations
@@ -127,31 +127,32 @@ def save_checkpoint(path: str | os.PathLike[str], integ,
                     extra: Mapping[str, ArrayLike] | None = None) -> None:
     """Write the state of ``integ`` and the caller's ``extra`` arrays to ``path`` atomically
     (:func:`checkpoint_arrays`, then :func:`write_checkpoint`)."""
-    write_checkpoint(path, checkpoint_arrays(integ, extra))
+    write_checkpoint(path, checkpoint_arrays(integ), extra)
 
 
-def checkpoint_arrays(integ, extra: Mapping[str, ArrayLike] | None = None) -> dict[str, NDArray]:
-    """What a checkpoint of ``integ`` holds, as copies: the arrays of a file written later.
-
-    ``extra`` arrays must be numeric or unicode strings (no objects); they are read back by
-    :func:`load_checkpoint` under their own names.
-    """
-    arrays: dict[str, NDArray] = {
+def checkpoint_arrays(integ) -> dict[str, NDArray]:
+    """The integrator's part of a checkpoint of ``integ``, as copies: a file written later by
+    :func:`write_checkpoint` holds the state of now."""
+    return {
         "format": np.array(FORMAT), "format_version": np.int64(FORMAT_VERSION),
         **integrator_state(integ),
         **{k: np.int64(v) for k, v in integ.step_memory().items()},
     }
+
+
+def write_checkpoint(path: str | os.PathLike[str], state: Mapping[str, NDArray],
+                     extra: Mapping[str, ArrayLike] | None = None) -> None:
+    """Write ``state`` (:func:`checkpoint_arrays`) and the caller's ``extra`` arrays to
+    ``path`` atomically. ``extra`` arrays must be numeric or unicode strings (no objects); they
+    are read back by :func:`load_checkpoint` under their own names."""
+    arrays = dict(state)
     for k, v in (extra or {}).items():
-        a = np.array(v)
+        a = np.asarray(v)
         if a.dtype.kind not in "biufU":
             raise TypeError(f"checkpoint extra {k!r}: numeric or str array expected, got "
                             f"dtype {a.dtype}")
         arrays[_EXTRA + k] = a
-    return arrays
 
-
-def write_checkpoint(path: str | os.PathLike[str], arrays: Mapping[str, NDArray]) -> None:
-    """Write the arrays of :func:`checkpoint_arrays` to ``path`` atomically."""
     def write(tmp: str) -> None:
         with open(tmp, "wb") as f:  # a file object: np.savez would add .npz to a name
             np.savez(f, **arrays)

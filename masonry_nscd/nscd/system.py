@@ -175,7 +175,7 @@ def build_system(bodies, points: list[ContactPoint], h: float, theta: float,
     npt = len(lay.area)
     side_body = lay.side_body
     W = np.zeros((npt, 3, 3))
-    Y_of = {}  # (a, s) arrays of the sides of a body -> their Y (k, nB, 3)
+    Y_of = {}  # body -> its moving sides (points a, sides s), their Y (k, nB, 3) and H^T Y
     moving = np.zeros((npt, 2), dtype=bool)
     for b in np.unique(side_body[side_body >= 0]):
         a, s = np.nonzero(side_body == b)
