@@ -1492,10 +1492,191 @@ def _return_mapping(s, r, lam_d_n, c_n, h_n, params, open_tol, dlR, depD):
 
 
 @njit(cache=True)
-def _update(eps, state_in, params, xe, state_out, sigma, wk):
+def _pre_peak_damage(s_eq, lam_d, d_cpp_n, params):
+    """Pre-peak compressive damage ``d_cpp`` (-) after an update to the equivalent stress
+    ``s_eq = sqrt(J2) - delta p`` (Pa) with ``lambda_D = lam_d``, from ``d_cpp_n``:
+    ``max(d_cpp_n, d_pic x^n)``, ``x = min(s_eq / C_max, 1)``, ``n = (1 - d_pic)/d_pic``
+    (``n = 1`` while ``0 < lambda_D < lambda_pk``); unchanged when ``d_pic = 0`` or
+    ``s_eq <= 0``."""
+    d_pic = params[P_D_PIC]
+    if d_pic > 0.0 and s_eq > 0.0:
+        x = min(s_eq / params[P_C_MAX], 1.0)
+        if lam_d > 0.0 and lam_d < params[P_LAMBDA_PK]:
+            dn = d_pic * x
+        else:
+            dn = d_pic * x ** params[P_EXP_CPP]
+        return max(d_cpp_n, dn)
+    return d_cpp_n
+
+
+@njit(cache=True)
+def _principal_values(A):
+    """Eigenvalues ``s1 >= s2 >= s3`` of the symmetric 3x3 ``A`` (its upper triangle read) in
+    closed form (the trigonometric solution of the characteristic cubic):
+
+        q = tr A / 3,  p = sqrt(|A - q 1|^2 / 6),  r = det((A - q 1) / p) / 2 in [-1, 1],
+        phi = acos(r) / 3,  s1 = q + 2 p cos(phi),  s3 = q + 2 p cos(phi + 2 pi / 3),
+        s2 = 3 q - s1 - s3
+
+    An eigenvalue at a distance ``g`` from the others is found to about ``eps p^2 / g``
+    (``eps`` the machine's): a few ulps of ``max(|q|, p)`` when the three are apart, but of
+    the order of ``sqrt(eps) p`` for two that coincide (``acos`` is steep at ``r = +-1``), where
+    an iterative solver keeps a few ulps. Returns ``(s1, s2, s3, p)``, ``p`` in the units of
+    ``A`` (``sqrt(J2 / 3)`` of a stress)."""
+    q = (A[0, 0] + A[1, 1] + A[2, 2]) / 3.0
+    b00 = A[0, 0] - q
+    b11 = A[1, 1] - q
+    b22 = A[2, 2] - q
+    a01 = A[0, 1]
+    a02 = A[0, 2]
+    a12 = A[1, 2]
+    p2 = b00 * b00 + b11 * b11 + b22 * b22 + 2.0 * (a01 * a01 + a02 * a02 + a12 * a12)
+    if p2 == 0.0:
+        return q, q, q, 0.0
+    p = math.sqrt(p2 / 6.0)
+    det = (b00 * (b11 * b22 - a12 * a12) - a01 * (a01 * b22 - a12 * a02)
+           + a02 * (a01 * a12 - b11 * a02))
+    r = 0.5 * det / (p * p * p)
+    r = min(1.0, max(-1.0, r))
+    phi = math.acos(r) / 3.0
+    s1 = q + 2.0 * p * math.cos(phi)
+    s3 = q + 2.0 * p * math.cos(phi + 2.0 * math.pi / 3.0)
+    return s1, 3.0 * q - s1 - s3, s3, p
+
+
+#: Bound (a fraction of ``|tr s| / 3 + 2 p``) on the error of an eigenvalue of
+#: :func:`_principal_values`, whatever the gaps (``sqrt(eps)`` is 1.5e-8): the intact points'
+#: shortcut decides a criterion or a sign only when the trial is farther from it than this.
+_CLOSED_FORM_ERROR = 1e-7
+#: Gap (a fraction of ``2 p``) between the eigenvalue whose projector the shortcut uses and its
+#: neighbour, below which it leaves the point to the full update: the eigenvalue is then found
+#: to within ``eps / gap``, some 1e-13 of the stresses.
+_PROJECTOR_GAP = 1e-3
+
+
+@njit(cache=True)
+def _intact_update(s_tr, state_in, params, state_out, sigma):
+    """The update of an intact point whose trial stays elastic, without eigenvectors
+    (``s_tr`` exactly symmetric, as :func:`_update` makes it).
+
+    Intact: no crack was ever opened (``eps_pR``, ``W`` and ``W_max`` all zero, so no
+    tensile nor reclosure damage and no reclosure criterion) and no crushing
+    (``kappa = tr eps_pD - beta lambda_pk <= 0``, so ``d_c`` keeps its value). Elastic: the
+    trial effective stress ``s_tr`` (3x3, Pa) satisfies Rankine and Drucker-Prager by more
+    than the error of its closed-form eigenvalues (``_CLOSED_FORM_ERROR``), so that the full
+    update (:func:`_update`) would find it elastic too. It would then leave the plastic
+    strains and ``lambda_D`` as they are, and give
+
+        s~ = s_tr,   d_cpp = max(d_cpp_n, d_pic x^n)  (:func:`_pre_peak_damage`),
+        sigma = (1 - d_c) (S+ + (1 - d_cpp) S-)
+
+    with ``S+-`` the parts of ``s_tr`` of positive and negative principal values. When they
+    are of one sign, one part is ``s_tr`` and the other 0. Otherwise the lone one of its sign
+    ``l`` (``s1`` when only ``s1 > 0``, else ``s3``) gives its part through its spectral
+    projector, written with the sum ``a + b`` and product ``a b`` of the two others, which
+    do not suffer from their being close (``a + b = tr s - l``, ``a b = I2 - l (a + b)``,
+    ``I2`` the second invariant):
+
+        S_l = l (s_tr - a 1)(s_tr - b 1) / ((l - a)(l - b)),   the other part s_tr - S_l
+
+    accurate to round-off of the stresses once ``l`` is ``_PROJECTOR_GAP`` from its neighbour
+    (the denominator is then at least ``l`` times that gap). Writes ``state_out`` and
+    ``sigma`` (Pa, Voigt, true shear) and returns True; returns False, having written nothing,
+    when the point is not intact or its trial not clearly elastic or its split not clearly
+    resolved: the full update then does it."""
+    for k in range(6):
+        if (state_in[S_EPS_PR + k] != 0.0 or state_in[S_W + k] != 0.0
+                or state_in[S_W_MAX + k] != 0.0):
+            return False
+    lam_d = state_in[S_LAMBDA_D]
+    tr_d = state_in[S_EPS_PD] + state_in[S_EPS_PD + 1] + state_in[S_EPS_PD + 2]
+    if tr_d - params[P_BETA] * params[P_LAMBDA_PK] > 0.0:
+        return False
+    s1, s2, s3, p = _principal_values(s_tr)
+    c_n = _cohesion(lam_d, params)[0]
+    rt = params[P_RT]
+    mean = (s_tr[0, 0] + s_tr[1, 1] + s_tr[2, 2]) / 3.0
+    sure = _CLOSED_FORM_ERROR * (abs(mean) + 2.0 * p)
+    margin = params[P_TOL] - sure - _CLOSED_FORM_ERROR * (rt + c_n)
+    if s1 - rt > margin:
+        return False
+    s_eq = math.sqrt(3.0) * p + params[P_DELTA] * mean  # sqrt(J2) - delta p; J2 = 3 p^2
+    if s_eq - c_n > margin:
+        return False
+    # the principal split, or False when it is not clearly resolved
+    gap = _PROJECTOR_GAP * 2.0 * p
+    apart1 = s1 - s2 >= gap
+    apart3 = s2 - s3 >= gap
+    if s1 <= -sure or (s1 <= 0.0 and apart1):
+        split = 0  # all compressive
+    elif s3 >= sure or (s3 >= 0.0 and apart3):
+        split = 1  # all tensile
+    elif s2 <= 0.0 and apart1:
+        split = 2  # s1 alone positive
+    elif s2 > 0.0 and apart3:
+        split = 3  # s3 alone negative
+    else:
+        return False
+
+    for k in range(N_STATE):
+        state_out[k] = state_in[k]
+    _to6(s_tr, state_out, S_SIG_EFF)
+    d_cpp = _pre_peak_damage(s_eq, lam_d, state_in[S_D_CPP], params)
+    state_out[S_D_CPP] = d_cpp
+    state_out[S_D_T] = 0.0
+    state_out[S_D_T + 1] = 0.0
+    state_out[S_D_T + 2] = 0.0
+    state_out[S_W_OPEN_MAX] = 0.0
+    state_out[S_ITER] = 1.0
+
+    f_plus = 1.0 - state_in[S_D_C]
+    f_minus = f_plus * (1.0 - d_cpp)
+    if split <= 1:
+        f = f_minus if split == 0 else f_plus
+        sigma[0] = f * s_tr[0, 0]
+        sigma[1] = f * s_tr[1, 1]
+        sigma[2] = f * s_tr[2, 2]
+        sigma[3] = f * s_tr[1, 2]
+        sigma[4] = f * s_tr[0, 2]
+        sigma[5] = f * s_tr[0, 1]
+        return True
+    if split == 2:
+        lone, f_lone, f_rest = s1, f_plus, f_minus
+    else:
+        lone, f_lone, f_rest = s3, f_minus, f_plus
+    i2 = (s_tr[0, 0] * s_tr[1, 1] + s_tr[0, 0] * s_tr[2, 2] + s_tr[1, 1] * s_tr[2, 2]
+          - s_tr[0, 1] * s_tr[0, 1] - s_tr[0, 2] * s_tr[0, 2] - s_tr[1, 2] * s_tr[1, 2])
+    a_plus_b = 3.0 * mean - lone
+    ab = i2 - lone * a_plus_b
+    # sigma = f_rest s_tr + (f_lone - f_rest) S_l,  S_l = g (s_tr^2 - (a + b) s_tr + a b 1)
+    g = (f_lone - f_rest) * lone / (lone * lone - lone * a_plus_b + ab)
+    for v in range(6):
+        if v < 3:
+            i = v
+            j = v
+        elif v == 3:
+            i = 1
+            j = 2
+        elif v == 4:
+            i = 0
+            j = 2
+        else:
+            i = 0
+            j = 1
+        sq = s_tr[i, 0] * s_tr[0, j] + s_tr[i, 1] * s_tr[1, j] + s_tr[i, 2] * s_tr[2, j]
+        num = sq - a_plus_b * s_tr[i, j]
+        if i == j:
+            num += ab
+        sigma[v] = f_rest * s_tr[i, j] + g * num
+    return True
+
+
+@njit(cache=True)
+def _update(eps, state_in, params, xe, state_out, sigma, wk, shortcut=True):
     """:func:`endo3d_update` with the work array ``wk`` (N_WORK, 3, 3) given: the 3x3
     matrices and 3-vectors of the update are its slices, so that a batch of points allocates
-    once."""
+    once. An intact point whose trial stays elastic takes :func:`_intact_update` (the same
+    result to round-off) unless ``shortcut`` is False."""
     E_lame = params[P_LAME]
     G = params[P_G]
     M = params[P_M]
@@ -1527,6 +1708,8 @@ def _update(eps, state_in, params, xe, state_out, sigma, wk):
         for j in range(3):
             s_tr[i, j] = 2.0 * G * ee[i, j]
         s_tr[i, i] += E_lame * tr_e
+    if shortcut and _intact_update(s_tr, state_in, params, state_out, sigma):
+        return 0
     s = wk[4, 0]
     Q = wk[5]
     _eig_sym3_work(s_tr, s, Q, wk[6])
@@ -1677,17 +1860,7 @@ def _update(eps, state_in, params, xe, state_out, sigma, wk):
     for i in range(3):
         q2 += (s[i] - mean) * (s[i] - mean)
     s_eq = math.sqrt(0.5 * q2) + delta * mean  # sqrt(J2) - delta p, p = -mean
-    d_pic = params[P_D_PIC]
-    d_cpp = state_in[S_D_CPP]
-    if d_pic > 0.0 and s_eq > 0.0:
-        x = s_eq / params[P_C_MAX]
-        x = min(x, 1.0)
-        lpk = params[P_LAMBDA_PK]
-        if lam_d > 0.0 and lam_d < lpk:
-            dn = d_pic * x
-        else:
-            dn = d_pic * x ** params[P_EXP_CPP]
-        d_cpp = max(d_cpp, dn)
+    d_cpp = _pre_peak_damage(s_eq, lam_d, state_in[S_D_CPP], params)
     state_out[S_D_CPP] = d_cpp
 
     # post-peak compressive damage
