@@ -262,7 +262,7 @@ MAX_RESTARTS = 8
 DEGENERATE_REL = 1e-12
 #: 3x3 work matrices of one point's update (:func:`_update`): its tensors, its 3-vectors (rows
 #: of a matrix) and the eigen solver's work.
-N_WORK = 18
+N_WORK = 21
 
 _SQRT3 = math.sqrt(3.0)
 
@@ -922,21 +922,22 @@ def _cohesion_iterate(lam_n, dlam, c_n, h_n, prm):
 
 
 @njit(cache=True)
-def _crack_damage(S, P, d, nup, out):
+def _crack_damage(S, P, d, nup, out, work):
     """Damage a stress tensor ``S`` (3x3, Pa) by cracks of damages ``d`` (3,) along the columns
     of ``P``: series normal compliance ``d_k/((1-d_k) M)`` per crack and shear terms multiplied
-    by ``1 - min(d_k, d_l)`` in the crack basis. ``nup = lam/M = nu/(1-nu)``. Result in ``out``.
+    by ``1 - min(d_k, d_l)`` in the crack basis. ``nup = lam/M = nu/(1-nu)``. Result in ``out``;
+    ``work`` (3, 3, 3) scratch.
     """
     if d[0] <= 0.0 and d[1] <= 0.0 and d[2] <= 0.0:
         for i in range(3):
             for j in range(3):
                 out[i, j] = S[i, j]
         return
-    T = np.zeros((3, 3))
+    T = work[0]
     _in_basis(P, S, T)
-    A = np.empty((3, 3))
-    b = np.empty(3)
-    y = np.empty(3)
+    A = work[1]
+    b = work[2, 0]
+    y = work[2, 1]
     for k in range(3):
         for m in range(3):
             A[k, m] = (1.0 if k == m else nup) * d[m]
@@ -1894,8 +1895,8 @@ def _update(eps, state_in, params, xe, state_out, sigma, wk, shortcut=True):
     nup = E_lame / M
     Tp = wk[16]
     Tm = wk[17]
-    _crack_damage(Sp, P, d_t, nup, Tp)
-    _crack_damage(Sm, P, d_r, nup, Tm)
+    _crack_damage(Sp, P, d_t, nup, Tp, wk[18:21])
+    _crack_damage(Sm, P, d_r, nup, Tm, wk[18:21])
     f_c = 1.0 - d_c
     f_cpp = 1.0 - d_cpp
     sigma[0] = f_c * (Tp[0, 0] + f_cpp * Tm[0, 0])
