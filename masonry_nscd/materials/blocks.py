@@ -46,7 +46,7 @@ from masonry_nscd.model import MAT_ENDO3D, Block
 
 
 @njit(cache=True, nogil=True)
-def trial_forces(B, w, edofs, u, state_in, params, xe, relax, C0, sigma_c, eps_c,
+def trial_forces(dN, w, edofs, u, state_in, params, xe, relax, C0, sigma_c, eps_c,
                  eps, state_out, sigma_endo, sigma, f_e, c_e):
     """A trial of the elements of the batch (arrays sliced to them; Gauss point ``8 e + g``)
     at the displacements ``u`` (m, every dof): the strains ``eps = B u_e``; the ENDO3D update
@@ -55,23 +55,48 @@ def trial_forces(B, w, edofs, u, state_in, params, xe, relax, C0, sigma_c, eps_c
     the element forces ``f_e = sum_g w B^T sigma`` (N) and their departure from the linear
     forces of the step's start, ``c_e = sum_g w B^T (sigma - sigma_c - C0 (eps - eps_c))``
     (N), both (nel, 24). Returns the number of points whose return mapping did not converge.
+
+    ``B`` is read through the shape functions' gradients ``dN[e, g, a] = dN_a/dx`` (1/m,
+    (nel, 8, 8, 3)) that fill it (``hex8._b_from_dndx``): its nonzero terms only, in the order
+    of its rows and columns, so that the sums are those of the dense product term for term.
     """
     nfail = 0
     wk = np.empty((endo3d.N_WORK, 3, 3))
     ue = np.empty(24)
     d = np.empty(6)
-    for e in range(B.shape[0]):
+    for e in range(dN.shape[0]):
         for i in range(24):
             ue[i] = u[edofs[e, i]]
             f_e[e, i] = 0.0
             c_e[e, i] = 0.0
         for g in range(8):
             p = 8 * e + g
-            for c in range(6):
-                s = 0.0
-                for i in range(24):
-                    s += B[e, g, c, i] * ue[i]
-                eps[p, c] = s
+            G = dN[e, g]
+            exx = 0.0
+            eyy = 0.0
+            ezz = 0.0
+            gyz = 0.0
+            gxz = 0.0
+            gxy = 0.0
+            for a in range(8):
+                ux = ue[3 * a]
+                uy = ue[3 * a + 1]
+                uz = ue[3 * a + 2]
+                exx += G[a, 0] * ux
+                eyy += G[a, 1] * uy
+                ezz += G[a, 2] * uz
+                gyz += G[a, 2] * uy
+                gyz += G[a, 1] * uz
+                gxz += G[a, 2] * ux
+                gxz += G[a, 0] * uz
+                gxy += G[a, 1] * ux
+                gxy += G[a, 0] * uy
+            eps[p, 0] = exx
+            eps[p, 1] = eyy
+            eps[p, 2] = ezz
+            eps[p, 3] = gyz
+            eps[p, 4] = gxz
+            eps[p, 5] = gxy
             if endo3d.update_point(eps[p], state_in[p], params, xe[e], state_out[p],
                                    sigma_endo[p], wk) != 0:
                 nfail += 1
@@ -84,14 +109,18 @@ def trial_forces(B, w, edofs, u, state_in, params, xe, relax, C0, sigma_c, eps_c
                 else:
                     sigma[p, i] = sigma_endo[p, i]
                 d[i] = sigma[p, i] - sigma_c[p, i] - lin
-            for i in range(24):
-                sf = 0.0
-                sc = 0.0
-                for c in range(6):
-                    sf += B[e, g, c, i] * sigma[p, c]
-                    sc += B[e, g, c, i] * d[c]
-                f_e[e, i] += w[e, g] * sf
-                c_e[e, i] += w[e, g] * sc
+            s = sigma[p]
+            wg = w[e, g]
+            for a in range(8):
+                gx = G[a, 0]
+                gy = G[a, 1]
+                gz = G[a, 2]
+                f_e[e, 3 * a] += wg * (gx * s[0] + gz * s[4] + gy * s[5])
+                f_e[e, 3 * a + 1] += wg * (gy * s[1] + gz * s[3] + gx * s[5])
+                f_e[e, 3 * a + 2] += wg * (gz * s[2] + gy * s[3] + gx * s[4])
+                c_e[e, 3 * a] += wg * (gx * d[0] + gz * d[4] + gy * d[5])
+                c_e[e, 3 * a + 1] += wg * (gy * d[1] + gz * d[3] + gx * d[5])
+                c_e[e, 3 * a + 2] += wg * (gz * d[2] + gy * d[3] + gx * d[4])
     return nfail
 
 
@@ -129,6 +158,9 @@ class Endo3dBlocks:
             for i, b in zip(self.index, self.blocks)]).astype(np.int64)
         self.all_dofs = np.unique(self.edofs)
         self.B, self.w = hex8.precompute_b(np.ascontiguousarray(xe))
+        # the shape functions' gradients that fill B (1/m, (nel, 8, 8, 3)), for the trials
+        self.dN = np.ascontiguousarray(np.stack(
+            [self.B[..., 0, 0::3], self.B[..., 1, 1::3], self.B[..., 2, 2::3]], axis=-1))
         self.xe = np.ascontiguousarray(xe)
         nel = len(xe)
         self.elem_of_point = np.repeat(np.arange(nel), 8).astype(np.int64)
@@ -182,7 +214,7 @@ class Endo3dBlocks:
         def batch(lo, hi):
             p0, p1 = 8 * lo, 8 * hi
             return trial_forces(
-                self.B[lo:hi], self.w[lo:hi], self.edofs[lo:hi], u, self.state_all[p0:p1],
+                self.dN[lo:hi], self.w[lo:hi], self.edofs[lo:hi], u, self.state_all[p0:p1],
                 self.params, self.xe[lo:hi], r, self.C0[p0:p1], self.sigma_committed_all[p0:p1],
                 self.eps_committed_all[p0:p1], self._eps[p0:p1], self.trial_all[p0:p1],
                 sig_endo[p0:p1], self.sigma_all[p0:p1], f_e[lo:hi], c_e[lo:hi])
