@@ -2,9 +2,10 @@ r"""Eight-node hexahedra: shape functions, Gauss rules, stiffness, lumped mass, 
 
 What is computed once per block (B matrices, stiffness, mass) is vectorised NumPy over the
 elements: compiled with numba it cost 8 of the 14 s of a first run of the smoke case, for work
-that takes milliseconds. What runs at every step for ENDO3D blocks (``forces_from_b``,
-``stiffness_from_b``, and the strains inside ``materials.blocks.trial_forces``) stays compiled:
-plain loops, quick to compile.
+that takes milliseconds. What runs at every step for ENDO3D blocks (``forces_from_gradients``,
+``stiffness_from_gradients``, and the strains inside ``materials.blocks.trial_forces``) stays
+compiled: plain loops, quick to compile, on the shape functions' gradients rather than the
+mostly zero B matrices.
 
 Reference element ``[-1, 1]^3``, nodes in the usual order (bottom face ``zeta = -1``
 counter-clockwise, then the top face)::
@@ -101,16 +102,23 @@ def b_matrix(xe: np.ndarray, xi: float, eta: float, zeta: float):
     return _b_from_dndx(dN[0] @ np.linalg.inv(J)), float(np.linalg.det(J))
 
 
-def precompute_b(xe_all: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """B matrices (nel, 8, 6, 24) and weights det J (nel, 8) at the 2x2x2 Gauss points of many
-    elements (nel, 8, 3): ``dN/dx = dN/dxi J^-1``, unit Gauss weights. Raises ValueError for an
-    element with a non-positive Jacobian (an inverted element)."""
+def precompute_gradients(xe_all: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Shape-function gradients ``dN/dx`` (nel, 8, 8, 3; Gauss point, node, direction; 1/m)
+    and weights det J (nel, 8) at the 2x2x2 Gauss points of many elements (nel, 8, 3):
+    ``dN/dx = dN/dxi J^-1``, unit Gauss weights. Raises ValueError for an element with a
+    non-positive Jacobian (an inverted element)."""
     xe_all = np.asarray(xe_all, dtype=float)
     J = _jacobians(xe_all, _DN_GAUSS)
     w = np.linalg.det(J)
     if np.any(w <= 0.0):
         raise ValueError("hexahedron with a non-positive Jacobian (inverted element)")
-    dNdx = np.einsum("gak,egkj->egaj", _DN_GAUSS, np.linalg.inv(J))
+    return np.einsum("gak,egkj->egaj", _DN_GAUSS, np.linalg.inv(J)), w
+
+
+def precompute_b(xe_all: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """B matrices (nel, 8, 6, 24) and weights det J (nel, 8) at the 2x2x2 Gauss points of many
+    elements (nel, 8, 3), from :func:`precompute_gradients`."""
+    dNdx, w = precompute_gradients(xe_all)
     return _b_from_dndx(dNdx), w
 
 
@@ -191,43 +199,59 @@ def internal_forces(X: np.ndarray, conn: np.ndarray, sigma: np.ndarray, f: np.nd
 
 
 @njit(cache=True)
-def forces_from_b(B: np.ndarray, w: np.ndarray, edofs: np.ndarray, sigma: np.ndarray,
-                  f: np.ndarray) -> None:
-    """Add ``sum_g w B^T sigma`` of every element to the global force vector f (N)."""
-    for e in range(B.shape[0]):
+def forces_from_gradients(dN: np.ndarray, w: np.ndarray, edofs: np.ndarray,
+                          sigma: np.ndarray, f: np.ndarray) -> None:
+    """Add ``sum_g w B^T sigma`` of every element to the global force vector f (N), ``B``
+    given by the gradients that fill it, ``dN[e, g, a] = dN_a/dx`` (1/m, (nel, 8, 8, 3);
+    :func:`precompute_gradients`): its nonzero terms in the order of its rows, so that the
+    sums are the dense product's term for term."""
+    for e in range(dN.shape[0]):
         for g in range(8):
-            for i in range(24):
-                s = 0.0
-                for c in range(6):
-                    s += B[e, g, c, i] * sigma[8 * e + g, c]
-                f[edofs[e, i]] += w[e, g] * s
+            s = sigma[8 * e + g]
+            wg = w[e, g]
+            for a in range(8):
+                gx = dN[e, g, a, 0]
+                gy = dN[e, g, a, 1]
+                gz = dN[e, g, a, 2]
+                f[edofs[e, 3 * a]] += wg * (gx * s[0] + gz * s[4] + gy * s[5])
+                f[edofs[e, 3 * a + 1]] += wg * (gy * s[1] + gz * s[3] + gx * s[5])
+                f[edofs[e, 3 * a + 2]] += wg * (gz * s[2] + gy * s[3] + gx * s[4])
 
 
 @njit(cache=True)
-def stiffness_from_b(B: np.ndarray, w: np.ndarray, C: np.ndarray) -> np.ndarray:
-    """Element matrices ``K_e = sum_g w_g B_g^T C_g B_g`` (nel, 24, 24), N/m.
+def stiffness_from_gradients(dN: np.ndarray, w: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """Element matrices ``K_e = sum_g w_g B_g^T C_g B_g`` (nel, 24, 24), N/m, ``B`` given by
+    its gradients as in :func:`forces_from_gradients` (each column of ``B`` has three nonzero
+    rows, each row of ``B^T``: ``C B`` and ``B^T (C B)`` take those only, in the order of the
+    dense products).
 
     ``C`` (nel * 8, 6, 6): a material matrix per Gauss point, ``C[p, i, j] = d sigma_i /
     d eps_j`` (Pa), not necessarily symmetric (a consistent tangent).
     """
-    nel = B.shape[0]
+    nel = dN.shape[0]
     K = np.zeros((nel, 24, 24))
     CB = np.empty((6, 24))
     for e in range(nel):
         for g in range(8):
             p = 8 * e + g
-            for i in range(6):
+            Cp = C[p]
+            for a in range(8):
+                gx = dN[e, g, a, 0]
+                gy = dN[e, g, a, 1]
+                gz = dN[e, g, a, 2]
+                for i in range(6):
+                    CB[i, 3 * a] = Cp[i, 0] * gx + Cp[i, 4] * gz + Cp[i, 5] * gy
+                    CB[i, 3 * a + 1] = Cp[i, 1] * gy + Cp[i, 3] * gz + Cp[i, 5] * gx
+                    CB[i, 3 * a + 2] = Cp[i, 2] * gz + Cp[i, 3] * gy + Cp[i, 4] * gx
+            wg = w[e, g]
+            for b in range(8):
+                gx = dN[e, g, b, 0]
+                gy = dN[e, g, b, 1]
+                gz = dN[e, g, b, 2]
                 for k in range(24):
-                    s = 0.0
-                    for j in range(6):
-                        s += C[p, i, j] * B[e, g, j, k]
-                    CB[i, k] = s
-            for a in range(24):
-                for k in range(24):
-                    s = 0.0
-                    for i in range(6):
-                        s += B[e, g, i, a] * CB[i, k]
-                    K[e, a, k] += w[e, g] * s
+                    K[e, 3 * b, k] += wg * (gx * CB[0, k] + gz * CB[4, k] + gy * CB[5, k])
+                    K[e, 3 * b + 1, k] += wg * (gy * CB[1, k] + gz * CB[3, k] + gx * CB[5, k])
+                    K[e, 3 * b + 2, k] += wg * (gz * CB[2, k] + gy * CB[3, k] + gx * CB[4, k])
     return K
 
 

@@ -157,10 +157,8 @@ class Endo3dBlocks:
             (body_dof0[i] + 3 * b.conn[:, :, None] + np.arange(3)).reshape(len(b.conn), 24)
             for i, b in zip(self.index, self.blocks)]).astype(np.int64)
         self.all_dofs = np.unique(self.edofs)
-        self.B, self.w = hex8.precompute_b(np.ascontiguousarray(xe))
-        # the shape functions' gradients that fill B (1/m, (nel, 8, 8, 3)), for the trials
-        self.dN = np.ascontiguousarray(np.stack(
-            [self.B[..., 0, 0::3], self.B[..., 1, 1::3], self.B[..., 2, 2::3]], axis=-1))
+        # the shape functions' gradients (1/m, (nel, 8, 8, 3)), which fill the B matrices
+        self.dN, self.w = hex8.precompute_gradients(np.ascontiguousarray(xe))
         self.xe = np.ascontiguousarray(xe)
         nel = len(xe)
         self.elem_of_point = np.repeat(np.arange(nel), 8).astype(np.int64)
@@ -202,9 +200,10 @@ class Endo3dBlocks:
         """
         if not trial:
             fint[self.all_dofs] = 0.0
-            hex8.forces_from_b(self.B, self.w, self.edofs, self.sigma_committed_all, fint)
+            hex8.forces_from_gradients(self.dN, self.w, self.edofs, self.sigma_committed_all,
+                                       fint)
             return
-        nel = len(self.B)
+        nel = len(self.dN)
         f_e = np.empty((nel, 24))
         c_e = np.empty((nel, 24))
         r = self.relax
@@ -283,7 +282,7 @@ class Endo3dBlocks:
         threads.run_ranges(tangent, len(eps))
         if self.relax > 0.0:
             C = np.ascontiguousarray((self.C0 + self.relax * C) / (1.0 + self.relax))
-        Ke = hex8.stiffness_from_b(self.B, self.w, C)
+        Ke = hex8.stiffness_from_gradients(self.dN, self.w, C)
         # the element matrices summed into each block's (entries in element order, as a
         # scatter-add per block would sum them)
         K = np.bincount(self._k_slot, weights=Ke.ravel(), minlength=self._k_off[-1])
