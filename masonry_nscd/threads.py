@@ -15,6 +15,7 @@ microseconds) would cost more than it saves.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import os
 from collections.abc import Callable
@@ -39,6 +40,13 @@ def count() -> int:
             return max(1, int(env))
         except ValueError:
             pass
+    return _cores()
+
+
+@functools.cache
+def _cores() -> int:
+    """The cores this process may run on, asked once (a system call: ``count`` is asked at
+    every batch, some 20,000 times a run)."""
     try:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # not on Linux
