@@ -135,9 +135,9 @@ def add_element_vectors(edofs, v_e, f):
 class Endo3dBlocks:
     """The ENDO3D blocks of a scene (body indices ``index``) and their Gauss-point states.
 
-    All ENDO3D elements are handled in one batch: their B matrices are computed once, and a
-    trial evaluation is one kernel (``trial_forces``) over ranges of elements on the threads of
-    ``masonry_nscd.threads``, whatever the number of blocks. Per-block views (``state``,
+    All ENDO3D elements are handled in one batch: their shape functions' gradients are
+    computed once, and a trial evaluation is one kernel (``trial_forces``) over ranges of
+    elements on the threads of ``masonry_nscd.threads``, whatever the number of blocks. Per-block views (``state``,
     ``trial``) index into the batch.
     """
 
