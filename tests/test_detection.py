@@ -140,12 +140,26 @@ def test_what_is_not_a_joint(case, n):
                           st.floats(0, 3), st.floats(0, 3), st.floats(0, 0.5)),
                 min_size=0, max_size=40))
 def test_the_grid_broad_phase_finds_every_overlapping_pair(boxes):
+    _check_broad_phase(boxes)
+
+
+def _check_broad_phase(boxes):
     lo = np.array([b[:3] for b in boxes]).reshape(-1, 3)
     hi = lo + np.array([b[3:] for b in boxes]).reshape(-1, 3)
     got = {tuple(p) for p in candidate_pairs(lo, hi)}
     want = {(i, j) for i in range(len(lo)) for j in range(i + 1, len(lo))
             if np.all(lo[i] <= hi[j]) and np.all(lo[j] <= hi[i])}
     assert got == want
+
+
+@pytest.mark.parametrize("boxes", [
+    # flat boxes: a median extent of 1e-12 made the 0.5 m box span 5e11 cells (3.6 TiB)
+    [(0, 0, 0, 0, 0, 0), (0, 0, 0, 0, 0, 0.5), (0, 0, 0, 0, 0, 1e-12)],
+    # points far apart: the cells' keys must not overflow
+    [(0, 0, 0, 0, 0, 0), (1e9, 1e9, 1e9, 0, 0, 0), (1e9, 1e9, 1e9, 0, 0, 0)],
+])
+def test_the_grid_broad_phase_on_degenerate_boxes(boxes):
+    _check_broad_phase(boxes)
 
 
 @pytest.mark.parametrize("material", ["elastic", "rigid"])

@@ -71,12 +71,17 @@ class Detection:
 
 
 def candidate_pairs(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """Pairs ``(i, j)``, i < j, of boxes ``[lo, hi]`` (n, 3) that overlap (uniform-grid hash)."""
+    """Pairs ``(i, j)``, i < j, of boxes ``[lo, hi]`` (n, 3) that overlap (uniform-grid hash).
+
+    The cells are the size of the median box, but at least a 32nd of the largest box (which
+    then spans at most 33 cells a side however flat the others are) and a 100,000th of the
+    whole extent (the cells' keys stay far inside 64-bit integers)."""
     n = len(lo)
     if n < 2:
         return np.zeros((0, 2), dtype=np.int64)
     ext = (hi - lo).max(axis=1)
-    cell = float(np.median(ext)) or float(ext.max()) or 1.0
+    domain = float((hi.max(axis=0) - lo.min(axis=0)).max())
+    cell = max(float(np.median(ext)), float(ext.max()) / 32.0, domain * 1e-5) or 1.0
     origin = lo.min(axis=0)
     c0 = np.floor((lo - origin) / cell).astype(np.int64)
     c1 = np.floor((hi - origin) / cell).astype(np.int64)
