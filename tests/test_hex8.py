@@ -69,3 +69,26 @@ def test_an_inverted_element_is_refused():
     X, conn = hex8.box_mesh(np.zeros(3), np.ones(3), (1, 1, 1))
     with pytest.raises(ValueError, match="non-positive Jacobian"):
         hex8.precompute_b(X[conn[:, [4, 5, 6, 7, 0, 1, 2, 3]]])
+
+
+def test_the_gradient_kernels_are_the_dense_b_products():
+    """``forces_from_gradients`` and ``stiffness_from_gradients`` against ``sum_g w B^T sigma``
+    and ``sum_g w B^T C B`` with the dense B matrices, on distorted elements and a
+    nonsymmetric C per Gauss point."""
+    rng = np.random.default_rng(3)
+    cube = hex8.NODE_SIGNS * 0.05
+    xe = np.stack([cube + 0.01 * rng.standard_normal((8, 3)) for _ in range(5)])
+    B, w = hex8.precompute_b(xe)
+    dN, w2 = hex8.precompute_gradients(xe)
+    assert np.array_equal(w, w2)
+    nel = len(xe)
+    edofs = np.arange(24 * nel).reshape(nel, 24)
+    sigma = rng.standard_normal((8 * nel, 6)) * 1e6
+    f = np.zeros(24 * nel)
+    hex8.forces_from_gradients(dN, w, edofs, sigma, f)
+    dense = np.einsum("eg,egci,egc->ei", w, B, sigma.reshape(nel, 8, 6)).ravel()
+    assert np.allclose(f, dense, rtol=1e-13, atol=1e-13 * np.abs(dense).max())
+    C = rng.standard_normal((8 * nel, 6, 6)) * 1e10
+    K = hex8.stiffness_from_gradients(dN, w, C)
+    dense_K = np.einsum("eg,egia,egij,egjk->eak", w, B, C.reshape(nel, 8, 6, 6), B)
+    assert np.allclose(K, dense_K, rtol=1e-13, atol=1e-13 * np.abs(dense_K).max())
