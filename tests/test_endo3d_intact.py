@@ -45,9 +45,10 @@ def test_principal_values_against_lapack(values):
         q = _rotation(rng)
         a = q @ np.diag(values) @ q.T
         a = 0.5 * (a + a.T)
-        s1, s2, s3, p = m._principal_values(a)
+        s1, s2, s3, q, p = m._principal_values(a)
         expected = np.linalg.eigvalsh(a)[::-1]
-        scale = abs(np.trace(a)) / 3 + 2 * p
+        assert q == pytest.approx(np.trace(a) / 3, abs=1e-15 * np.abs(a).max())
+        scale = abs(q) + 2 * p
         assert s1 >= s2 - 1e-15 * scale and s2 >= s3 - 1e-15 * scale  # s2 = 3 q - s1 - s3
         assert np.abs([s1, s2, s3] - expected).max() <= m._CLOSED_FORM_ERROR * scale + 1e-300
         for k in range(3):

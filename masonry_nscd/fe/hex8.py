@@ -151,7 +151,7 @@ def _element_dofs(conn: np.ndarray) -> np.ndarray:
 
 def lumped_mass(X: np.ndarray, conn: np.ndarray, rho: float) -> np.ndarray:
     """Row-sum lumped mass per dof (3n,) of one block mesh, kg (the mass of ``assemble_block``)."""
-    _, w = precompute_b(np.asarray(X, dtype=float)[conn])
+    _, w = precompute_gradients(np.asarray(X, dtype=float)[conn])
     m = np.zeros(3 * X.shape[0])
     np.add.at(m, _element_dofs(conn), np.repeat(_element_masses(w, rho), 3, axis=1))
     return m

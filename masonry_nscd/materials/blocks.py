@@ -137,8 +137,8 @@ class Endo3dBlocks:
 
     All ENDO3D elements are handled in one batch: their shape functions' gradients are
     computed once, and a trial evaluation is one kernel (``trial_forces``) over ranges of
-    elements on the threads of ``masonry_nscd.threads``, whatever the number of blocks. Per-block views (``state``,
-    ``trial``) index into the batch.
+    elements on the threads of ``masonry_nscd.threads``, whatever the number of blocks.
+    Per-block views (``state``, ``trial``) index into the batch.
     """
 
     def __init__(self, bodies: list, body_dof0: np.ndarray, params: np.ndarray, *,

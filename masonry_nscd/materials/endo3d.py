@@ -1522,8 +1522,8 @@ def _principal_values(A):
     An eigenvalue at a distance ``g`` from the others is found to about ``eps p^2 / g``
     (``eps`` the machine's): a few ulps of ``max(|q|, p)`` when the three are apart, but of
     the order of ``sqrt(eps) p`` for two that coincide (``acos`` is steep at ``r = +-1``), where
-    an iterative solver keeps a few ulps. Returns ``(s1, s2, s3, p)``, ``p`` in the units of
-    ``A`` (``sqrt(J2 / 3)`` of a stress)."""
+    an iterative solver keeps a few ulps. Returns ``(s1, s2, s3, q, p)`` in the units of
+    ``A`` (``q`` the mean, ``p = sqrt(J2 / 3)`` of a stress)."""
     q = (A[0, 0] + A[1, 1] + A[2, 2]) / 3.0
     b00 = A[0, 0] - q
     b11 = A[1, 1] - q
@@ -1533,7 +1533,7 @@ def _principal_values(A):
     a12 = A[1, 2]
     p2 = b00 * b00 + b11 * b11 + b22 * b22 + 2.0 * (a01 * a01 + a02 * a02 + a12 * a12)
     if p2 == 0.0:
-        return q, q, q, 0.0
+        return q, q, q, q, 0.0
     p = math.sqrt(p2 / 6.0)
     det = (b00 * (b11 * b22 - a12 * a12) - a01 * (a01 * b22 - a12 * a02)
            + a02 * (a01 * a12 - b11 * a02))
@@ -1542,7 +1542,7 @@ def _principal_values(A):
     phi = math.acos(r) / 3.0
     s1 = q + 2.0 * p * math.cos(phi)
     s3 = q + 2.0 * p * math.cos(phi + 2.0 * math.pi / 3.0)
-    return s1, 3.0 * q - s1 - s3, s3, p
+    return s1, 3.0 * q - s1 - s3, s3, q, p
 
 
 #: Bound (a fraction of ``|tr s| / 3 + 2 p``) on the error of an eigenvalue of
@@ -1593,15 +1593,14 @@ def _intact_update(s_tr, state_in, params, state_out, sigma):
     tr_d = state_in[S_EPS_PD] + state_in[S_EPS_PD + 1] + state_in[S_EPS_PD + 2]
     if tr_d - params[P_BETA] * params[P_LAMBDA_PK] > 0.0:
         return False
-    s1, s2, s3, p = _principal_values(s_tr)
+    s1, s2, s3, mean, p = _principal_values(s_tr)
     c_n = _cohesion(lam_d, params)[0]
     rt = params[P_RT]
-    mean = (s_tr[0, 0] + s_tr[1, 1] + s_tr[2, 2]) / 3.0
     sure = _CLOSED_FORM_ERROR * (abs(mean) + 2.0 * p)
     margin = params[P_TOL] - sure - _CLOSED_FORM_ERROR * (rt + c_n)
     if s1 - rt > margin:
         return False
-    s_eq = math.sqrt(3.0) * p + params[P_DELTA] * mean  # sqrt(J2) - delta p; J2 = 3 p^2
+    s_eq = _SQRT3 * p + params[P_DELTA] * mean  # sqrt(J2) - delta p; J2 = 3 p^2
     if s_eq - c_n > margin:
         return False
     # the principal split, or False when it is not clearly resolved
