@@ -61,10 +61,13 @@ measured, gets ``REFERENCE_TIME_FACTOR`` times that limit.
 Scaling (:func:`bench_scaling`, ``masonry bench-scaling CASE.yaml``)
 --------------------------------------------------------------------
 Walls with about 1, 2, 4 and 8 times the units of the case (courses and units per course
-doubled in turn; up to 256 times with ``largest``), each built and stepped a fixed number of
-steps in a fresh subprocess, under a time and an address-space limit when given: build time,
-median time per step over the steps after the first few, factorisations and Krylov iterations
-per step, peak memory, against the number of contact points. A one-unit wall stepped the same way gives the baseline (interpreter,
+doubled in turn; up to 256 times with ``largest``), each built and stepped ``steps`` times in a
+fresh subprocess, or fewer where the case ends first (its target displacement or time limit,
+the stop rule of ``masonry run``), under a time and an address-space limit when given: build
+time, the time per step as the mean over every step (the first, hard ones included: a run's
+time over its steps) and as the median over the steps after the first few, factorisations and
+Krylov iterations per step, peak memory, against the number of contact points; each step's
+time, iterations and factorisations in ``scaling_steps.csv``. A one-unit wall stepped the same way gives the baseline (interpreter,
 libraries, compiled kernels); the growth of memory is the log-log slope of the increments above
 that baseline against the number of contact points (1: linear).
 
@@ -79,6 +82,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import io
+import itertools
 import json
 import math
 import statistics
@@ -522,10 +526,12 @@ def _child_steps(spec: Mapping[str, Any]) -> dict[str, Any]:
     integ = scene.integrator()
     build_s = time.perf_counter() - t0
     timing.reset()  # the steps' parts only
+    (mx, wx), _ = scene.measured_dofs(integ.sys.body_dof0)
     out: dict[str, Any] = {
         "status": "ok", "message": "", "scene_s": scene_s, "build_s": build_s, "step_s": [],
-        "sweeps": [], "counts": [integ.solver_counts()], "units": len(scene.structure),
-        "contact_points": int(integ.sys.npt), "dofs": int(integ.sys.ndof)}
+        "sweeps": [], "t_s": [], "finished": False, "counts": [integ.solver_counts()],
+        "units": len(scene.structure), "contact_points": int(integ.sys.npt),
+        "dofs": int(integ.sys.ndof)}
     _write_partial(spec, out)
     for _ in range(int(spec["steps"])):
         if limit is not None and time.perf_counter() - t0 > float(limit):
@@ -536,9 +542,14 @@ def _child_steps(spec: Mapping[str, Any]) -> dict[str, Any]:
         rep = integ.step()
         out["step_s"].append(time.perf_counter() - t1)
         out["sweeps"].append(rep.sweeps)
+        out["t_s"].append(rep.time)
         out["counts"].append(integ.solver_counts())
         out["parts"] = [[r.name, r.calls, r.total_s, r.median_ms] for r in timing.table()]
+        # the case's own end (its target displacement or its time limit), as ``masonry run``
+        out["finished"] = scene.finished(float(wx @ integ.u[mx]), rep.time)
         _write_partial(spec, out)
+        if out["finished"]:
+            break
     return out
 
 
@@ -972,9 +983,12 @@ class ScalingRow:
     contact_points: int = 0
     dofs: int = 0
     steps: int = 0
+    simulated_s: float = math.nan  # the time the last step ended at (s)
+    finished: bool = False  # the case's end reached (its target displacement or time limit)
     scene_s: float = math.nan  # the scene builder: layout, meshes, contact detection
     build_s: float = math.nan  # the scene and the integrator (system matrices)
     step_ms_median: float = math.nan  # over the steps after the first ``skip``
+    step_ms_mean: float = math.nan  # every step, the first ones included: summed time / steps
     median_iterations: float = math.nan
     ms_per_iteration: float = math.nan  # median over the same steps of step time / iterations
     # over the same steps: factorisations of the Newton matrix (or of its preconditioner),
@@ -1006,6 +1020,31 @@ class PartRow:
 
 
 PARTS_COLUMNS = [f.name for f in fields(PartRow)]
+
+
+@dataclass
+class StepRow:
+    """One row of ``scaling_steps.csv``: one step of one wall."""
+
+    wall: str
+    step: int
+    end_s: float  # the time the step ended at (s)
+    step_ms: float  # its wall-clock time (ms)
+    iterations: int  # Newton iterations (or sweeps) of the step
+    factorisations: int  # of the Newton matrix or of its preconditioner, in the step
+
+
+STEP_COLUMNS = [f.name for f in fields(StepRow)]
+
+
+def scaling_steps(name: str, res: Mapping[str, Any]) -> list[StepRow]:
+    """The rows of ``scaling_steps.csv`` of one wall from its child's result."""
+    step_s, sweeps, t_s = res.get("step_s", []), res.get("sweeps", []), res.get("t_s", [])
+    counts = res.get("counts", [])
+    fact = ([b["factorisations"] - a["factorisations"] for a, b in itertools.pairwise(counts)]
+            if len(counts) == len(step_s) + 1 else [-1] * len(step_s))
+    return [StepRow(name, k + 1, t, 1e3 * d, int(it), int(f))
+            for k, (d, it, t, f) in enumerate(zip(step_s, sweeps, t_s, fact, strict=False))]
 
 
 def scaling_parts(name: str, res: Mapping[str, Any]) -> list[PartRow]:
@@ -1048,7 +1087,11 @@ def _scaling_row(name: str, courses: int, units: int, res: Mapping[str, Any],
         row.scene_s, row.build_s = res["scene_s"], res["build_s"]
     step_s, sweeps = res.get("step_s", []), res.get("sweeps", [])
     row.steps = len(step_s)
+    row.finished = bool(res.get("finished", False))
+    if res.get("t_s"):
+        row.simulated_s = float(res["t_s"][-1])
     if step_s:
+        row.step_ms_mean = 1e3 * float(np.mean(step_s))
         kept = slice(skip, None) if len(step_s) > skip else slice(None)
         t = np.asarray(step_s[kept], dtype=float)
         its = np.maximum(1.0, np.asarray(sweeps[kept], dtype=float))
@@ -1099,6 +1142,7 @@ def bench_scaling(case_path: Path | str, outdir: Path | str, *, overrides: Seque
     kill_s = None if time_limit_s is None else float(time_limit_s) + 60.0
     rows: list[ScalingRow] = []
     parts: list[PartRow] = []
+    step_rows: list[StepRow] = []
     for name, c, n in walls:
         if rows and rows[-1].status in ("memory", "skipped"):
             rows.append(ScalingRow(name, c, n, status="skipped",
@@ -1110,11 +1154,15 @@ def bench_scaling(case_path: Path | str, outdir: Path | str, *, overrides: Seque
         rows.append(row)
         wall_parts = scaling_parts(name, res)
         parts += wall_parts
+        step_rows += scaling_steps(name, res)
+        end = (f"the case's end (t = {row.simulated_s:.4g} s)" if row.finished else
+               f"t = {row.simulated_s:.4g} s")
         echo(f"{name}: {c} courses x {n} units per course, {row.units} units, "
              f"{row.contact_points} contact points: {row.status}, build {row.build_s:.3g} s, "
-             f"{row.step_ms_median:.3g} ms per step, {row.factorisations_per_step:.2g} "
-             f"factorisations per step, {row.peak_rss_MiB:.0f} MiB"
-             + (f": {row.message}" if row.message else ""))
+             f"{row.steps} steps to {end}, {row.step_ms_mean:.3g} ms per step on average "
+             f"({row.step_ms_median:.3g} median after the first {skip}), "
+             f"{row.factorisations_per_step:.2g} factorisations per step, "
+             f"{row.peak_rss_MiB:.0f} MiB" + (f": {row.message}" if row.message else ""))
         top = wall_parts[:4]  # the longest first (timing.table)
         if top:
             echo("  of the step time: " + ", ".join(
@@ -1125,7 +1173,9 @@ def bench_scaling(case_path: Path | str, outdir: Path | str, *, overrides: Seque
         r.rss_above_baseline_MiB = r.peak_rss_MiB - base
     write_rows(outdir / "scaling.csv", rows, SCALING_COLUMNS)
     write_rows(outdir / "scaling_parts.csv", parts, PARTS_COLUMNS)
-    plot_scaling(rows, outdir / "scaling.png", f"{case.name}: {steps} steps per wall")
+    write_rows(outdir / "scaling_steps.csv", step_rows, STEP_COLUMNS)
+    plot_scaling(rows, outdir / "scaling.png",
+                 f"{case.name}: up to {steps} steps per wall (fewer where the case ends)")
     return rows, scaling_statements(rows)
 
 
@@ -1148,6 +1198,8 @@ def scaling_statements(rows: Sequence[ScalingRow]) -> list[str]:
     s_last = loglog_slope(npt[-2:], above[-2:])
     s_time = loglog_slope([float(r.contact_points) for r in timed],
                           [r.step_ms_median for r in timed])
+    s_mean = loglog_slope([float(r.contact_points) for r in timed],
+                          [r.step_ms_mean for r in timed])
     if math.isnan(s_mem):
         growth = "not measurable (fewer than two walls above the baseline)"
     else:
@@ -1161,19 +1213,22 @@ def scaling_statements(rows: Sequence[ScalingRow]) -> list[str]:
          f"(least squares over {len(walls)} walls)"),
         ("log-log slope of the memory above the one-unit baseline against contact points: "
          f"{growth}"),
-        f"log-log slope of the time per step against contact points: {s_time:.2f}",
+        (f"log-log slope of the time per step against contact points: {s_time:.2f} "
+         f"(medians after the first steps), {s_mean:.2f} (means over all the steps)"),
     ]
 
 
 def format_scaling_table(rows: Sequence[ScalingRow]) -> str:
     """The scaling rows as a fixed-width text table."""
     lines = [(f"{'wall':8s} {'courses':>7s} {'upc':>4s} {'units':>6s} {'points':>7s} "
-              f"{'dofs':>7s} {'scene s':>8s} {'build s':>8s} {'ms/step':>8s} {'it/step':>7s} "
+              f"{'dofs':>7s} {'scene s':>8s} {'build s':>8s} {'steps':>5s} {'mean ms':>8s} "
+              f"{'ms/step':>8s} {'it/step':>7s} "
               f"{'ms/it':>7s} {'LU/step':>7s} {'kry/st':>6s} "
               f"{'RSS MiB':>8s} {'above base':>10s} status")]
     for r in rows:
         lines.append(f"{r.wall:8s} {r.courses:7d} {r.units_per_course:4d} {r.units:6d} "
                      f"{r.contact_points:7d} {r.dofs:7d} {r.scene_s:8.3g} {r.build_s:8.3g} "
+                     f"{r.steps:5d} {r.step_ms_mean:8.3g} "
                      f"{r.step_ms_median:8.3g} {r.median_iterations:7.3g} "
                      f"{r.ms_per_iteration:7.3g} {r.factorisations_per_step:7.2g} "
                      f"{r.linear_iterations_per_step:6.3g} {r.peak_rss_MiB:8.1f} "
@@ -1193,19 +1248,23 @@ def plot_scaling(rows: Sequence[ScalingRow], path: Path, title: str) -> Path | N
         return None
     fig = Figure(figsize=(12, 5), layout="constrained")
     npt = np.array([r.contact_points for r in walls], dtype=float)
-    panels = (("step_ms_median", "time per step (ms, median)"),
-              ("rss_above_baseline_MiB", "peak memory above the one-unit baseline (MiB)"))
-    for k, (attr, label) in enumerate(panels):
+    panels = ((("step_ms_median", "median after the first steps"),
+               ("step_ms_mean", "mean over every step")), "time per step (ms)"), \
+        ((("rss_above_baseline_MiB", "measured"),), "peak memory above the one-unit baseline (MiB)")
+    for k, (series, label) in enumerate(panels):
         ax = fig.add_subplot(1, 2, k + 1)
-        y = np.array([getattr(r, attr) for r in walls], dtype=float)
-        ok = np.isfinite(y) & (y > 0)
-        ax.loglog(npt[ok], y[ok], "o-", label="measured")
-        for x, v, r in zip(npt[ok], y[ok], [w for w, o in zip(walls, ok, strict=True) if o],
-                           strict=True):
-            ax.annotate(r.wall, (x, v), textcoords="offset points", xytext=(5, -10), fontsize=8)
-        if ok.any():
-            x0, y0 = npt[ok][0], y[ok][0]
-            ax.loglog(npt, y0 * npt / x0, "k--", lw=1, label="linear (slope 1)")
+        for j, (attr, name) in enumerate(series):
+            y = np.array([getattr(r, attr) for r in walls], dtype=float)
+            ok = np.isfinite(y) & (y > 0)
+            ax.loglog(npt[ok], y[ok], "o-" if j == 0 else "s:", label=name)
+            if j == 0:
+                for x, v, r in zip(npt[ok], y[ok],
+                                   [w for w, o in zip(walls, ok, strict=True) if o], strict=True):
+                    ax.annotate(r.wall, (x, v), textcoords="offset points", xytext=(5, -10),
+                                fontsize=8)
+                if ok.any():
+                    x0, y0 = npt[ok][0], y[ok][0]
+                    ax.loglog(npt, y0 * npt / x0, "k--", lw=1, label="linear (slope 1)")
         ax.set_xlabel("contact points")
         ax.set_ylabel(label)
         ax.grid(True, which="both", alpha=0.3)

@@ -636,8 +636,9 @@ def bench_scaling_cmd(
         "-o", "--output", metavar="OUTDIR",
         help="Folder of scaling.csv and scaling.png (default results/bench-scaling/<case name>/)."
     )] = None,
-    steps: Annotated[int, typer.Option("--steps", metavar="N", help="Time steps per wall.")
-                     ] = 40,
+    steps: Annotated[int, typer.Option(
+        "--steps", metavar="N",
+        help="Time steps per wall, at most: a wall stops where its case ends.")] = 40,
     largest: Annotated[int, typer.Option(
         "--largest", metavar="K",
         help="The largest wall, K times the units of the case (a power of two, 1 to 256; the "

@@ -225,12 +225,32 @@ def test_scaling_on_the_smoke_wall(tmp_path):
     # joint-law calls, and the parts are inside its steps (shares at most 1 in all)
     header, parts = _read_csv(tmp_path / "scaling_parts.csv")
     assert header == bm.PARTS_COLUMNS
+    header, steps = _read_csv(tmp_path / "scaling_steps.csv")
+    assert header == bm.STEP_COLUMNS
+    assert [sum(s["wall"] == r["wall"] for s in steps) for r in rows] == [3] * len(rows)
     for r in rows:
         mine = {p["part"]: p for p in parts if p["wall"] == r["wall"]}
         assert int(mine["joint law"]["calls"]) >= int(r["steps"])
         assert "factorisation" in mine
         assert sum(float(p["share"]) for p in mine.values()) <= 1.0 + 1e-9
     assert "of the step time:" in res.output
+
+
+def test_the_scaling_steps_stop_where_the_case_ends(tmp_path):
+    """A wall given more steps than its case needs stops at the case's end, after the same
+    steps as ``masonry run`` (the target displacement reached)."""
+    sets = ["loading.horizontal.target_m=1e-4", "output.vtu=false", "output.hdf5=false"]
+    res = CliRunner().invoke(app, ["run", SMOKE, "-o", str(tmp_path / "run"),
+                                   *[a for s in sets for a in ("--set", s)]])
+    assert res.exit_code == 0, res.output
+    _, curve = _read_csv(tmp_path / "run" / "force_displacement.csv")
+    out = bm._child_steps({"kind": "steps", "case": SMOKE, "overrides": sets, "steps": 10_000})
+    assert out["finished"] and out["status"] == "ok"
+    assert len(out["step_s"]) == len(curve) < 10_000
+    assert out["t_s"][-1] == pytest.approx(float(curve[-1]["time_s"]), rel=1e-12)
+    assert float(curve[-1]["ux_mm"]) >= 0.1 > float(curve[-2]["ux_mm"])
+    row = bm._scaling_row("1x", 4, 4, {**out, "process_s": 1.0}, skip=2)
+    assert row.finished and row.steps == len(curve)
 
 
 def test_the_reference_run_gets_a_longer_time_limit(tmp_path, monkeypatch):

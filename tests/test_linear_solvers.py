@@ -358,6 +358,13 @@ def test_a_wall_stopped_by_its_limit_keeps_its_build_and_steps():
     row = bm._scaling_row("8x", 4, 2, res, skip=1)
     assert (row.status, row.steps, row.build_s) == ("timeout", 4, 1.5)
     assert row.step_ms_median == pytest.approx(300.0)  # median of 0.2, 0.3, 0.4 s
+    assert row.step_ms_mean == pytest.approx(350.0)  # all four, the first included
+    assert not row.finished
+    # one row per step in scaling_steps.csv, with the factorisations made in that step
+    steps = bm.scaling_steps("8x", {**res, "t_s": [0.004, 0.008, 0.012, 0.016]})
+    assert [(r.step, r.end_s, r.iterations, r.factorisations) for r in steps] == [
+        (1, 0.004, 10, 2), (2, 0.008, 4, 1), (3, 0.012, 6, 2), (4, 0.016, 8, 1)]
+    assert [r.step_ms for r in steps] == pytest.approx([500.0, 200.0, 300.0, 400.0])
     assert row.factorisations_per_step == pytest.approx((7 - 3) / 3)
     assert row.linear_iterations_per_step == pytest.approx((70 - 30) / 3)
 
