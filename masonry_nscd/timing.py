@@ -49,6 +49,12 @@ def part(name: str) -> _Timer:
     return t
 
 
+def record(name: str, seconds: float) -> None:
+    """One call of the part ``name`` that took ``seconds``, timed by the caller (a part whose
+    time is interleaved with other parts' on the calling thread)."""
+    part(name).durations.append(seconds)
+
+
 def reset() -> None:
     """Forget every part's calls (a run starts)."""
     _timers.clear()

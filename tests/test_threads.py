@@ -60,6 +60,35 @@ def test_set_count_is_checked_and_used():
     assert sorted(seen) == threads.ranges(3000) and sum(out) == 3000 and len(out) == 3
 
 
+def test_batches_run_together_as_they_would_alone():
+    """Two batches in one hand-over: each kernel sees its own ranges once (a batch too small
+    to split stays whole, on the calling thread), the results come back per batch in the
+    order of its ranges, and ``meanwhile`` runs on the calling thread before the wait."""
+    import threading
+
+    threads.set_count(3)
+    seen = {"a": [], "b": []}
+    where = []
+
+    def kernel(name):
+        def run(lo, hi):
+            seen[name].append((lo, hi, threading.get_ident()))
+            return (name, lo, hi)
+        return run
+
+    out = threads.run_together([(kernel("a"), 3000, None), (kernel("b"), 100, None)],
+                               meanwhile=lambda: where.append(threading.get_ident()))
+    assert out[0] == [("a", lo, hi) for lo, hi in threads.ranges(3000)]
+    assert out[1] == [("b", 0, 100)]  # under MIN_POINTS: one range
+    assert where == [threading.get_ident()]
+    assert sorted(x[:2] for x in seen["a"]) == threads.ranges(3000)
+    first = [t for lo, _, t in seen["a"] if lo == 0]
+    assert first == [threading.get_ident()] == [seen["b"][0][2]]
+    # one batch alone is run_ranges
+    assert threads.run_together([(kernel("a"), 3000, None)])[0] == \
+        threads.run_ranges(kernel("a"), 3000)
+
+
 def test_the_count_follows_numba_num_threads(monkeypatch):
     monkeypatch.setenv("NUMBA_NUM_THREADS", "5")
     assert threads.count() == 5

@@ -203,6 +203,18 @@ class Endo3dBlocks:
             hex8.forces_from_gradients(self.dN, self.w, self.edofs, self.sigma_committed_all,
                                        fint)
             return
+        batch, n, min_size, finish = self.trial_batch(u, fint, departure)
+        with timing.part("ENDO3D trial"):
+            finish(threads.run_ranges(batch, n, min_size=min_size))
+
+    def trial_batch(self, u: np.ndarray, fint: np.ndarray,
+                    departure: np.ndarray | None = None) -> tuple:
+        """The trial of :meth:`internal_forces` as a batch for ``threads``: ``(batch, n,
+        min_size, finish)``, with ``batch(lo, hi)`` the elements ``lo`` to ``hi - 1`` (their
+        Gauss points updated from the committed states, their element vectors computed; it
+        returns the count of return mappings that failed), ``n`` the elements and ``finish``
+        to call with the batch's results once every range is done: it records the failures
+        and sums the element vectors into ``fint`` (and ``departure``)."""
         nel = len(self.dN)
         f_e = np.empty((nel, 24))
         c_e = np.empty((nel, 24))
@@ -218,14 +230,16 @@ class Endo3dBlocks:
                 self.eps_committed_all[p0:p1], self._eps[p0:p1], self.trial_all[p0:p1],
                 sig_endo[p0:p1], self.sigma_all[p0:p1], f_e[lo:hi], c_e[lo:hi])
 
-        with timing.part("ENDO3D trial"):
-            # a range of elements holds as many Gauss points as a range of points elsewhere
-            self.failures = sum(threads.run_ranges(batch, nel, min_size=threads.MIN_POINTS // 8))
+        def finish(failures: list[int]) -> None:
+            self.failures = sum(failures)
             fint[self.all_dofs] = 0.0
             add_element_vectors(self.edofs, f_e, fint)
             if departure is not None:
                 departure[self.all_dofs] = 0.0
                 add_element_vectors(self.edofs, c_e, departure)
+
+        # a range of elements holds as many Gauss points as a range of points elsewhere
+        return batch, nel, threads.MIN_POINTS // 8, finish
 
     def failed_points(self) -> np.ndarray:
         """Gauss points (indices into the batch) whose return mapping did not converge at the

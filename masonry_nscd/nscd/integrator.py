@@ -49,7 +49,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from masonry_nscd import timing
+from masonry_nscd import threads, timing
 from masonry_nscd.contact import laws
 from masonry_nscd.loading import Loads, step_velocity
 from masonry_nscd.model import DOF_IMPOSED, ContactPoint, RigidBody
@@ -287,22 +287,9 @@ class Integrator:
         if self.material is not None:
             self._update_tangent()
 
-    def _material_correction(self):
-        """``c(v) = h theta [F_int(u) - F_int(u_n) - K0 (u - u_n)]`` for the ENDO3D blocks,
-        summed element by element from the stresses and strains committed at ``u_n``
-        (``Endo3dBlocks.internal_forces``)."""
-        s = self.sys
-        h, th = s.h, s.theta
-        f_trial = np.zeros(s.ndof)
-
-        def correction(v):
-            du = h * (th * v + (1.0 - th) * self.v)
-            c = np.zeros(s.ndof)  # a new array: the solver compares it with the last one
-            self.material.internal_forces(self.u + du, f_trial, trial=True, departure=c)
-            c *= h * th
-            return c, h * th * float(np.linalg.norm(f_trial)) + 1e-300
-
-        return correction
+    def _material_correction(self) -> MaterialCorrection:
+        """The ENDO3D blocks' correction of this step's Newton residual."""
+        return MaterialCorrection(self)
 
     def step(self) -> StepReport:
         """Advance by one step: of h (made again as halves if it fails, ``_step_h``), or with
@@ -573,3 +560,41 @@ class Integrator:
 
     def body_dofs(self, i: int) -> slice:
         return slice(int(self.sys.body_dof0[i]), int(self.sys.body_dof0[i + 1]))
+
+
+class MaterialCorrection:
+    """``c(v) = h theta [F_int(u) - F_int(u_n) - K0 (u - u_n)]`` for the ENDO3D blocks of one
+    step, with ``u = u_n + h (theta v + (1 - theta) v_n)``, summed element by element from the
+    stresses and strains committed at ``u_n`` (``Endo3dBlocks.internal_forces``); and the size
+    of the internal impulses it corrects, ``h theta |F_int(u)|`` (N s).
+
+    ``correction(v) -> (c, scale)``; or, for the Newton residual, which runs the trial in the
+    same hand-over to the threads as the joint law, :meth:`batch`."""
+
+    def __init__(self, integ: Integrator):
+        self.integ = integ
+        s = integ.sys
+        self.h, self.theta, self.ndof = s.h, s.theta, s.ndof
+        self.f_trial = np.zeros(s.ndof)
+
+    def batch(self, v: np.ndarray) -> tuple:
+        """``(kernel, n, min_size, finish)``: the trial at ``v`` as a batch for
+        ``threads.run_together``, and ``finish(results) -> (c, scale)`` once it has run."""
+        h, th, integ = self.h, self.theta, self.integ
+        du = h * (th * v + (1.0 - th) * integ.v)
+        c = np.zeros(self.ndof)  # a new array: the solver compares it with the last one
+        kernel, n, min_size, done = integ.material.trial_batch(integ.u + du, self.f_trial,
+                                                               departure=c)
+
+        def finish(results: list) -> tuple[np.ndarray, float]:
+            done(results)
+            c[:] *= h * th  # in place: c is the closure's
+            return c, h * th * float(np.linalg.norm(self.f_trial)) + 1e-300
+
+        return kernel, n, min_size, finish
+
+    def __call__(self, v: np.ndarray) -> tuple[np.ndarray, float]:
+        kernel, n, min_size, finish = self.batch(v)
+        with timing.part("ENDO3D trial"):
+            return finish(threads.run_ranges(kernel, n, min_size=min_size))
+

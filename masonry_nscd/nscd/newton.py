@@ -831,9 +831,10 @@ class NewtonSolver:
         steps show when the loads are tiny (the open joint is some 300 times softer than the
         closed one).
 
-        ``correction(v) -> (c, scale)``: a material correction of the body residual (N s), for
-        blocks whose internal forces are not linear (ENDO3D), and the size of the internal
-        impulses it corrects; its relative change between iterates joins the convergence test.
+        ``correction``: a material correction of the body residual (N s), for blocks whose
+        internal forces are not linear (ENDO3D), and the size of the internal impulses it
+        corrects (``integrator.MaterialCorrection``; ``StepResidual`` says how it is called);
+        its relative change between iterates joins the convergence test.
         """
         residual = StepResidual(self, v_free, u_old, U_old, params, uc_old, beta_old, T,
                                 correction)

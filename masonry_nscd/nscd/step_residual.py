@@ -24,6 +24,7 @@ largest of them.
 from __future__ import annotations
 
 import math
+import time
 from typing import NamedTuple
 
 import numpy as np
@@ -169,8 +170,11 @@ class StepResidual:
     """The residual of one step as a function of the iterate (``__call__``), for the solver
     ``solver`` (a ``NewtonSolver``: the system, the multipliers, their ``scales``).
 
-    ``correction(v) -> (c, scale)``: the material correction (N s) and the size of the
-    internal impulses it corrects (None: linear blocks).
+    ``correction``: the material correction (None: linear blocks), whose ``batch(v)`` gives
+    the kernel that computes it, as a batch for ``threads.run_together`` run in the same
+    hand-over as the joint law, and what turns the batch's results into ``(c, scale)``: the
+    correction (N s) and the size of the internal impulses it corrects
+    (``integrator.MaterialCorrection``).
     """
 
     def __init__(self, solver, v_free, u_old, U_old, params, uc_old, beta_old, T,
@@ -213,16 +217,34 @@ class StepResidual:
                             uc_old[lo:hi], beta_old[lo:hi], out_T[lo:hi], out_uc[lo:hi],
                             out_beta[lo:hi], out_status[lo:hi])
 
-        with timing.part("joint law"):
-            threads.run_ranges(joints, npt)
-        with timing.part("glue and rigid contacts"):
-            evaluate_multipliers(u_pred, Hv, h, th, g, sv.mu, sv.rho, sv.eps, uc_old, r_glue,
-                                 s.area, F[nf:], Gu, Gr, out_T, out_uc, out_status)
-        with timing.part("bodies' residual"):
-            # R_v = M_hat (v - v_free) - H r over all dofs (imposed ones included)
+        busy = [0.0, 0.0]  # the calling thread's time in ``meanwhile`` and in its product (s)
+
+        def meanwhile():
+            # what needs none of the joints' tractions, while the threads finish: the glue's
+            # and the rigid contacts' rows, and R_v = M_hat (v - v_free) over all dofs
+            t0 = time.perf_counter()
+            with timing.part("glue and rigid contacts"):
+                evaluate_multipliers(u_pred, Hv, h, th, g, sv.mu, sv.rho, sv.eps, uc_old,
+                                     r_glue, s.area, F[nf:], Gu, Gr, out_T, out_uc, out_status)
+            t1 = time.perf_counter()
             sv.mhat_op.matvec(v - self.v_free, R)
-            subtract_impulses(s.side_dofs, s.side_coef, mo, s.area, out_T, r_glue, h, R)
-        cvec, cscale = (None, 0.0) if self.correction is None else self.correction(v)
+            t2 = time.perf_counter()
+            busy[:] = t2 - t0, t2 - t1
+
+        # the joint law and the ENDO3D trial (the material correction c(v)) in one hand-over
+        jobs = [(joints, npt, None)]
+        if self.correction is not None:
+            kernel, n, min_size, finish = self.correction.batch(v)
+            jobs.append((kernel, n, min_size))
+        t0 = time.perf_counter()
+        results = threads.run_together(jobs, meanwhile)
+        cvec, cscale = (None, 0.0) if self.correction is None else finish(results[1])
+        timing.record("joint law" if self.correction is None else "joint law and ENDO3D trial",
+                      time.perf_counter() - t0 - busy[0])
+        t1 = time.perf_counter()
+        # R_v -= H r: the joints' and the multipliers' impulses
+        subtract_impulses(s.side_dofs, s.side_coef, mo, s.area, out_T, r_glue, h, R)
+        timing.record("bodies' residual", busy[1] + time.perf_counter() - t1)
         if cvec is not None:
             R[:] += cvec
         F[:nf] = R[sv.free]
