@@ -49,7 +49,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from masonry_nscd import threads, timing
+from masonry_nscd import timing
 from masonry_nscd.contact import laws
 from masonry_nscd.loading import Loads, step_velocity
 from masonry_nscd.model import DOF_IMPOSED, ContactPoint, RigidBody
@@ -566,10 +566,9 @@ class MaterialCorrection:
     """``c(v) = h theta [F_int(u) - F_int(u_n) - K0 (u - u_n)]`` for the ENDO3D blocks of one
     step, with ``u = u_n + h (theta v + (1 - theta) v_n)``, summed element by element from the
     stresses and strains committed at ``u_n`` (``Endo3dBlocks.internal_forces``); and the size
-    of the internal impulses it corrects, ``h theta |F_int(u)|`` (N s).
-
-    ``correction(v) -> (c, scale)``; or, for the Newton residual, which runs the trial in the
-    same hand-over to the threads as the joint law, :meth:`batch`."""
+    of the internal impulses it corrects, ``h theta |F_int(u)|`` (N s). The Newton residual
+    asks for it as a batch (:meth:`batch`), to run the trial in the same hand-over to the
+    threads as the joint law."""
 
     def __init__(self, integ: Integrator):
         self.integ = integ
@@ -592,9 +591,3 @@ class MaterialCorrection:
             return c, h * th * float(np.linalg.norm(self.f_trial)) + 1e-300
 
         return kernel, n, min_size, finish
-
-    def __call__(self, v: np.ndarray) -> tuple[np.ndarray, float]:
-        kernel, n, min_size, finish = self.batch(v)
-        with timing.part("ENDO3D trial"):
-            return finish(threads.run_ranges(kernel, n, min_size=min_size))
-
