@@ -208,14 +208,19 @@ def run(
         outdir = output or Path("results") / case.name
     import signal
 
-    from masonry_nscd.run import TERMINATE, RunFailure, RunInputError, RunOutputError, run_case
-
-    def _terminate(signum, frame):  # SIGTERM ends the run like Ctrl-C: outputs are kept
-        TERMINATE.set()  # in case the exception is lost (raised inside a library)
-        raise KeyboardInterrupt
+    from masonry_nscd.run import (
+        TERMINATE,
+        RunFailure,
+        RunInputError,
+        RunOutputError,
+        request_stop,
+        run_case,
+    )
 
     TERMINATE.clear()
-    signal.signal(signal.SIGTERM, _terminate)
+    # SIGTERM and Ctrl-C end the run with its outputs kept, never in the middle of writing them
+    signal.signal(signal.SIGTERM, request_stop)
+    signal.signal(signal.SIGINT, request_stop)
     try:
         res = run_case(case, outdir, overwrite=overwrite, echo=typer.echo,
                        resume=resume is not None)
@@ -232,6 +237,7 @@ def run(
               f"(continue with: masonry run --resume {outdir})", 130)
     finally:
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     typer.echo(f"results in {res.outdir}")
 
 

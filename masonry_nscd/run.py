@@ -30,13 +30,39 @@ from masonry_nscd.io import runfolder as rf
 from masonry_nscd.io.atomic import writing
 from masonry_nscd.io.runfolder import CSV_COLUMNS
 
-__all__ = ["CSV_COLUMNS", "LOST_RESIDUAL", "TERMINATE", "RunFailure", "RunInputError",
-           "RunOutputError", "RunResult", "run_case"]
+__all__ = ["CSV_COLUMNS", "LOST_RESIDUAL", "TERMINATE", "WRITING", "RunFailure",
+           "RunInputError", "RunOutputError", "RunResult", "request_stop", "run_case"]
 
 #: Set by a signal handler (``masonry run`` on SIGTERM) that also raises KeyboardInterrupt: the
 #: step loop raises it again at the next step, should the handler's exception have been lost
 #: (a SIGTERM 16 s into a run, while numba was loading its kernels, left the run going).
 TERMINATE = threading.Event()
+
+#: Set while the run writes its files (an output step, the files' closing): a stop request
+#: (:func:`request_stop`) then only sets :data:`TERMINATE`, and the step loop stops once the
+#: writing is done. An exception raised inside h5py's calls left results.h5 flagged as still
+#: open for writing (a SIGTERM test, once in CI).
+WRITING = threading.Event()
+
+
+def request_stop(signum=None, frame=None) -> None:
+    """The signal handler of ``masonry run`` (SIGTERM, Ctrl-C): stop the run like Ctrl-C,
+    the outputs kept. Sets :data:`TERMINATE` (the step loop raises KeyboardInterrupt at its
+    next step, should this handler's exception be lost inside a library) and raises
+    KeyboardInterrupt now, unless the run is writing its files (:data:`WRITING`)."""
+    TERMINATE.set()
+    if not WRITING.is_set():
+        raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def _writing_files():
+    """The block writes the run's files: a stop request waits for its end."""
+    WRITING.set()
+    try:
+        yield
+    finally:
+        WRITING.clear()
 
 #: A step that ends with a residual (relative change of the contact forces between the last
 #: iterates; for Newton also the momentum residual against the contact impulses) above this
@@ -341,10 +367,11 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
                     acct = integ.energy_account
                     energy = None if acct is None else acct.balance(integ)
                     try:  # the writers refuse NaN/inf (ValueError naming the field)
-                        rec.write_output(rep.step, rep.time, step_out, integ, done=done,
-                                         unconverged=unconverged, worst_residual=worst,
-                                         energy_row=None if energy is None else
-                                         energy_row(rep.step, rep.time, energy))
+                        with _writing_files():
+                            rec.write_output(rep.step, rep.time, step_out, integ, done=done,
+                                             unconverged=unconverged, worst_residual=worst,
+                                             energy_row=None if energy is None else
+                                             energy_row(rep.step, rep.time, energy))
                     except ValueError as exc:
                         raise failure(rep.step, rep.time, f"{exc} (not written)") from exc
             if (rep.step % progress_every == 0 if progress_every else
@@ -381,7 +408,8 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
             log.close()
         raise
     finally:
-        rec.close()
+        with _writing_files():
+            rec.close()
         if monitor is not None:
             monitor.close()
     secs = time.perf_counter() - t_start

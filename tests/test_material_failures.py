@@ -25,13 +25,18 @@ def test_failed_gauss_points_are_counted_and_located(tmp_path, monkeypatch):
     fail_on_step = 3
     calls = {"step": 0}
     orig_failed = blocks.Endo3dBlocks.failed_points
-    orig_internal = blocks.Endo3dBlocks.internal_forces
+    orig_batch = blocks.Endo3dBlocks.trial_batch
     orig_commit = blocks.Endo3dBlocks.commit
 
-    def internal_forces(self, u, fint, *, trial=True, departure=None):
-        orig_internal(self, u, fint, trial=trial, departure=departure)
-        if trial and calls["step"] + 1 == fail_on_step:
-            self.failures += 1  # one more point than the kernel found
+    def trial_batch(self, u, fint, departure=None):
+        kernel, n, min_size, finish = orig_batch(self, u, fint, departure)
+
+        def finish_with_a_failure(results):
+            finish(results)
+            if calls["step"] + 1 == fail_on_step:
+                self.failures += 1  # one more point than the kernel found
+
+        return kernel, n, min_size, finish_with_a_failure
 
     def failed_points(self):
         found = orig_failed(self)
@@ -41,7 +46,7 @@ def test_failed_gauss_points_are_counted_and_located(tmp_path, monkeypatch):
         calls["step"] += 1
         orig_commit(self)
 
-    monkeypatch.setattr(blocks.Endo3dBlocks, "internal_forces", internal_forces)
+    monkeypatch.setattr(blocks.Endo3dBlocks, "trial_batch", trial_batch)
     monkeypatch.setattr(blocks.Endo3dBlocks, "failed_points", failed_points)
     monkeypatch.setattr(blocks.Endo3dBlocks, "commit", commit)
     out = tmp_path / "run"

@@ -87,6 +87,47 @@ def reference(tmp_path_factory):
 # --------------------------------------------------------------------------------------------
 
 
+def test_a_stop_request_waits_while_the_files_are_written(tmp_path, monkeypatch):
+    """The handler of SIGTERM and Ctrl-C raises at once, except while the run writes its
+    files: a request in the middle of an output step lets the step's files be written whole
+    (results.h5 closed and readable, the step in it), and the run stops at the next step."""
+    from masonry_nscd import run as run_mod
+    from masonry_nscd.io.recorder import Recorder
+
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_mod.request_stop()
+        assert run_mod.TERMINATE.is_set()
+        run_mod.TERMINATE.clear()
+        run_mod.WRITING.set()
+        run_mod.request_stop()  # no exception while writing
+        assert run_mod.TERMINATE.is_set()
+    finally:
+        run_mod.TERMINATE.clear()
+        run_mod.WRITING.clear()
+
+    orig = Recorder.write_output
+
+    def write_with_a_signal_inside(self, step, *args, **kwargs):
+        if step == 10:
+            run_mod.request_stop()  # as the signal handler would, in the middle of the write
+        return orig(self, step, *args, **kwargs)
+
+    monkeypatch.setattr(Recorder, "write_output", write_with_a_signal_inside)
+    out = tmp_path / "run"
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_case(load_case(SMOKE), out, **quiet)
+    finally:
+        run_mod.TERMINATE.clear()
+    assert not run_mod.WRITING.is_set()
+    rows = (out / "force_displacement.csv").read_text().splitlines()
+    assert len(rows) == 1 + 10  # the step whose output was being written, then the stop
+    with h5py.File(out / "results.h5", "r") as f:
+        assert "000010" in f["steps"]
+    assert read_resume_point(out).step == 10
+
+
 def test_a_lost_sigterm_still_stops_the_run_at_the_next_step(tmp_path, monkeypatch):
     """The SIGTERM handler of ``masonry run`` sets ``run.TERMINATE`` and raises; if a library
     swallows the exception (numba loading its kernels), the step loop raises it at the next

@@ -27,6 +27,10 @@ def test_a_timer_counts_calls_and_their_durations():
     # a sleep lasts at least what it was asked for
     assert rows["sleep"].total_s >= 0.06 and rows["sleep"].median_ms >= 20.0
     assert [r.name for r in timing.table()] == ["sleep", "short"]  # the longest first
+    timing.record("short", 0.5)  # a call timed by the caller
+    rows = {r.name: r for r in timing.table()}
+    assert rows["short"].calls == 2 and rows["short"].total_s >= 0.5
+    assert [r.name for r in timing.table()] == ["short", "sleep"]
     timing.reset()
     assert timing.table() == []
 
