@@ -87,6 +87,20 @@ def reference(tmp_path_factory):
 # --------------------------------------------------------------------------------------------
 
 
+def _interrupted_smoke_run(tmp_path):
+    """Run the smoke case into ``tmp_path/run``, expecting a stop (KeyboardInterrupt);
+    returns the folder and the lines of its CSV."""
+    from masonry_nscd import run as run_mod
+
+    out = tmp_path / "run"
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_case(load_case(SMOKE), out, **quiet)
+    finally:
+        run_mod.TERMINATE.clear()
+    return out, (out / "force_displacement.csv").read_text().splitlines()
+
+
 def test_a_stop_request_waits_while_the_files_are_written(tmp_path, monkeypatch):
     """The handler of SIGTERM and Ctrl-C raises at once, except while the run writes its
     files: a request in the middle of an output step lets the step's files be written whole
@@ -114,14 +128,8 @@ def test_a_stop_request_waits_while_the_files_are_written(tmp_path, monkeypatch)
         return orig(self, step, *args, **kwargs)
 
     monkeypatch.setattr(Recorder, "write_output", write_with_a_signal_inside)
-    out = tmp_path / "run"
-    try:
-        with pytest.raises(KeyboardInterrupt):
-            run_case(load_case(SMOKE), out, **quiet)
-    finally:
-        run_mod.TERMINATE.clear()
+    out, rows = _interrupted_smoke_run(tmp_path)
     assert not run_mod.WRITING.is_set()
-    rows = (out / "force_displacement.csv").read_text().splitlines()
     assert len(rows) == 1 + 10  # the step whose output was being written, then the stop
     with h5py.File(out / "results.h5", "r") as f:
         assert "000010" in f["steps"]
@@ -143,13 +151,7 @@ def test_a_lost_sigterm_still_stops_the_run_at_the_next_step(tmp_path, monkeypat
         return rep
 
     monkeypatch.setattr(Integrator, "step", step_and_lose_the_signal)
-    out = tmp_path / "run"
-    try:
-        with pytest.raises(KeyboardInterrupt):
-            run_case(load_case(SMOKE), out, **quiet)
-    finally:
-        run_mod.TERMINATE.clear()
-    rows = (out / "force_displacement.csv").read_text().splitlines()
+    out, rows = _interrupted_smoke_run(tmp_path)
     assert len(rows) == 1 + 12  # header and steps 1 to 12: step 13 was never made
     assert read_resume_point(out).step == 10
 
