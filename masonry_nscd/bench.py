@@ -1248,9 +1248,14 @@ def plot_scaling(rows: Sequence[ScalingRow], path: Path, title: str) -> Path | N
         return None
     fig = Figure(figsize=(12, 5), layout="constrained")
     npt = np.array([r.contact_points for r in walls], dtype=float)
-    panels = ((("step_ms_median", "median after the first steps"),
-               ("step_ms_mean", "mean over every step")), "time per step (ms)"), \
-        ((("rss_above_baseline_MiB", "measured"),), "peak memory above the one-unit baseline (MiB)")
+    # per panel: its curves (attribute, legend; the first one annotated and given the line of
+    # slope 1) and its axis label
+    panels = [
+        ([("step_ms_median", "median after the first steps"),
+          ("step_ms_mean", "mean over every step")], "time per step (ms)"),
+        ([("rss_above_baseline_MiB", "measured")],
+         "peak memory above the one-unit baseline (MiB)"),
+    ]
     for k, (series, label) in enumerate(panels):
         ax = fig.add_subplot(1, 2, k + 1)
         for j, (attr, name) in enumerate(series):
