@@ -32,8 +32,8 @@ Iterations:
 * chord steps ``-J0^-1 F`` with the factorisation of an earlier iterate, accelerated by
   Anderson mixing of the last few steps (``_anderson``: GMRES preconditioned by J0 on a linear
   residual), and a backtracking line search on the residual norm, which stops the open/closed
-  cycling of tiny loads; an accelerated step that does not decrease the norm is replaced by the
-  plain one;
+  cycling of tiny loads; an accelerated step is tried whole, and where it does not decrease the
+  norm the plain step's line search follows;
 * the matrix is factorised again (sparse LU, in a fixed pattern and order: ``_Pattern``) when
   the residual fell by less than ``slow_rate`` in two iterations in a row, or when a direction
   from an older matrix does not decrease the residual; where even the direction of a fresh
@@ -682,10 +682,12 @@ class NewtonSolver:
         self.lu = None
         self._factorise(K)
 
-    def _line_search(self, residual: StepResidual, v, r_glue, dx, norm, fresh):
+    def _line_search(self, residual: StepResidual, v, r_glue, dx, norm, fresh,
+                     halve: bool = True):
         """Backtracking on the merit norm from ``(v, r_glue)`` along ``dx``: halve the step
-        until the norm decreases (Armijo, 1e-4) or the step falls below 0.01. Returns
-        ``(alpha, descent, v, r_glue, evaluation)`` at the step taken.
+        until the norm decreases (Armijo, 1e-4) or the step falls below 0.01 (``halve``
+        False: the whole step only). Returns ``(alpha, descent, v, r_glue, evaluation)`` at
+        the step taken.
 
         When no step decreases the norm along a direction from the matrix of this iterate
         (``fresh``), the full step is taken all the same: the residual is only piecewise
@@ -706,6 +708,8 @@ class NewtonSolver:
             descent = ev.norm <= (1.0 - 1e-4 * alpha) * norm
             if descent:
                 return alpha, True, v_try, r_try, ev
+            if not halve:
+                return alpha, False, v_try, r_try, ev
             if alpha < 0.01:
                 if not fresh:
                     return alpha, False, v_try, r_try, ev
@@ -794,16 +798,19 @@ class NewtonSolver:
             x = np.concatenate([v[self.free], r_glue])
             if fresh:
                 history.clear()
-            step = dx
-            if history.last is not None and self.anderson > 0:
-                step = self._anderson(x, dx, history.last, history.d_x, history.d_f,
-                                      history.weight)
+            accelerated = history.last is not None and self.anderson > 0
+            step = self._anderson(x, dx, history.last, history.d_x, history.d_f,
+                                  history.weight) if accelerated else dx
             history.last = (x, dx)
+            # an accelerated step is taken whole or not at all: where it does not decrease the
+            # norm, the plain step's line search follows (halving the accelerated step first
+            # cost 3.6 to 3.9 % more evaluations of the ENDO3D walls for the same curves)
             alpha, descent, v_try, r_try, ev_try = self._line_search(
-                residual, v, r_glue, step, ev.norm, fresh and step is dx)
+                residual, v, r_glue, step, ev.norm, fresh and not accelerated,
+                halve=not accelerated)
             if alpha != 1.0 or not descent:
                 history.clear()
-                if step is not dx:  # the accelerated step failed: the plain one
+                if accelerated:
                     alpha, descent, v_try, r_try, ev_try = self._line_search(
                         residual, v, r_glue, dx, ev.norm, fresh)
             if descent or fresh:
