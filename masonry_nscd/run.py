@@ -21,7 +21,7 @@ import threading
 import time
 import traceback
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from masonry_nscd import threads, timing
@@ -162,6 +162,165 @@ def _log_end(log: _Log, integ, secs: float, ux: float, top, unconverged: int, wo
             f"(relative {e['relative_imbalance']:.2e})")
 
 
+def _open_run(case_yaml: str, outdir: Path, resume: bool, overwrite: bool):
+    """The checkpoint a resumed run continues from (``io.recorder.ResumePoint``), after the
+    checks that it may; None for a new run, whose folder is made ready (RunInputError when it
+    may not be written)."""
+    from masonry_nscd.io.recorder import read_resume_point
+    from masonry_nscd.nscd.checkpoint import CheckpointError
+
+    if not resume:
+        rf.prepare_outdir(outdir, overwrite)
+        return None
+    try:
+        point = read_resume_point(outdir)
+    except CheckpointError as exc:
+        raise RunInputError(str(exc)) from exc
+    if point is None:
+        raise RunInputError(f"{outdir} has no checkpoint ({rf.CHECKPOINT}): nothing to "
+                            "resume (not a run folder, or no output step was written)")
+    if point.finished:
+        raise RunInputError(f"the run in {outdir} is finished (step {point.step})")
+    if point.case_yaml != case_yaml:
+        raise RunInputError(f"{outdir}/{rf.CASE} differs from the case of the checkpoint: "
+                            "a run resumes with the case it started with")
+    return point
+
+
+def _case_line(case, scene, integ) -> str:
+    """The first line of ``run.log``: the model's size and the solvers the run uses."""
+    s, solver = integ.sys, scene.solver
+    return (
+        f"case {case.name}: {len(scene.structure)} units, {s.npt} contact points, {s.ndof} "
+        f"dofs, blocks {case.blocks.material}"
+        + (f", sigma_N {case.loading.vertical_stress.value_Pa:.4g} Pa" if scene.builder == "wall"
+           else f", {scene.builder}")
+        + f", contact solver {solver.method}"
+        + (f", steps of {solver.h:g} s to {solver.h * (1 << solver.max_growth):g} "
+           "s (adaptive)" if solver.max_growth else "")
+        + (" (auto)" if case.solver.method == "auto" else "")
+        + (f", linear solver {integ.newton.linear}"
+           + (" (auto)" if case.solver.linear == "auto" else "")
+           if integ.newton is not None else "")
+        + (f", contact points at {scene.meta['contact_point_rule']} points"
+           if "contact_point_rule" in scene.meta else "")
+        + f", kernels on {threads.count()} thread(s)")
+
+
+def _failure(scene, step: int, t: float, what: str) -> RunFailure:
+    """A run failure at ``step`` (time ``t``, s), named with its load stage."""
+    return RunFailure(f"step {step} ({scene.stage_at(t)} stage, t = {t:.6g} s): {what}")
+
+
+def _advance(integ, scene, log: _Log):
+    """One step of ``integ`` (its ``StepReport``): a divergence or a solver's exception ends
+    the run with a RunFailure naming the step and the load stage (the traceback in run.log)."""
+    from masonry_nscd.nscd.integrator import DivergenceError
+
+    t1 = integ.t + scene.solver.h
+    try:
+        with timing.part("steps"):
+            return integ.step()
+    except DivergenceError as exc:
+        raise RunFailure(f"{exc} ({scene.stage_at(t1)} stage)") from exc
+    except (KeyboardInterrupt, RunFailure):
+        raise
+    except Exception as exc:  # a solver bug must still end in a clean message
+        with contextlib.suppress(RunOutputError):
+            log(traceback.format_exc(), show=False)
+        raise _failure(scene, integ.step_index + 1, t1, f"the solver raised "
+                       f"{type(exc).__name__}: {exc} (traceback in run.log)") from exc
+
+
+@dataclass
+class _StepNotes:
+    """What the steps of a run reported: steps not converged and the worst residual, steps
+    made again as smaller ones, Krylov solves made again by LU, steps by size (in steps of h).
+    :meth:`note` logs the unusual steps (the first five of each kind shown, all in run.log)."""
+
+    log: _Log
+    scene: object
+    unconverged: int = 0
+    worst: float = 0.0
+    subdivided: int = 0
+    linear_fallbacks: int = 0
+    spans: dict[int, int] = field(default_factory=dict)
+
+    def note(self, rep, integ, fallbacks_before: int) -> None:
+        """Count and log the step ``rep`` of ``integ`` (which had made ``fallbacks_before``
+        LU fallbacks before it); RunFailure when its residual is over :data:`LOST_RESIDUAL`."""
+        log, solver = self.log, self.scene.solver
+        if integ.solver_counts()["linear_fallbacks"] > fallbacks_before:
+            self.linear_fallbacks += 1
+            log(f"step {rep.step} (t = {rep.time:.4f} s): Krylov solve not converged, made "
+                f"by LU ({(integ.linear_notes() or ['no reason recorded'])[-1]})",
+                show=self.linear_fallbacks <= 5)
+        self.worst = max(self.worst, rep.residual)
+        self.spans[rep.span] = self.spans.get(rep.span, 0) + 1
+        if rep.substeps > 1:
+            self.subdivided += 1
+            why = (f"not converged with h = {solver.h:g} s, made again" if rep.tried_h else
+                   "made at once")
+            log(f"step {rep.step} (t = {rep.time:.4f} s): {why} as {rep.substeps} smaller "
+                f"steps ({'converged' if rep.converged else 'still not converged'})",
+                show=self.subdivided <= 5)
+        if rep.converged:
+            return
+        self.unconverged += 1
+        show = self.unconverged <= 5
+        if rep.material_failures:
+            at = rep.material_failure_at
+            place = (f" (the first in the element centred at x = {at[0]:.3f}, y = "
+                     f"{at[1]:.3f}, z = {at[2]:.3f} m)") if at else ""
+            log(f"step {rep.step} (t = {rep.time:.4f} s): ENDO3D return mapping not "
+                f"converged at {rep.material_failures} Gauss points{place}", show=show)
+        if rep.residual > solver.tolerance:
+            log(f"step {rep.step} (t = {rep.time:.4f} s): contact solver "
+                f"({solver.method}) not converged after {rep.sweeps} iterations, "
+                f"residual {rep.residual:.3e} > {solver.tolerance:.1e}", show=show)
+        if rep.residual > LOST_RESIDUAL:
+            raise _failure(self.scene, rep.step, rep.time, (
+                f"the contact solver ({solver.method}) stopped after "
+                f"{rep.sweeps} iterations with the forces still changing by "
+                f"{rep.residual:.3g} (relative) per iteration, over {LOST_RESIDUAL:g}: no "
+                "solution worth recording (results kept up to the last output step)"))
+
+
+def _write_output_step(rec, scene, integ, fields, mesh, damage: dict, rep, done: bool,
+                       notes: _StepNotes) -> None:
+    """The fields of step ``rep`` into the run's files (VTU, HDF5, energy, checkpoint):
+    RunFailure when a value is not finite (the writers refuse NaN and inf, naming the
+    field)."""
+    from masonry_nscd.io.recorder import StepOutput
+    from masonry_nscd.nscd.energy import energy_row
+    from masonry_nscd.post.fields import von_mises
+
+    with timing.part("outputs"):
+        sig = fields.element_stress()
+        disp = fields.nodal_displacement()
+        j = integ.joints
+        step_out = StepOutput(
+            block_points={"displacement_m": disp},
+            block_cells={"block": mesh.block_of_element.astype(float), "stress_Pa": sig,
+                         "von_mises_Pa": von_mises(sig), **damage},
+            joint_points=fields.joint_fields(),
+            h5={"u": integ.u, "v": integ.v, "element_stress_Pa": sig,
+                "nodal_displacement_m": disp,
+                **{f"element_{k}": v for k, v in damage.items()},
+                "joint_u_m": j.u, "joint_uc_m": j.uc, "joint_beta": j.beta,
+                "joint_T_Pa": j.T, "joint_status": j.status})
+        acct = integ.energy_account
+        energy = None if acct is None else acct.balance(integ)
+        try:
+            with _writing_files():
+                rec.write_output(rep.step, rep.time, step_out, integ, done=done,
+                                 unconverged=notes.unconverged, worst_residual=notes.worst,
+                                 energy_row=None if energy is None else
+                                 energy_row(rep.step, rep.time, energy))
+        except ValueError as exc:
+            raise _failure(scene, rep.step, rep.time, f"{exc} (not written)") from exc
+
+
 def run_case(case, outdir: Path, *, overwrite: bool = False,
              echo: Callable[[str], None] = print, progress_every: int | None = None,
              stop_when: Callable[[dict[str, list]], bool] | None = None,
@@ -179,33 +338,16 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     import numpy as np
 
     from masonry_nscd.case import case_to_yaml
-    from masonry_nscd.io.recorder import Recorder, StepOutput, read_resume_point
+    from masonry_nscd.io.recorder import Recorder
     from masonry_nscd.nscd.checkpoint import CheckpointError, integrator_state, restore_integrator
-    from masonry_nscd.nscd.energy import energy_row
-    from masonry_nscd.nscd.integrator import DivergenceError
-    from masonry_nscd.post.fields import OutputMesh, StepFields, von_mises
+    from masonry_nscd.post.fields import OutputMesh, StepFields
     from masonry_nscd.report import report_run
     from masonry_nscd.scenes import build_scene
     from masonry_nscd.scenes.scene import DOF_NAMES
 
     outdir = Path(outdir)
     case_yaml = case_to_yaml(case)
-    point = None
-    if resume:
-        try:
-            point = read_resume_point(outdir)
-        except CheckpointError as exc:
-            raise RunInputError(str(exc)) from exc
-        if point is None:
-            raise RunInputError(f"{outdir} has no checkpoint ({rf.CHECKPOINT}): nothing to "
-                                "resume (not a run folder, or no output step was written)")
-        if point.finished:
-            raise RunInputError(f"the run in {outdir} is finished (step {point.step})")
-        if point.case_yaml != case_yaml:
-            raise RunInputError(f"{outdir}/{rf.CASE} differs from the case of the checkpoint: "
-                                "a run resumes with the case it started with")
-    else:
-        rf.prepare_outdir(outdir, overwrite)
+    point = _open_run(case_yaml, outdir, resume, overwrite)
     log = _Log(outdir / rf.LOG, resume, echo)
 
     t_start = time.perf_counter()
@@ -217,21 +359,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     except ValueError as exc:  # parameters the schema lets through but the scene refuses
         log.close()
         raise RunInputError(f"invalid case {case.name}: {exc}") from exc
-    s = integ.sys
-    log(f"case {case.name}: {len(scene.structure)} units, {s.npt} contact points, {s.ndof} "
-        f"dofs, blocks {case.blocks.material}"
-        + (f", sigma_N {case.loading.vertical_stress.value_Pa:.4g} Pa" if scene.builder == "wall"
-           else f", {scene.builder}")
-        + f", contact solver {scene.solver.method}"
-        + (f", steps of {scene.solver.h:g} s to {scene.solver.h * (1 << scene.solver.max_growth):g} "
-           "s (adaptive)" if scene.solver.max_growth else "")
-        + (" (auto)" if case.solver.method == "auto" else "")
-        + (f", linear solver {integ.newton.linear}"
-           + (" (auto)" if case.solver.linear == "auto" else "")
-           if integ.newton is not None else "")
-        + (f", contact points at {scene.meta['contact_point_rule']} points"
-           if "contact_point_rule" in scene.meta else "")
-        + f", kernels on {threads.count()} thread(s)")
+    log(_case_line(case, scene, integ))
     if point is not None:
         try:
             restore_integrator(integ, point.state)
@@ -259,16 +387,12 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     # a progress line every progress_every steps, else at each fortieth of the expected end
     # (steps of adaptive size: the time says how far the run is, the step count does not)
     next_line = integ.t + t_end / 40
-    unconverged, worst = (point.unconverged, point.worst_residual) if point else (0, 0.0)
-    subdivided = 0  # steps made again as smaller ones (the log shows the first five)
-    linear_fallbacks = 0  # steps with a Krylov solve made again by LU (the first five shown)
-    spans: dict[int, int] = {}  # steps made, by their size in steps of h
-    (mx, wx), (my, wy) = scene.measured_dofs(s.body_dof0)
-    weights = scene.reaction_weights(s.side_body)
+    notes = _StepNotes(log, scene)
+    if point:
+        notes.unconverged, notes.worst = point.unconverged, point.worst_residual
+    (mx, wx), (my, wy) = scene.measured_dofs(integ.sys.body_dof0)
+    weights = scene.reaction_weights(integ.sys.side_body)
     holds = scene.holds_at(integ.t)
-
-    def failure(step: int, t: float, what: str) -> RunFailure:
-        return RunFailure(f"step {step} ({scene.stage_at(t)} stage, t = {t:.6g} s): {what}")
 
     try:
         while True:
@@ -283,54 +407,9 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
                 fields = StepFields(scene, mesh, integ)
                 log(f"from t = {integ.t:.6g} s: " + ", ".join(
                     f"{scene.bodies[hd.body].name} held in {DOF_NAMES[hd.dof]}" for hd in holds))
-            t1 = integ.t + h
             fallbacks = integ.solver_counts()["linear_fallbacks"]
-            try:
-                with timing.part("steps"):
-                    rep = integ.step()
-            except DivergenceError as exc:
-                raise RunFailure(f"{exc} ({scene.stage_at(t1)} stage)") from exc
-            except (KeyboardInterrupt, RunFailure):
-                raise
-            except Exception as exc:  # a solver bug must still end in a clean message
-                with contextlib.suppress(RunOutputError):
-                    log(traceback.format_exc(), show=False)
-                raise failure(integ.step_index + 1, t1, f"the solver raised "
-                              f"{type(exc).__name__}: {exc} (traceback in run.log)") from exc
-            if integ.solver_counts()["linear_fallbacks"] > fallbacks:
-                linear_fallbacks += 1
-                log(f"step {rep.step} (t = {rep.time:.4f} s): Krylov solve not converged, made "
-                    f"by LU ({(integ.linear_notes() or ['no reason recorded'])[-1]})", show=linear_fallbacks <= 5)
-            worst = max(worst, rep.residual)
-            spans[rep.span] = spans.get(rep.span, 0) + 1
-            if rep.substeps > 1:
-                subdivided += 1
-                why = (f"not converged with h = {h:g} s, made again" if rep.tried_h else
-                       "made at once")
-                log(f"step {rep.step} (t = {rep.time:.4f} s): {why} as {rep.substeps} smaller "
-                    f"steps ("
-                    f"{'converged' if rep.converged else 'still not converged'})",
-                    show=subdivided <= 5)
-            if not rep.converged:
-                unconverged += 1
-                if rep.material_failures:
-                    at = rep.material_failure_at
-                    place = (f" (the first in the element centred at x = {at[0]:.3f}, y = "
-                             f"{at[1]:.3f}, z = {at[2]:.3f} m)") if at else ""
-                    log(f"step {rep.step} (t = {rep.time:.4f} s): ENDO3D return mapping not "
-                        f"converged at {rep.material_failures} Gauss points{place}",
-                        show=unconverged <= 5)
-                if rep.residual > scene.solver.tolerance:
-                    log(f"step {rep.step} (t = {rep.time:.4f} s): contact solver "
-                        f"({scene.solver.method}) not converged after {rep.sweeps} iterations, "
-                        f"residual {rep.residual:.3e} > {scene.solver.tolerance:.1e}",
-                        show=unconverged <= 5)
-                if rep.residual > LOST_RESIDUAL:
-                    raise failure(rep.step, rep.time, (
-                        f"the contact solver ({scene.solver.method}) stopped after "
-                        f"{rep.sweeps} iterations with the forces still changing by "
-                        f"{rep.residual:.3g} (relative) per iteration, over {LOST_RESIDUAL:g}: no "
-                        "solution worth recording (results kept up to the last output step)"))
+            rep = _advance(integ, scene, log)
+            notes.note(rep, integ, fallbacks)
             f = integ.point_forces()
             top = weights["top"] @ f if "top" in weights else np.zeros(3)
             bot = weights["bottom"] @ f
@@ -343,69 +422,26 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
             try:
                 rec.add_row(row)
             except RunFailure as exc:
-                raise failure(rep.step, rep.time, str(exc)) from exc
+                raise _failure(scene, rep.step, rep.time, str(exc)) from exc
             done = scene.finished(ux, rep.time)
             if monitor is not None and monitor.observe(integ, rep.step, rep.time):
                 done = True  # a collapse, and its after_s have passed
             stopped = not done and stop_when is not None and bool(stop_when(curve))
             done = done or stopped
             if round(rep.time / h) % case.output.every_steps == 0 or done:
-                with timing.part("outputs"):  # the fields and their files
-                    sig = fields.element_stress()
-                    disp = fields.nodal_displacement()
-                    j = integ.joints
-                    step_out = StepOutput(
-                        block_points={"displacement_m": disp},
-                        block_cells={"block": mesh.block_of_element.astype(float), "stress_Pa": sig,
-                                     "von_mises_Pa": von_mises(sig), **damage},
-                        joint_points=fields.joint_fields(),
-                        h5={"u": integ.u, "v": integ.v, "element_stress_Pa": sig,
-                            "nodal_displacement_m": disp,
-                            **{f"element_{k}": v for k, v in damage.items()},
-                            "joint_u_m": j.u, "joint_uc_m": j.uc, "joint_beta": j.beta,
-                            "joint_T_Pa": j.T, "joint_status": j.status})
-                    acct = integ.energy_account
-                    energy = None if acct is None else acct.balance(integ)
-                    try:  # the writers refuse NaN/inf (ValueError naming the field)
-                        with _writing_files():
-                            rec.write_output(rep.step, rep.time, step_out, integ, done=done,
-                                             unconverged=unconverged, worst_residual=worst,
-                                             energy_row=None if energy is None else
-                                             energy_row(rep.step, rep.time, energy))
-                    except ValueError as exc:
-                        raise failure(rep.step, rep.time, f"{exc} (not written)") from exc
+                _write_output_step(rec, scene, integ, fields, mesh, damage, rep, done, notes)
             if (rep.step % progress_every == 0 if progress_every else
                     rep.time >= next_line - 1e-9 * h) or done:
                 while next_line <= rep.time + 1e-9 * h:
                     next_line += t_end / 40
-                stage = scene.stage_at(rep.time)
-                log(f"[{stage:10s}] step {rep.step:6d}  t {rep.time:7.4f}/{t_end:.4f} s "
-                    f"({100 * rep.time / t_end:3.0f} %)  "
+                log(f"[{scene.stage_at(rep.time):10s}] step {rep.step:6d}  t {rep.time:7.4f}/"
+                    f"{t_end:.4f} s ({100 * rep.time / t_end:3.0f} %)  "
                     f"Ux {1e3 * ux:8.4f} mm  Fx {1e-3 * top[0]:9.3f} kN  "
                     f"Fy {1e-3 * top[1]:9.3f} kN  sweeps {rep.sweeps:6d}  res {rep.residual:.2e}")
             if done:
                 break
-    except RunFailure as exc:
-        with contextlib.suppress(RunOutputError):
-            log(f"failed: {exc}", show=False)
-        if monitor is not None:
-            with contextlib.suppress(OSError):
-                monitor.finish("failed", str(exc))
-        if not isinstance(exc, RunOutputError):  # the summary of what was computed
-            report_run(outdir, log, curve)  # never raises
-        with contextlib.suppress(OSError):
-            log.close()
-        raise
-    except KeyboardInterrupt:
-        with contextlib.suppress(RunOutputError):
-            log(f"interrupted at step {integ.step_index}: results kept up to the last output "
-                f"step (resume with: masonry run --resume {outdir})")
-        if monitor is not None:
-            with contextlib.suppress(OSError):
-                monitor.finish("interrupted")
-        report_run(outdir, log, curve)
-        with contextlib.suppress(OSError):
-            log.close()
+    except (RunFailure, KeyboardInterrupt) as exc:
+        _close_stopped(exc, outdir, log, curve, monitor, integ.step_index)
         raise
     finally:
         with _writing_files():
@@ -413,10 +449,31 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
         if monitor is not None:
             monitor.close()
     secs = time.perf_counter() - t_start
-    _log_end(log, integ, secs, ux, top, unconverged, worst, spans, h)
+    _log_end(log, integ, secs, ux, top, notes.unconverged, notes.worst, notes.spans, h)
     if monitor is not None:
         monitor.finish("done")
     report_run(outdir, log)
     log.close()
-    return RunResult(integ.step_index, 1e3 * ux, 1e-3 * top[0], secs, unconverged, outdir,
+    return RunResult(integ.step_index, 1e3 * ux, 1e-3 * top[0], secs, notes.unconverged, outdir,
                      stopped)
+
+
+def _close_stopped(exc: BaseException, outdir: Path, log: _Log, curve, monitor,
+                   step: int) -> None:
+    """The end of a run stopped by a RunFailure or an interruption (KeyboardInterrupt, at
+    step ``step``): the log's last line, the collapse watch told, the summary of what was
+    computed (not after a failure to write the outputs), the log closed."""
+    from masonry_nscd.report import report_run
+
+    failed = isinstance(exc, RunFailure)
+    with contextlib.suppress(RunOutputError):
+        log(f"failed: {exc}" if failed else
+            f"interrupted at step {step}: results kept up to the last output step (resume "
+            f"with: masonry run --resume {outdir})", show=not failed)
+    if monitor is not None:
+        with contextlib.suppress(OSError):
+            monitor.finish(*(("failed", str(exc)) if failed else ("interrupted",)))
+    if not isinstance(exc, RunOutputError):
+        report_run(outdir, log, curve)  # never raises
+    with contextlib.suppress(OSError):
+        log.close()
