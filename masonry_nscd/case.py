@@ -1671,6 +1671,20 @@ class Case(_Section):
         return k
 
     @property
+    def step_growth_note(self) -> str | None:
+        """Why the adaptive step stops short of ``solver.max_time_step_s`` (:attr:`step_growth`
+        below ``solver.max_growth``), for the run's log and ``masonry check``; None when it
+        does not."""
+        k, asked = self.step_growth, self.solver.max_growth
+        if k == asked:
+            return None
+        h, every = self.solver.time_step_s, self.output.every_steps
+        grows = f"steps grow to {h * (1 << k):g} s only" if k else "every step is time_step_s"
+        return (f"solver.max_time_step_s = {self.solver.max_time_step_s:g} s: {grows}, "
+                f"because output.every_steps = {every} is not a multiple of {1 << (k + 1)} "
+                f"(a multiple of {1 << asked} lets the steps grow to {h * (1 << asked):g} s)")
+
+    @property
     def step_count(self) -> int:
         """Expected number of time steps, ``ceil(end_time_s / time_step_s)`` (an arch:
         ``collapse.end_time_s``)."""

@@ -127,6 +127,8 @@ def validate(
             + (f" (fewer: adaptive up to {case.solver.time_step_s * (1 << case.step_growth):g} s)"
                if case.step_growth else "")
         )
+    if case.step_growth_note:
+        summary += f"; {case.step_growth_note}"
     if print_case:
         typer.echo(f"# {summary}\n{case_to_yaml(case)}", nl=False)
     else:

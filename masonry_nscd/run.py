@@ -360,6 +360,8 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
         log.close()
         raise RunInputError(f"invalid case {case.name}: {exc}") from exc
     log(_case_line(case, scene, integ))
+    if case.step_growth_note:
+        log(case.step_growth_note)
     if point is not None:
         try:
             restore_integrator(integ, point.state)

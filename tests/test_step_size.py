@@ -89,6 +89,29 @@ def test_the_fields_fall_on_the_end_of_a_step():
     assert build_scene(case).solver.max_growth == 1
 
 
+def test_a_largest_step_that_the_fields_cut_short_is_said():
+    """The run's log and ``masonry validate`` say why the steps grow less than asked, and
+    what output.every_steps would let them grow to; nothing when they grow as asked."""
+    note = load_case(SMOKE, ["solver.max_time_step_s=1.6e-2", "output.every_steps=10"]) \
+        .step_growth_note
+    assert note is not None
+    assert "steps grow to 0.004 s only" in note and "every_steps = 10" in note
+    assert "not a multiple of 4" in note and "a multiple of 8" in note and "0.016 s" in note
+    note = load_case(SMOKE, ["solver.max_time_step_s=8e-3", "output.every_steps=5"]) \
+        .step_growth_note
+    assert note is not None and "every step is time_step_s" in note
+    assert load_case(SMOKE, ["solver.max_time_step_s=1.6e-2", "output.every_steps=8"]) \
+        .step_growth_note is None
+    assert load_case(SMOKE).step_growth_note is None
+    from typer.testing import CliRunner
+
+    from masonry_nscd.cli import app
+
+    out = CliRunner().invoke(app, ["validate", str(SMOKE), "--set", "solver.max_time_step_s=8e-3",
+                                   "--set", "output.every_steps=5"])
+    assert out.exit_code == 0 and "every step is time_step_s" in out.output
+
+
 # --- runs -------------------------------------------------------------------------------------
 def _rows(out):
     with open(out / "force_displacement.csv") as f:
