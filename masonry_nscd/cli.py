@@ -218,12 +218,14 @@ def run(
         request_stop,
         run_case,
     )
+    from masonry_nscd.warmup import compile_first_run
 
     TERMINATE.clear()
     # SIGTERM and Ctrl-C end the run with its outputs kept, never in the middle of writing them
     signal.signal(signal.SIGTERM, request_stop)
     signal.signal(signal.SIGINT, request_stop)
     try:
+        compile_first_run(case, echo=typer.echo)  # kernels not yet in the cache: two processes
         res = run_case(case, outdir, overwrite=overwrite, echo=typer.echo,
                        resume=resume is not None)
     except RunInputError as exc:
