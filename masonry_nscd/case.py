@@ -1435,9 +1435,9 @@ class Solver(_Section):
     the wall (docs/model.md section 4); Newton's curve is the same from 1e-5 to 1e-9 on the
     elastic wall (docs/performance.md).
 
-    The defaults (h = 4e-3 s, 1e-5) are those of the study's cases, on the Pareto front of
-    ``masonry bench`` (docs/performance.md); the elastic case adds the adaptive step size
-    (``cases/wall_0.5MPa_elastic.yaml``).
+    The defaults (h = 4e-3 s, 1e-5) are on the Pareto front of ``masonry bench`` for the study's
+    walls (docs/performance.md); the study's ENDO3D cases take 3e-5 and the elastic one 1e-4
+    with the adaptive step size (docs/choices.md).
     """
 
     time_step_s: Real = Field(4e-3, ge=1e-6, le=1.0, description="time step h (s)")
@@ -1673,7 +1673,7 @@ class Case(_Section):
     @property
     def step_growth_note(self) -> str | None:
         """Why the adaptive step stops short of ``solver.max_time_step_s`` (:attr:`step_growth`
-        below ``solver.max_growth``), for the run's log and ``masonry check``; None when it
+        below ``solver.max_growth``), for the run's log and ``masonry validate``; None when it
         does not."""
         k, asked = self.step_growth, self.solver.max_growth
         if k == asked:

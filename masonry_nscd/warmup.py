@@ -14,9 +14,9 @@ trial and its tangent), so that neither process compiles what the other does.
 The argument types are listed in ``kernel_signatures.txt``, one line per kernel and call:
 the kernel's module and name, then the tuple of numba types (their ``repr``). ``python -m
 masonry_nscd.warmup --record`` writes the file from two short runs of the study's wall, one
-with elastic and one with ENDO3D blocks; ``tests/test_warmup.py`` fails when such a run calls
-a listed kernel with types the file does not list. A kernel called with other types compiles
-at its call, as without this module; a listed signature that no longer compiles is skipped.
+with elastic and one with ENDO3D blocks; ``tests/test_warmup.py`` records them again in a fresh
+process and fails when the file differs. A kernel called with other types compiles at its
+call, as without this module; a listed signature that no longer compiles is skipped.
 
 A group compiled once leaves a marker in the cache folder (``warm-<group>``), so that later
 runs, and runs of cases that need no other group, start at once; ``masonry cache-clear`` and
@@ -128,9 +128,13 @@ def compile_first_run(case, echo: Callable[[str], None] = print) -> float:
     echo("first run with these sources: compiling the solver's kernels on two processes "
          f"({', '.join(todo)})")
     others = [g for g in there if g in todo]
-    helper = subprocess.Popen([sys.executable, "-m", "masonry_nscd.warmup", *others],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) \
-        if others else None
+    helper = None
+    if others:
+        try:
+            helper = subprocess.Popen([sys.executable, "-m", "masonry_nscd.warmup", *others],
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        except OSError:  # no second process: those kernels compile at their calls
+            others = []
     done = [g for g in here if g in todo]
     try:
         compile_groups(done)
