@@ -118,12 +118,12 @@ def test_study_forces_in_kN():
 def test_elastic_variant_differs_only_by_material():
     """Same wall, loading, time step and outputs; the elastic wall takes adaptive steps (up to
     1.6e-2 s, fields every 8 steps), which move the ENDO3D wall's post-peak path, and a
-    tolerance of 1e-4 instead of 1e-5, which moves the ENDO3D wall's force at 10 mm at 0.3 MPa
+    tolerance of 1e-4 instead of 3e-5, which moves the ENDO3D wall's force at 10 mm at 0.3 MPa
     (docs/choices.md)."""
     endo = load_case(ROOT / "cases" / "wall_0.5MPa.yaml")
     elastic = load_case(ROOT / "cases" / "wall_0.5MPa_elastic.yaml")
     assert elastic.blocks.material == "elastic"
-    assert (endo.solver.tolerance, elastic.solver.tolerance) == (1e-5, 1e-4)
+    assert (endo.solver.tolerance, elastic.solver.tolerance) == (3e-5, 1e-4)
     a = endo.model_dump(exclude={"name", "description"})
     b = elastic.model_dump(exclude={"name", "description"})
     a["blocks"]["material"] = "elastic"
