@@ -181,9 +181,10 @@ def record(path: Path = SIGNATURES) -> dict[str, list[str]]:
 
 def main(argv: Sequence[str]) -> int:
     """``python -m masonry_nscd.warmup GROUP...`` compiles the groups (the second process of
-    :func:`compile_first_run`); ``--record`` writes ``kernel_signatures.txt``."""
-    if list(argv) == ["--record"]:
-        record()
+    :func:`compile_first_run`); ``--record [PATH]`` writes ``kernel_signatures.txt`` (or
+    ``PATH``)."""
+    if argv and argv[0] == "--record" and len(argv) <= 2:
+        record(Path(argv[1]) if len(argv) == 2 else SIGNATURES)
         return 0
     unknown = [g for g in argv if g not in GROUPS]
     if unknown:

@@ -24,9 +24,8 @@ def test_the_listed_types_are_those_the_study_walls_call(tmp_path):
     kernels no run loads (run ``python -m masonry_nscd.warmup --record`` after changing a
     kernel's arguments)."""
     out = tmp_path / "signatures.txt"
-    subprocess.run([sys.executable, "-c", "import sys; from pathlib import Path; "
-                    "from masonry_nscd.warmup import record; record(Path(sys.argv[1]))",
-                    str(out)], check=True, cwd=ROOT, timeout=600)
+    subprocess.run([sys.executable, "-m", "masonry_nscd.warmup", "--record", str(out)],
+                   check=True, cwd=ROOT, timeout=600)
     assert _entries(out) == _entries(warmup.SIGNATURES)
     listed = warmup.read_signatures()
     assert set(listed) == {name for group in warmup.GROUPS.values() for name in group}
@@ -44,7 +43,8 @@ def test_the_groups_follow_the_case():
 def _masonry_run(env: dict, out: Path) -> str:
     done = subprocess.run([sys.executable, "-m", "masonry_nscd.cli", "run", str(SMOKE),
                            "--output", str(out), "--overwrite", "--set", "output.vtu=false"],
-                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
+                          check=False, cwd=ROOT, env=env, capture_output=True, text=True,
+                          timeout=600)
     assert done.returncode == 0, done.stderr
     return done.stdout
 
