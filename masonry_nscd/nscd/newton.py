@@ -803,8 +803,8 @@ class NewtonSolver:
                                   history.weight) if accelerated else dx
             history.last = (x, dx)
             # an accelerated step is taken whole or not at all: where it does not decrease the
-            # norm, the plain step's line search follows (halving the accelerated step first
-            # cost 3.6 to 3.9 % more evaluations of the ENDO3D walls for the same curves)
+            # norm, the plain step's line search follows (a shorter accelerated step was thrown
+            # away for the plain one all the same: docs/performance.md, session 18)
             alpha, descent, v_try, r_try, ev_try = self._line_search(
                 residual, v, r_glue, step, ev.norm, fresh and not accelerated,
                 halve=not accelerated)
