@@ -287,10 +287,6 @@ class Integrator:
         if self.material is not None:
             self._update_tangent()
 
-    def _material_correction(self) -> MaterialCorrection:
-        """The ENDO3D blocks' correction of this step's Newton residual."""
-        return MaterialCorrection(self)
-
     def step(self) -> StepReport:
         """Advance by one step: of h (made again as halves if it fails, ``_step_h``), or with
         ``max_growth`` of the size the control picks, ending at or before ``step_limit(t)``."""
@@ -483,9 +479,7 @@ class Integrator:
         kernels.local_velocities(s.side_dofs, s.side_coef, v_free, U_free)
         j = self.joints
         if self.newton is not None:
-            corr = None
-            if self.material is not None:
-                corr = self._material_correction()
+            corr = None if self.material is None else MaterialCorrection(self)
             v1, T, uc, beta, status, sweeps, residual = self.newton.solve(
                 v_free, j.u, j.U, self.params, j.uc, j.beta, j.T, self._dv, correction=corr,
                 t_end=t1)
