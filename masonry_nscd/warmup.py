@@ -125,9 +125,11 @@ def compile_first_run(case, echo: Callable[[str], None] = print) -> float:
     if not todo or os.environ.get("MASONRY_WARMUP", "1") == "0":
         return 0.0
     t0 = time.perf_counter()
-    echo("first run with these sources: compiling the solver's kernels on two processes "
-         f"({', '.join(todo)})")
-    others = [g for g in there if g in todo]
+    mine, others = [g for g in here if g in todo], [g for g in there if g in todo]
+    if not mine:  # this process would only wait (e.g. the ENDO3D group after an elastic run)
+        mine, others = others, []
+    echo("first run with these sources: compiling the solver's kernels"
+         + (" on two processes" if others else "") + f" ({', '.join(todo)})")
     helper = None
     if others:
         try:
@@ -135,9 +137,9 @@ def compile_first_run(case, echo: Callable[[str], None] = print) -> float:
                                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         except OSError:  # no second process: those kernels compile at their calls
             others = []
-    done = [g for g in here if g in todo]
+    done = list(mine)
     try:
-        compile_groups(done)
+        compile_groups(mine)
         if helper is not None:
             helper.wait(timeout=WAIT_S)
             if helper.returncode == 0:

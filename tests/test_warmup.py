@@ -66,3 +66,16 @@ def test_a_first_run_compiles_on_two_processes_and_the_next_does_not(tmp_path):
     curve = "force_displacement.csv"
     assert (tmp_path / "first" / curve).read_bytes() == (tmp_path / "plain_run" / curve) \
         .read_bytes()
+
+
+def test_a_group_left_alone_compiles_in_the_run_process(tmp_path):
+    """When only the second process's group is missing (here the Newton kernels, the joint
+    law's marker already there), the run compiles it itself rather than wait for a helper."""
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    (cache / "warm-joints").touch()
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), MASONRY_WARMUP="1")
+    out = _masonry_run(env, tmp_path / "run")
+    assert "compiling the solver's kernels (newton)" in out
+    assert "two processes" not in out
+    assert (cache / "warm-newton").exists()
