@@ -76,12 +76,19 @@ LINEAR_SOLVERS = ("auto", "lu", "pardiso", "krylov")
 KRYLOV_MIN_UNKNOWNS = 100_000
 
 
-def choose(linear: str, unknowns: int) -> str:
+def choose(linear: str, unknowns: int, processes: int = 1) -> str:
     """The linear solver ``linear`` (``auto``, ``lu``, ``pardiso``, ``krylov``) resolved for a
-    Newton matrix of ``unknowns`` rows. ``pardiso`` where MKL is missing is a ValueError."""
+    Newton matrix of ``unknowns`` rows, on ``processes`` processes (``mpi.py``: only
+    ``krylov`` uses more than one, and ``auto`` takes it there). ``pardiso`` where MKL is
+    missing, or a direct solver on several processes, is a ValueError."""
     if linear not in LINEAR_SOLVERS:
         raise ValueError(f"linear solver must be one of {', '.join(LINEAR_SOLVERS)}, got "
                          f"{linear!r}")
+    if processes > 1:
+        if linear not in ("auto", "krylov"):
+            raise ValueError(f"solver.linear: {linear} runs on one process; on {processes} "
+                             f"processes give krylov or auto")
+        return "krylov"
     if linear == "auto":
         if unknowns >= KRYLOV_MIN_UNKNOWNS:
             return "krylov"
@@ -116,6 +123,20 @@ def rigid_body_modes(body_dof0: np.ndarray, deformable: np.ndarray,
     return modes
 
 
+def coarse_space(body_of: np.ndarray, modes: np.ndarray) -> sp.csc_matrix:
+    """``R`` (free dofs x coarse unknowns, CSC): the rigid-body modes ``modes`` (``(nf, 6)``)
+    of the bodies ``body_of`` (sorted) as six columns per body in the order of the bodies, the
+    empty columns (imposed motions) dropped."""
+    nf = len(body_of)
+    rows = np.repeat(np.arange(nf), 6)
+    cols = (6 * body_of[:, None] + np.arange(6)).ravel()
+    R = sp.csc_matrix((np.asarray(modes, dtype=float).ravel(), (rows, cols)),
+                      shape=(nf, 6 * (int(body_of.max()) + 1 if nf else 0)))
+    R.eliminate_zeros()
+    used = np.flatnonzero(np.diff(R.indptr) > 0)
+    return R[:, used].tocsc()
+
+
 class KrylovFailure(RuntimeError):
     """A Krylov solve that did not reach its tolerance: ``iterations``, ``residual`` (the body
     system's ``|rhs - S v| / |rhs|``)."""
@@ -147,14 +168,7 @@ class KrylovSolver:
         self.last_residual = 0.0
         self._x = None  # the last solution: the start of the next solve
         self.body_of = body_of
-        # coarse space: six columns per body, the empty ones (imposed motions) dropped
-        rows = np.repeat(np.arange(nf), 6)
-        cols = (6 * body_of[:, None] + np.arange(6)).ravel()
-        R = sp.csc_matrix((np.asarray(modes, dtype=float).ravel(), (rows, cols)),
-                          shape=(nf, 6 * (int(body_of.max()) + 1 if nf else 0)))
-        R.eliminate_zeros()
-        used = np.flatnonzero(np.diff(R.indptr) > 0)
-        self.R = R[:, used].tocsc()
+        self.R = coarse_space(body_of, modes)
         self.RT = self.R.T.tocsr()
         # the bodies' dof ranges in the free numbering, grouped by size for batched inverses
         starts = np.flatnonzero(np.r_[True, body_of[1:] != body_of[:-1]]) if nf else \
@@ -178,20 +192,20 @@ class KrylovSolver:
         self._last_blocks = None
         self.blocks_inverted = 0
 
-    def factorise(self, J: sp.spmatrix) -> _KrylovOperator:
+    def factorise(self, J: sp.spmatrix) -> KrylovOperator:
         """The preconditioner of ``J`` (free dofs first, then three rows per multiplier
         point) and the object whose ``solve`` answers ``J x = b``."""
         with timing.part("Krylov operator"):
             S, B, C, Dinv = self._body_system(J)
         return self.factorise_system(S, B, C, Dinv)
 
-    def factorise_system(self, S: sp.csr_matrix, B, C, Dinv) -> _KrylovOperator:
+    def factorise_system(self, S: sp.csr_matrix, B, C, Dinv) -> KrylovOperator:
         """As :meth:`factorise`, from the body system ``S = A + B D^-1 C`` (CSR) and the
         blocks ``B = -J[:nf, nf:]``, ``C = J[nf:, :nf]``, ``D^-1`` (None without
         multipliers) instead of ``J``."""
         with timing.part("preconditioner set-up"):
             preconditioner = self._preconditioner(S)
-        return _KrylovOperator(self, S, B, C, Dinv, preconditioner)
+        return KrylovOperator(self, S, B, C, Dinv, preconditioner)
 
     def _body_system(self, J: sp.spmatrix):
         """``(S, B, C, D^-1)``: the body system ``S = A + B D^-1 C`` of ``J`` and the blocks
@@ -210,11 +224,18 @@ class KrylovSolver:
             S = A.tocsr()
         return S, B, C, Dinv
 
-    def _preconditioner(self, S: sp.csr_matrix) -> _Preconditioner:
+    def _preconditioner(self, S: sp.csr_matrix) -> Preconditioner:
         """The two-level preconditioner of ``S``."""
-        # local: the dense diagonal block of every body, inverted in batches of equal size
+        groups = self.local_inverses(S, self.body_of)
+        return Preconditioner(self, S, groups, self._coarse_lu((self.RT @ S @ self.R).tocsc()))
+
+    def local_inverses(self, S: sp.csr_matrix, body_of: np.ndarray) -> list:
+        """The inverses of the bodies' dense diagonal blocks of ``S`` by size, ``[(dofs (g,
+        k), inverses (g, k, k))]``, inverted again only where a block changed since the last
+        call. ``S``: this solver's rows (CSR), its columns numbered by ``body_of`` (the body of
+        each column; columns of other bodies, such as another process's, marked -1)."""
         flat = np.zeros(self._group_off[-1])
-        diagonal_blocks(S.indptr, S.indices, S.data, self.body_of, self._block_of,
+        diagonal_blocks(S.indptr, S.indices, S.data, body_of, self._block_of,
                         self._local, self._size_of, flat)
         groups = []
         for n, ((k, starts), off) in enumerate(zip(self.groups, self._group_off[:-1],
@@ -236,7 +257,7 @@ class KrylovSolver:
                 self.blocks_inverted += len(changed)
             groups.append((idx, inv))
         self._last_blocks = (flat, [inv for _, inv in groups])
-        return _Preconditioner(self, S, groups, self._coarse_lu((self.RT @ S @ self.R).tocsc()))
+        return groups
 
     def _coarse_lu(self, S0: sp.csc_matrix):
         """The LU of the coarse matrix: PARDISO where MKL is installed (its analysis kept
@@ -335,7 +356,7 @@ def _diagonal_blocks(D: sp.spmatrix, m: int) -> np.ndarray:
     return out
 
 
-class _Preconditioner:
+class Preconditioner:
     """The two-level preconditioner of one matrix ``S`` (module docstring): the inverses of
     its bodies' diagonal blocks, by size (``groups``: the dofs ``(g, k)`` and the inverses
     ``(g, k, k)`` of the bodies of ``k`` free dofs), and the LU of its coarse matrix."""
@@ -354,19 +375,23 @@ class _Preconditioner:
             out[idx] = np.matmul(inv, r[idx][:, :, None])[:, :, 0]
         return out
 
+    def product(self, x: np.ndarray) -> np.ndarray:
+        """``S x``."""
+        return self.S @ x
+
     def apply(self, r: np.ndarray) -> np.ndarray:
         """``P^-1 r``."""
         r = np.ravel(r)
         y = self._coarse(r)
-        z = y + self._local(r - self.S @ y)
-        return z + self._coarse(r - self.S @ z)
+        z = y + self._local(r - self.product(y))
+        return z + self._coarse(r - self.product(z))
 
 
-class _KrylovOperator:
+class KrylovOperator:
     """The body system ``S``, the elimination of the multipliers and the preconditioner;
     ``solve(b)`` answers ``J x = b``."""
 
-    def __init__(self, owner: KrylovSolver, S, B, C, Dinv, preconditioner: _Preconditioner):
+    def __init__(self, owner: KrylovSolver, S, B, C, Dinv, preconditioner: Preconditioner):
         self.owner, self.S, self.B, self.C, self.Dinv = owner, S, B, C, Dinv
         self.preconditioner = preconditioner
 
@@ -384,8 +409,7 @@ class _KrylovOperator:
             x0 = None
             if o._x is not None and np.linalg.norm(rhs - self.S @ o._x) < rnorm:
                 x0 = o._x
-            v, count = gmres(self.S.dot, self.preconditioner.apply, rhs, x0, o.rtol,
-                             o.restart, o.max_iterations)
+            v, count = self._gmres(rhs, x0)
             res = float(np.linalg.norm(rhs - self.S @ v)) / rnorm
             o.iterations += count
             o.last_iterations, o.last_residual = count, res
@@ -396,17 +420,33 @@ class _KrylovOperator:
             return v
         return np.concatenate([v, self.Dinv @ (bg - self.C @ v)])
 
+    def _gmres(self, rhs: np.ndarray, x0: np.ndarray | None) -> tuple[np.ndarray, int]:
+        """GMRES on the body system ``S v = rhs`` from ``x0``: ``(v, iterations)``."""
+        o = self.owner
+        return gmres(self.S.dot, self.preconditioner.apply, rhs, x0, o.rtol, o.restart,
+                     o.max_iterations)
+
 
 def gmres(matvec, precondition, b: np.ndarray, x0: np.ndarray | None, rtol: float,
-          restart: int, max_iterations: int) -> tuple[np.ndarray, int]:
+          restart: int, max_iterations: int, inner=None, norm=None) -> tuple[np.ndarray, int]:
     """Restarted GMRES with right preconditioning: ``x = x0 + M^-1 V_k y`` minimising
     ``|b - A x|`` over the Krylov space of ``A M^-1`` built from ``r0 = b - A x0``, stopping
     when ``|b - A x| <= rtol |b|`` (its estimate from the Hessenberg least squares, checked
     on the true residual at each restart). Arnoldi by classical Gram-Schmidt done twice (one
     matrix product per pass over the basis); the small least-squares problem by Givens
-    rotations. Returns ``(x, iterations)``."""
+    rotations. Returns ``(x, iterations)``.
+
+    ``inner(V, w)``: the products ``V @ w`` of the rows of ``V`` with ``w``, and ``norm(w)``:
+    ``|w|``; by default those of the vectors given. A solve over several processes gives
+    each its own rows of the vectors and sums the processes' parts in both (``mpi.py``)."""
+    if inner is None:
+        def inner(V, w):
+            return V @ w
+    if norm is None:
+        def norm(w):
+            return float(np.linalg.norm(w))
     n = len(b)
-    bnorm = float(np.linalg.norm(b))
+    bnorm = norm(b)
     x = np.zeros(n) if x0 is None else x0.copy()
     iterations = 0
     V = np.empty((restart + 1, n))
@@ -415,7 +455,7 @@ def gmres(matvec, precondition, b: np.ndarray, x0: np.ndarray | None, rtol: floa
     cs, sn = np.zeros(restart), np.zeros(restart)
     while True:
         r = b - matvec(x)
-        beta = float(np.linalg.norm(r))
+        beta = norm(r)
         if beta <= rtol * bnorm or iterations >= max_iterations:
             return x, iterations
         V[0] = r / beta
@@ -425,12 +465,12 @@ def gmres(matvec, precondition, b: np.ndarray, x0: np.ndarray | None, rtol: floa
         while k < restart and iterations < max_iterations:
             Z[k] = precondition(V[k])
             w = matvec(Z[k])
-            h = V[:k + 1] @ w
+            h = inner(V[:k + 1], w)
             w -= h @ V[:k + 1]
-            h2 = V[:k + 1] @ w  # second pass: orthogonal to round-off
+            h2 = inner(V[:k + 1], w)  # second pass: orthogonal to round-off
             w -= h2 @ V[:k + 1]
             h += h2
-            hn = float(np.linalg.norm(w))
+            hn = norm(w)
             H[:k + 1, k] = h
             H[k + 1, k] = hn
             for i in range(k):  # the earlier rotations on the new column
