@@ -40,3 +40,16 @@ def cache_root() -> Path:
 
 if "NUMBA_CACHE_DIR" not in os.environ:
     os.environ["NUMBA_CACHE_DIR"] = str(cache_root() / source_hash(kernels_only=True))
+
+#: the environment variables in which mpiexec gives its number of processes (MPICH's Hydra,
+#: Open MPI): ``nscd/mpi.py``
+MPI_SIZE_VARIABLES = ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE")
+
+# Under mpiexec with several processes (nscd/mpi.py) the processes share the cores: one BLAS
+# thread each unless the environment says otherwise, set before numpy loads its BLAS. Two
+# processes whose BLAS took two threads each made GMRES's inner products five times slower on
+# two cores (docs/scaling.md).
+if any(os.environ.get(v, "").strip().isdigit() and int(os.environ[v]) > 1
+       for v in MPI_SIZE_VARIABLES):
+    for _name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(_name, "1")

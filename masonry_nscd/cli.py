@@ -176,8 +176,33 @@ def run(
         "factorisations unless MKL_NUM_THREADS is set (default: NUMBA_NUM_THREADS, else every "
         "core); the kernels give the same results on any number, PARDISO the same to "
         "round-off.")] = None,
+    processes: Annotated[int | None, typer.Option(
+        "--processes", min=1, metavar="P",
+        help="Run on P processes (mpiexec, from the mpi extra: pip install "
+        "'masonry_nscd[mpi]'): the Krylov linear solve is split among them, the rest runs "
+        "on the first; solver.linear must be krylov or auto.")] = None,
 ) -> None:
     """Run a wall case to its target displacement and write CSV, HDF5 and VTU results."""
+    from masonry_nscd.nscd import mpi
+
+    if processes is not None and processes > 1 and mpi.launched_processes() == 1:
+        argv = [*([str(case_file)] if case_file is not None else []),
+                *(["-o", str(output)] if output is not None else []),
+                *[a for s in overrides or () for a in ("--set", s)],
+                *(["--overwrite"] if overwrite else []),
+                *(["--resume", str(resume)] if resume is not None else []),
+                *(["--threads", str(n_threads)] if n_threads is not None else [])]
+        try:
+            code = mpi.relaunch(processes, ["run", *argv])
+        except RuntimeError as exc:
+            _fail(str(exc), 2)
+        raise typer.Exit(code)
+    if mpi.launched_rank() > 0:  # mpiexec's other processes: the linear solves, no outputs
+        from masonry_nscd import threads
+
+        threads.set_count(1)
+        mpi.serve(mpi.world())
+        return
     if n_threads is not None:
         from masonry_nscd import threads
 
@@ -242,6 +267,7 @@ def run(
     finally:
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
         signal.signal(signal.SIGINT, signal.default_int_handler)
+        mpi.shutdown()  # mpiexec's other processes stop (nothing on one process)
     typer.echo(f"results in {res.outdir}")
 
 
@@ -822,7 +848,8 @@ def main() -> None:
     its exit code once its output is flushed (its files are closed by then), skipping the
     interpreter's teardown of numba, LLVM and scipy, a fifth of a second of every run
     (docs/performance.md, session 15). Other commands (a sweep's cluster, say) end as Python
-    ends them."""
+    ends them, and so does every process of a run under mpiexec, once process 0 has stopped
+    the others (mpiexec loses the exit code of an ``os._exit`` after MPI's end)."""
     import os
     import sys
 
@@ -830,6 +857,11 @@ def main() -> None:
         app()
     except SystemExit as exc:
         code = 0 if exc.code is None else exc.code
+        from masonry_nscd.nscd import mpi
+
+        if mpi.launched_processes() > 1:
+            mpi.shutdown()
+            raise
         if sys.argv[1:2] != ["run"] or not isinstance(code, int):
             raise
         sys.stdout.flush()

@@ -29,6 +29,7 @@ from masonry_nscd.errors import RunFailure, RunInputError, RunOutputError
 from masonry_nscd.io import runfolder as rf
 from masonry_nscd.io.atomic import writing
 from masonry_nscd.io.runfolder import CSV_COLUMNS
+from masonry_nscd.nscd import mpi
 
 __all__ = ["CSV_COLUMNS", "LOST_RESIDUAL", "TERMINATE", "WRITING", "RunFailure",
            "RunInputError", "RunOutputError", "RunResult", "request_stop", "run_case"]
@@ -49,9 +50,11 @@ def request_stop(signum=None, frame=None) -> None:
     """The signal handler of ``masonry run`` (SIGTERM, Ctrl-C): stop the run like Ctrl-C,
     the outputs kept. Sets :data:`TERMINATE` (the step loop raises KeyboardInterrupt at its
     next step, should this handler's exception be lost inside a library) and raises
-    KeyboardInterrupt now, unless the run is writing its files (:data:`WRITING`)."""
+    KeyboardInterrupt now, unless the run is writing its files (:data:`WRITING`) or runs on
+    several processes (``nscd/mpi.py``: an exception inside a solve would leave the others
+    waiting in it; the run stops at the end of its step)."""
     TERMINATE.set()
-    if not WRITING.is_set():
+    if not WRITING.is_set() and mpi.launched_processes() == 1:
         raise KeyboardInterrupt
 
 
@@ -201,6 +204,8 @@ def _case_line(case, scene, integ) -> str:
         + (" (auto)" if case.solver.method == "auto" else "")
         + (f", linear solver {integ.newton.linear}"
            + (" (auto)" if case.solver.linear == "auto" else "")
+           + (f" on {mpi.launched_processes()} processes" if mpi.launched_processes() > 1
+              else "")
            if integ.newton is not None else "")
         + (f", contact points at {scene.meta['contact_point_rule']} points"
            if "contact_point_rule" in scene.meta else "")

@@ -79,6 +79,7 @@ from numba import njit
 from masonry_nscd import timing
 from masonry_nscd.contact import laws
 from masonry_nscd.nscd import linear as linear_solvers
+from masonry_nscd.nscd import mpi
 from masonry_nscd.nscd import pardiso as pardiso_solver
 from masonry_nscd.nscd.block_diagonal import BlockDiagonal
 from masonry_nscd.nscd.step_residual import Evaluation, Scales, StepResidual
@@ -485,7 +486,8 @@ class NewtonSolver:
         self.lu = None
         self.factorisations = 0
         # the linear solver, resolved by size; Krylov solves made again by LU, and why
-        self.linear = linear_solvers.choose(linear, len(self.free) + 3 * len(self.mult))
+        self.linear = linear_solvers.choose(linear, len(self.free) + 3 * len(self.mult),
+                                            mpi.launched_processes())
         self.linear_fallbacks = 0
         self.linear_notes: list[str] = []
         self._krylov = None
@@ -496,7 +498,7 @@ class NewtonSolver:
             modes = linear_solvers.rigid_body_modes(sys.body_dof0, sys.body_deformable,
                                                     node_xyz)[self.free]
             body_of = np.searchsorted(sys.body_dof0, self.free, side="right") - 1
-            self._krylov = linear_solvers.KrylovSolver(body_of, modes)
+            self._krylov = mpi.krylov_solver(body_of, modes)
         self._K_factorised = None
         # fixed pattern and order of the Newton matrix, found at the first factorisation
         self._pattern: _Pattern | None = None

@@ -1,0 +1,172 @@
+"""The Krylov solve on several processes (``nscd/mpi.py``, ``masonry run --processes P``),
+against the solve on one process and a direct solve.
+
+* ``partition``: ranges of whole bodies, cut at the body boundary nearest to an equal share.
+* the body system of the smoke wall's Newton matrix solved on 2 and 3 processes (mpiexec):
+  the residual ``|S v - rhs|`` computed here within the tolerance asked, the solution that of
+  SciPy's direct solver to the system's conditioning and that of one process to round-off, in
+  the same number of GMRES iterations; a second matrix (another set-up) and a second
+  right-hand side started from the first solution, likewise.
+* a run of the smoke case on two processes: the log says so, and the curve is the run's on
+  one process to the Newton tolerance, step for step.
+* a direct solver asked for on several processes: an error that names the field.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from typer.testing import CliRunner
+
+from masonry_nscd.case import load_case
+from masonry_nscd.cli import app
+from masonry_nscd.nscd import linear, mpi
+from masonry_nscd.scenes import build_scene
+
+pytest.importorskip("mpi4py", reason="the mpi extra (mpi4py, MPICH) is not installed")
+MPIEXEC = Path(sys.executable).with_name("mpiexec")
+SMOKE = "cases/smoke.yaml"
+QUIET = ["output.vtu=false", "output.hdf5=false", "output.energy=false"]
+
+SCRIPT = r"""
+import json, sys
+import numpy as np
+import scipy.sparse as sp
+from masonry_nscd.nscd import mpi
+
+comm = mpi.world()
+if comm.rank:
+    mpi.serve(comm)
+    sys.exit()
+d = np.load(sys.argv[1])
+n = len(d["body_of"])
+solver = mpi.MpiKrylovSolver(comm, d["body_of"], d["modes"], rtol=1e-8, max_iterations=500)
+out = {"size": comm.size, "cuts": solver.part.cuts.tolist(), "v": [], "iterations": []}
+for S_data, b in ((d["S1"], d["b1"]), (d["S2"], d["b2"])):
+    S = sp.csr_matrix((S_data, d["indices"], d["indptr"]), shape=(n, n))
+    v = solver.factorise_system(S, None, None, None).solve(b)
+    out["v"].append(v.tolist())
+    out["iterations"].append(solver.last_iterations)
+json.dump(out, open(sys.argv[2], "w"))
+mpi.shutdown()
+"""
+
+
+def test_partition_cuts_whole_bodies_nearest_to_equal_shares():
+    body_of = np.repeat(np.arange(5), [3, 3, 5, 5, 2])  # 18 dofs, body boundaries 0 3 6 11 16
+    assert mpi.partition(body_of, 1).tolist() == [0, 18]
+    assert mpi.partition(body_of, 2).tolist() == [0, 11, 18]  # 9: 11 is 2 away, 6 is 3
+    assert mpi.partition(body_of, 3).tolist() == [0, 6, 11, 18]  # 6 and 12
+    with pytest.raises(ValueError, match="6 processes for 5 bodies"):
+        mpi.partition(body_of, 6)
+
+
+def test_direct_solvers_refuse_several_processes():
+    assert linear.choose("auto", 1000, processes=2) == "krylov"
+    assert linear.choose("krylov", 1000, processes=2) == "krylov"
+    for name in ("lu", "pardiso"):
+        with pytest.raises(ValueError, match=f"solver.linear: {name} runs on one process"):
+            linear.choose(name, 1000, processes=2)
+
+
+@pytest.fixture(scope="module")
+def smoke_system(tmp_path_factory):
+    """The body system ``S`` of the smoke wall's Newton matrix after 3 steps and at the next
+    set-up that changed it, on the union of their patterns, with the bodies, their rigid modes
+    and two right-hand sides."""
+    integ = build_scene(load_case(SMOKE, [*QUIET, "solver.linear=krylov"])).integrator()
+    N, s = integ.newton, integ.sys
+    xyz = [bd.X if s.body_deformable[i] else None for i, bd in enumerate(integ.bodies)]
+    modes = linear.rigid_body_modes(s.body_dof0, s.body_deformable, xyz)[N.free]
+    body_of = np.searchsorted(s.body_dof0, N.free, side="right") - 1
+    for _ in range(3):
+        integ.step()
+    systems = [N.lu.S.copy()]  # the body system of the last set-up
+    while (N.lu.S != systems[0]).nnz == 0 and integ.step_index < 100:
+        integ.step()
+    systems.append(N.lu.S.copy())
+    assert (systems[0] != systems[1]).nnz > 0  # another set-up, another matrix
+    # one pattern for both (the union), the values of each on it
+    pattern = (abs(systems[0]) + abs(systems[1])).tocsr()
+    pattern.sort_indices()
+    rows = np.repeat(np.arange(pattern.shape[0]), np.diff(pattern.indptr))
+    S1, S2 = (np.asarray(S.tocsr()[rows, pattern.indices]).ravel() for S in systems)
+    rng = np.random.default_rng(0)
+    path = tmp_path_factory.mktemp("mpi") / "system.npz"
+    np.savez(path, body_of=body_of, modes=modes, indptr=pattern.indptr,
+             indices=pattern.indices, S1=S1, S2=S2,
+             b1=rng.normal(size=len(body_of)), b2=rng.normal(size=len(body_of)))
+    return path
+
+
+@pytest.mark.parametrize("processes", [2, 3])
+def test_the_body_system_solved_on_several_processes_is_solved_on_one(smoke_system,
+                                                                      processes, tmp_path):
+    script = tmp_path / "solve.py"
+    script.write_text(SCRIPT)
+    result = tmp_path / "out.json"
+    proc = subprocess.run([str(MPIEXEC), "-n", str(processes), sys.executable, str(script),
+                           str(smoke_system), str(result)], capture_output=True, text=True,
+                          check=False, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(result.read_text())
+    assert out["size"] == processes and len(out["cuts"]) == processes + 1
+    d = np.load(smoke_system)
+    n = len(d["body_of"])
+    serial = linear.KrylovSolver(d["body_of"], d["modes"], rtol=1e-8, max_iterations=500)
+    for k in (1, 2):
+        S = sp.csr_matrix((d[f"S{k}"], d["indices"], d["indptr"]), shape=(n, n))
+        b = d[f"b{k}"]
+        v = np.array(out["v"][k - 1])
+        assert np.linalg.norm(b - S @ v) <= 2e-8 * np.linalg.norm(b)
+        # SciPy's direct solution, to the conditioning of the glue springs (1e9 times the
+        # blocks' stiffness: test_linear_solvers)
+        v_ref = spla.spsolve(S.tocsc(), b)
+        assert np.linalg.norm(v - v_ref) <= 1e-3 * np.linalg.norm(v_ref)
+        # one process's GMRES: the same iterations, the same solution but for round-off
+        v1 = serial.factorise_system(S, None, None, None).solve(b)
+        assert out["iterations"][k - 1] == serial.last_iterations
+        # round-off (1e-16 per sum) through the glue's conditioning (1e9)
+        assert np.linalg.norm(v - v1) <= 1e-7 * np.linalg.norm(v1)
+
+def _curve(outdir: Path) -> np.ndarray:
+    return np.genfromtxt(outdir / "force_displacement.csv", delimiter=",", names=True)
+
+
+def test_a_run_on_two_processes_is_the_run_on_one(tmp_path):
+    sets = [a for s in (*QUIET, "solver.linear=krylov") for a in ("--set", s)]
+    one, two = tmp_path / "one", tmp_path / "two"
+    r1 = CliRunner().invoke(app, ["run", SMOKE, "-o", str(one), *sets])
+    assert r1.exit_code == 0, r1.output
+    env = {k: v for k, v in os.environ.items() if k not in mpi.SIZE_VARIABLES}
+    r2 = subprocess.run([sys.executable, "-m", "masonry_nscd.cli", "run", SMOKE, "-o", str(two),
+                         *sets, "--processes", "2"], capture_output=True, text=True,
+                        check=False, timeout=600, env=env)
+    assert r2.returncode == 0, r2.stderr
+    log = (two / "run.log").read_text()
+    assert "linear solver krylov on 2 processes" in log
+    assert "0 solves made by LU" in log
+    a, b = _curve(one), _curve(two)
+    assert len(a) == len(b) and np.array_equal(a["step"], b["step"])
+    tol = load_case(SMOKE).solver.tolerance
+    for col in ("fx_kN", "fy_kN"):
+        scale = np.abs(a[col]).max()
+        assert np.abs(a[col] - b[col]).max() <= 100.0 * tol * scale, col
+    assert np.all(b["converged"] == 1)
+
+
+def test_a_direct_solver_on_two_processes_is_refused_by_name(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "masonry_nscd.cli", "run", SMOKE, "-o",
+                           str(tmp_path / "run"), "--set", "solver.linear=lu",
+                           "--processes", "2"], capture_output=True, text=True, timeout=300,
+                          check=False)
+    assert proc.returncode == 2, proc.stderr
+    assert "solver.linear: lu runs on one process" in proc.stderr
