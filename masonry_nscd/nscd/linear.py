@@ -266,7 +266,8 @@ class KrylovSolver:
         Ordered by nested dissection: the bodies' 6 x 6 blocks make a graph like the wall's,
         where it halves the fill of the minimum degree order (64 times the study's wall, 25,609
         unknowns: 7.3 M against 12.6 M entries in L + U, 100 against 204 ms a factorisation,
-        7.5 against 13 ms a solve)."""
+        7.5 against 13 ms a solve). On one thread: on two, its factorisations differed from
+        one run to the next in the last bits, and so did the runs (docs/scaling.md)."""
         if not pardiso.available():
             return spla.splu(S0)
         S0.sort_indices()
@@ -274,7 +275,8 @@ class KrylovSolver:
         if kept is None or not (np.array_equal(kept[0], S0.indptr)
                                 and np.array_equal(kept[1], S0.indices)):
             kept = (S0.indptr.copy(), S0.indices.copy(),
-                    pardiso.Pardiso(S0.indptr, S0.indices, S0.shape[0], order=2))
+                    pardiso.Pardiso(S0.indptr, S0.indices, S0.shape[0], order=2,
+                                    n_threads=1))
             self._coarse_pattern = kept
         return kept[2].factorise(S0.data)
 

@@ -113,12 +113,13 @@ def library() -> ctypes.CDLL | None:
 _threads_set = 0  # the OpenMP threads last given to MKL (0: none yet)
 
 
-def _use_threads(lib: ctypes.CDLL) -> None:
-    """Give MKL its threads before a factorisation: ``MKL_NUM_THREADS`` when set, else the
-    per-point kernels' count (module docstring); set only when it changed."""
+def _use_threads(lib: ctypes.CDLL, fixed: int | None = None) -> None:
+    """Give MKL its threads before a factorisation: ``fixed`` when given, else
+    ``MKL_NUM_THREADS`` when set, else the per-point kernels' count (module docstring); set
+    only when it changed."""
     global _threads_set
     env = os.environ.get("MKL_NUM_THREADS", "").strip()
-    n = int(env) if env.isdigit() and int(env) > 0 else threads.count()
+    n = fixed if fixed else int(env) if env.isdigit() and int(env) > 0 else threads.count()
     if n != _threads_set:
         lib.MKL_Set_Num_Threads(n)
         _threads_set = n
@@ -136,15 +137,18 @@ class Pardiso:
     ``indptr``, ``indices``: the pattern in compressed columns (n + 1 and nnz entries, zero
     based, sorted within each column), the same for every matrix given to :meth:`factorise`.
     ``order``: PARDISO's fill-reducing order, ``iparm[1]`` (0 minimum degree, the default:
-    module docstring; 2 nested dissection by METIS).
+    module docstring; 2 nested dissection by METIS). ``n_threads``: this handle's
+    factorisations on that many threads whatever the environment (None: module docstring).
     """
 
-    def __init__(self, indptr: np.ndarray, indices: np.ndarray, n: int, order: int = 0):
+    def __init__(self, indptr: np.ndarray, indices: np.ndarray, n: int, order: int = 0,
+                 n_threads: int | None = None):
         lib = library()
         if lib is None:
             raise PardisoError(MISSING)
         self._lib = lib
         self.n = int(n)
+        self.n_threads = n_threads
         self._ia = np.ascontiguousarray(indptr, dtype=np.int32)
         self._ja = np.ascontiguousarray(indices, dtype=np.int32)
         if len(self._ia) != self.n + 1 or int(self._ia[-1]) != len(self._ja):
@@ -190,7 +194,7 @@ class Pardiso:
         data = np.ascontiguousarray(data, dtype=np.float64)
         if len(data) != len(self._ja):
             raise ValueError(f"{len(data)} values for a pattern of {len(self._ja)} entries")
-        _use_threads(self._lib)
+        _use_threads(self._lib, self.n_threads)
         if not self._analysed:
             self._call(11, data)
             self._analysed = True
