@@ -122,6 +122,8 @@ class EnergyAccount:
             elif isinstance(b, Block):
                 self._elastic_dofs[sl] = True
         mat = integ.material
+        # the ENDO3D points' undamaged compliance C0^-1 (1/Pa, (points, 6, 6)), inverted once
+        self._compliance = None if mat is None else np.linalg.inv(mat.C0)
         if mat is not None:
             self._endo_dofs[mat.all_dofs] = True
             self._elastic_dofs[mat.all_dofs] = False
@@ -232,7 +234,8 @@ class EnergyAccount:
         f = integ.current_internal_forces()
         el = self._elastic_dofs
         elastic = 0.5 * float(u[el] @ f[el])
-        endo = endo3d_stored_energy(integ.material) if integ.material is not None else 0.0
+        endo = (endo3d_stored_energy(integ.material, self._compliance)
+                if integ.material is not None else 0.0)
         j = integ.joints
         _, psi_s = self._spring(j.T)
         psi = psi_s + j.beta * self._cohesion(j.uc, j.beta)
@@ -264,9 +267,14 @@ class EnergyAccount:
         return out
 
 
-def endo3d_stored_energy(material) -> float:
+def endo3d_stored_energy(material, compliance: np.ndarray | None = None) -> float:
     """``1/2 sum_g w_g sigma_g : C0^-1 : sigma_g`` over the ENDO3D Gauss points (J), the
-    committed stresses (Pa) and the undamaged elasticity ``C0`` (engineering shear strains)."""
+    committed stresses (Pa) and the undamaged elasticity ``C0`` (engineering shear strains);
+    ``compliance``: ``C0^-1`` per point when already inverted (the points' ``C0`` never
+    change), else each point's ``C0`` is solved."""
     sig = material.sigma_committed_all
-    eps = np.linalg.solve(material.C0, sig[:, :, None])[:, :, 0]
+    if compliance is None:
+        eps = np.linalg.solve(material.C0, sig[:, :, None])[:, :, 0]
+    else:
+        eps = np.einsum("pij,pj->pi", compliance, sig)
     return 0.5 * float(material.w.reshape(-1) @ np.einsum("pi,pi->p", sig, eps))
