@@ -10,6 +10,8 @@ against the solve on one process and a direct solve.
 * a run of the smoke case on two processes: the log says so, and the curve is the run's on
   one process to the Newton tolerance, step for step.
 * a direct solver asked for on several processes: an error that names the field.
+* SIGTERM on two processes: exit 130, the outputs kept, no process left; --resume on two
+  processes finishes the run.
 """
 
 from __future__ import annotations
@@ -170,3 +172,43 @@ def test_a_direct_solver_on_two_processes_is_refused_by_name(tmp_path):
                           check=False)
     assert proc.returncode == 2, proc.stderr
     assert "solver.linear: lu runs on one process" in proc.stderr
+
+
+def test_sigterm_on_two_processes_stops_at_the_step_end_then_resumes(tmp_path):
+    """SIGTERM to ``masonry run --processes 2``: every process stops (exit 130, the outputs
+    kept, none left running), and ``--resume --processes 2`` finishes the run."""
+    import signal
+    import time
+
+    import psutil
+
+    out = tmp_path / "run"
+    sets = ["--set", "solver.time_step_s=5e-4", "--set", "output.vtu=false",
+            "--set", "solver.linear=krylov"]
+    env = {k: v for k, v in os.environ.items() if k not in mpi.SIZE_VARIABLES}
+    proc = subprocess.Popen([sys.executable, "-m", "masonry_nscd.cli", "run", SMOKE, "-o",
+                             str(out), *sets, "--processes", "2"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=env)
+    deadline = time.time() + 120
+    csv_path = out / "force_displacement.csv"
+    while time.time() < deadline and proc.poll() is None:
+        if csv_path.exists() and len(csv_path.read_text().splitlines()) > 60:
+            break
+        time.sleep(0.05)
+    children = psutil.Process(proc.pid).children(recursive=True)
+    assert len([c for c in children if c.name().startswith("python")]) == 2  # the ranks
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    if proc.returncode == 0:  # pragma: no cover - the machine was faster than the polling
+        pytest.skip("the run finished before SIGTERM")
+    assert proc.returncode == 130, err
+    assert "--resume" in err
+    _, alive = psutil.wait_procs(children, timeout=10)
+    assert not alive
+    done = subprocess.run([sys.executable, "-m", "masonry_nscd.cli", "run", "--resume", str(out),
+                           "--processes", "2"], capture_output=True, text=True, timeout=300,
+                          check=False, env=env)
+    assert done.returncode == 0, done.stderr
+    c = _curve(out)
+    assert np.array_equal(c["step"], np.arange(1, 401))
+    assert c["ux_mm"][-1] >= 0.5
