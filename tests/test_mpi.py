@@ -5,8 +5,8 @@ against the solve on one process and a direct solve.
 * the body system of the smoke wall's Newton matrix solved on 2 and 3 processes (mpiexec):
   the residual ``|S v - rhs|`` computed here within the tolerance asked, the solution that of
   SciPy's direct solver to the system's conditioning and that of one process to round-off, in
-  the same number of GMRES iterations; a second matrix (another set-up) and a second
-  right-hand side started from the first solution, likewise.
+  the same number of GMRES iterations; a second matrix (another set-up) with another
+  right-hand side, likewise.
 * a run of the smoke case on two processes: the log says so, and the curve is the run's on
   one process to the Newton tolerance, step for step.
 * a direct solver asked for on several processes: an error that names the field.
