@@ -25,3 +25,15 @@ def interrupt_at(monkeypatch, step: int, exc: BaseException | None = None) -> No
 def interrupt_before_step(monkeypatch):
     """``arm(step, exc=None)``: :func:`interrupt_at` with this test's monkeypatch."""
     return lambda step, exc=None: interrupt_at(monkeypatch, step, exc)
+
+
+def wait_for_rows(proc, csv_path, rows: int, timeout_s: float = 120.0) -> None:
+    """Wait until the run of subprocess ``proc`` has more than ``rows`` lines in ``csv_path``
+    (or has ended, or ``timeout_s`` has passed): the moment to interrupt it."""
+    import time
+
+    deadline = time.time() + timeout_s
+    while time.time() < deadline and proc.poll() is None:
+        if csv_path.exists() and len(csv_path.read_text().splitlines()) > rows:
+            return
+        time.sleep(0.05)

@@ -26,6 +26,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from conftest import wait_for_rows
 from typer.testing import CliRunner
 
 from masonry_nscd.case import load_case
@@ -178,7 +179,6 @@ def test_sigterm_on_two_processes_stops_at_the_step_end_then_resumes(tmp_path):
     """SIGTERM to ``masonry run --processes 2``: every process stops (exit 130, the outputs
     kept, none left running), and ``--resume --processes 2`` finishes the run."""
     import signal
-    import time
 
     import psutil
 
@@ -189,12 +189,7 @@ def test_sigterm_on_two_processes_stops_at_the_step_end_then_resumes(tmp_path):
     proc = subprocess.Popen([sys.executable, "-m", "masonry_nscd.cli", "run", SMOKE, "-o",
                              str(out), *sets, "--processes", "2"], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=env)
-    deadline = time.time() + 120
-    csv_path = out / "force_displacement.csv"
-    while time.time() < deadline and proc.poll() is None:
-        if csv_path.exists() and len(csv_path.read_text().splitlines()) > 60:
-            break
-        time.sleep(0.05)
+    wait_for_rows(proc, out / "force_displacement.csv", 60)
     children = psutil.Process(proc.pid).children(recursive=True)
     assert len([c for c in children if c.name().startswith("python")]) == 2  # the ranks
     proc.send_signal(signal.SIGTERM)

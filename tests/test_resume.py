@@ -14,13 +14,13 @@ import os
 import signal
 import subprocess
 import sys
-import time
 import xml.etree.ElementTree as ET
 
 import h5py
 import numpy as np
 import pytest
 from conftest import interrupt_at as _interrupt_at
+from conftest import wait_for_rows
 from typer.testing import CliRunner
 
 from masonry_nscd.case import load_case
@@ -266,12 +266,7 @@ def test_sigterm_then_resume(tmp_path, reference):
     proc = subprocess.Popen(
         [sys.executable, "-m", "masonry_nscd.cli", "run", SMOKE, "-o", str(out), *sets],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.time() + 120
-    csv_path = out / "force_displacement.csv"
-    while time.time() < deadline and proc.poll() is None:
-        if csv_path.exists() and len(csv_path.read_text().splitlines()) > 60:
-            break
-        time.sleep(0.05)
+    wait_for_rows(proc, out / "force_displacement.csv", 60)
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
     if proc.returncode == 0:  # pragma: no cover - the machine was faster than the polling
