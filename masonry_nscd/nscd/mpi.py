@@ -27,12 +27,12 @@ Per GMRES iteration (``linear.gmres`` on each process's rows), what crosses betw
   keeps its own bodies' part.
 
 Process 0 runs the case as on one process (the joints, the blocks, Newton's iterations, the
-Newton matrix, the outputs). At a set-up it sends every process its rows of ``S``; at a solve,
-its rows of the right-hand side and of the start; it takes part in GMRES with its own rows and
-gathers the solution. The other processes wait for its commands (``serve``), looking every
-``POLL_S`` and sleeping in between, so that they leave the cores to process 0's kernels. So
-the linear solve's work and memory are split; the rest of a step is not yet
-(``docs/scaling.md``, "Beyond one machine").
+Newton matrix, the outputs). At a set-up it sends every process its rows of ``S`` (their
+arrays as they are in memory); at a solve, its rows of the right-hand side and of the start;
+it takes part in GMRES with its own rows and gathers the solution. The other processes wait
+for its commands (``serve``), looking every ``POLL_S`` and sleeping in between, so that they
+leave the cores to process 0's kernels. So the linear solve's work and memory are split; the
+rest of a step is not yet (``docs/scaling.md``, "Beyond one machine").
 
 The iterates are those of GMRES on one process but for round-off (the inner products summed by
 process), and a solve stops at the same relative residual; Newton's iterations then stop at
@@ -318,8 +318,9 @@ class MpiKrylovSolver(linear.KrylovSolver):
         with timing.part("preconditioner set-up"):
             _command(self.comm, _SETUP, self.id)
             cuts = self.part.cuts
-            self.part.setup(self.comm.scatter(
-                [S[cuts[q]:cuts[q + 1]] for q in range(self.comm.size)], root=0))
+            for q in range(1, self.comm.size):
+                _send_rows(self.comm, q, S, int(cuts[q]), int(cuts[q + 1]))
+            self.part.setup(_rows(S, int(cuts[0]), int(cuts[1])))
         return _Operator(self, S, B, C, Dinv, None)
 
 
@@ -334,6 +335,35 @@ class _Operator(linear.KrylovOperator):
                                for a, e in itertools.pairwise(cuts)], root=0)
         v, count = o.part.solve(b, x)
         return np.concatenate(o.comm.gather(v, root=0)), count
+
+
+def _rows(S: sp.csr_matrix, lo: int, hi: int) -> sp.csr_matrix:
+    """Rows ``[lo, hi)`` of ``S`` (CSR, the columns as they are), views of its arrays but the
+    row pointers."""
+    p0, p1 = int(S.indptr[lo]), int(S.indptr[hi])
+    return sp.csr_matrix((S.data[p0:p1], S.indices[p0:p1], S.indptr[lo:hi + 1] - p0),
+                         shape=(hi - lo, S.shape[1]))
+
+
+def _send_rows(comm, dest: int, S: sp.csr_matrix, lo: int, hi: int) -> None:
+    """Send rows ``[lo, hi)`` of ``S`` to process ``dest`` (``_receive_rows``): their sizes,
+    then the three arrays as they are in memory (no pickling: 4 M entries at 32 times the
+    study's wall)."""
+    rows = _rows(S, lo, hi)
+    comm.send((rows.shape, rows.indices.dtype.str, rows.nnz), dest=dest)
+    for a in (rows.indptr, rows.indices, rows.data):
+        comm.Send(np.ascontiguousarray(a), dest=dest)
+
+
+def _receive_rows(comm) -> sp.csr_matrix:
+    """The rows process 0 sends (``_send_rows``)."""
+    shape, kind, nnz = comm.recv(source=0)
+    indptr = np.empty(shape[0] + 1, dtype=kind)
+    indices = np.empty(nnz, dtype=kind)
+    data = np.empty(nnz)
+    for a in (indptr, indices, data):
+        comm.Recv(a, source=0)
+    return sp.csr_matrix((data, indices, indptr), shape=shape)
 
 
 def _command(comm, code: int, ident: int) -> None:
@@ -372,7 +402,7 @@ def serve(comm) -> None:
                 body_of, modes, rtol, restart, max_iterations = comm.bcast(None, root=0)
                 parts[ident] = _Part(comm, body_of, modes, rtol, restart, max_iterations)
             elif code == _SETUP:
-                parts[ident].setup(comm.scatter(None, root=0))
+                parts[ident].setup(_receive_rows(comm))
             elif code == _SOLVE:
                 b, x0 = comm.scatter(None, root=0)
                 comm.gather(parts[ident].solve(b, x0)[0], root=0)
