@@ -187,6 +187,12 @@ class KrylovSolver:
         self._size_of = np.repeat(sizes, sizes).astype(np.int64)
         # PARDISO's analysis of the coarse matrix's pattern (indptr, indices, handle), kept
         self._coarse_pattern = None
+        self.coarse_analyses = 0  # analyses of the coarse pattern so far
+        #: every entry the body system can have, ``(indptr, indices)`` of a CSR pattern with
+        #: its zeros (the Newton solver's fixed pattern), when known: the coarse pattern is
+        #: then analysed once, on ``|R|^T P |R|``
+        self.structure = None
+        self._coarse_seed = None
         # the last set-up's blocks (laid out as above) and their inverses, per group; blocks
         # inverted again since
         self._last_blocks = None
@@ -227,7 +233,8 @@ class KrylovSolver:
     def _preconditioner(self, S: sp.csr_matrix) -> Preconditioner:
         """The two-level preconditioner of ``S``."""
         groups = self.local_inverses(S, self.body_of)
-        return Preconditioner(self, S, groups, self._coarse_lu((self.RT @ S @ self.R).tocsc()))
+        return Preconditioner(self, S, groups, self._coarse_lu((self.RT @ S @ self.R).tocsc(),
+                                                               self.coarse_seed()))
 
     def local_inverses(self, S: sp.csr_matrix, body_of: np.ndarray) -> list:
         """The inverses of the bodies' dense diagonal blocks of ``S`` by size, ``[(dofs (g,
@@ -259,26 +266,68 @@ class KrylovSolver:
         self._last_blocks = (flat, [inv for _, inv in groups])
         return groups
 
-    def _coarse_lu(self, S0: sp.csc_matrix):
-        """The LU of the coarse matrix: PARDISO where MKL is installed (its analysis kept
-        while the pattern stays; at 32 times the study's wall, 12,937 unknowns: 59 ms a
-        factorisation, 160 ms with the analysis, against 413 ms for SuperLU), else SuperLU.
-        Ordered by nested dissection: the bodies' 6 x 6 blocks make a graph like the wall's,
-        where it halves the fill of the minimum degree order (64 times the study's wall, 25,609
-        unknowns: 7.3 M against 12.6 M entries in L + U, 100 against 204 ms a factorisation,
-        7.5 against 13 ms a solve). On one thread: on two, its factorisations differed from
-        one run to the next in the last bits, and so did the runs (docs/scaling.md)."""
+    def coarse_seed(self) -> sp.csc_matrix | None:
+        """Every entry the coarse matrix can have, ``|R|^T P |R|`` with ``P`` the ones of
+        ``structure`` (CSC; None while ``structure`` is not known), made once."""
+        if self._coarse_seed is None and self.structure is not None:
+            indptr, indices = self.structure
+            P = sp.csr_matrix((np.ones(len(indices)), indices, indptr), shape=(self.nf, self.nf))
+            absR = abs(self.R)
+            self._coarse_seed = (absR.T @ P @ absR).tocsc()
+        return self._coarse_seed
+
+    def _coarse_lu(self, S0: sp.csc_matrix, seed: sp.csc_matrix | None = None):
+        """The LU of the coarse matrix: PARDISO where MKL is installed, else SuperLU; ``seed``:
+        the pattern to analyse at the first call (``coarse_seed``), else ``S0``'s.
+
+        PARDISO's analysis is kept for a pattern that grows to the union of the patterns met,
+        the entries of joints that opened kept as zeros: the pattern changes at most set-ups
+        as joints open and close, and an analysis costs several factorisations
+        (docs/scaling.md). Ordered by nested dissection: the bodies' 6 x 6 blocks make a
+        graph like the wall's, where it halves the fill of the minimum degree order. On one
+        thread: on two, its factorisations differed from one run to the next in the last
+        bits, and so did the runs (docs/scaling.md)."""
         if not pardiso.available():
             return spla.splu(S0)
         S0.sort_indices()
         kept = self._coarse_pattern
-        if kept is None or not (np.array_equal(kept[0], S0.indptr)
-                                and np.array_equal(kept[1], S0.indices)):
-            kept = (S0.indptr.copy(), S0.indices.copy(),
-                    pardiso.Pardiso(S0.indptr, S0.indices, S0.shape[0], order=2,
-                                    n_threads=1))
-            self._coarse_pattern = kept
-        return kept[2].factorise(S0.data)
+        if kept is not None:
+            data = _on_pattern(kept[2], S0)
+            if data is not None:
+                return kept[3].factorise(data)
+            # an entry outside the kept pattern: analyse the union of the two, so that the
+            # entries that come and go as joints open and close stay in it (as zeros)
+            union = (sp.csc_matrix((np.ones(len(kept[1])), kept[1], kept[0]), shape=S0.shape)
+                     + sp.csc_matrix((np.ones(S0.nnz), S0.indices, S0.indptr),
+                                     shape=S0.shape))
+            union.sort_indices()
+        elif seed is not None:
+            union = seed + sp.csc_matrix((np.ones(S0.nnz), S0.indices, S0.indptr),
+                                         shape=S0.shape)
+            union.sort_indices()
+        else:
+            union = S0
+        keys = np.repeat(np.arange(S0.shape[1], dtype=np.int64), np.diff(union.indptr)) \
+            * S0.shape[0] + union.indices
+        kept = (union.indptr.copy(), union.indices.copy(), keys,
+                pardiso.Pardiso(union.indptr, union.indices, S0.shape[0], order=2, n_threads=1))
+        self._coarse_pattern = kept
+        self.coarse_analyses += 1
+        return kept[3].factorise(_on_pattern(keys, S0))
+
+
+def _on_pattern(keys: np.ndarray, A: sp.csc_matrix) -> np.ndarray | None:
+    """The values of ``A`` (CSC, sorted indices) laid on a pattern given by its entries' keys
+    ``column n + row`` (sorted), zeros where ``A`` has no entry; None when ``A`` has an entry
+    outside it."""
+    n = A.shape[0]
+    mine = np.repeat(np.arange(A.shape[1], dtype=np.int64), np.diff(A.indptr)) * n + A.indices
+    at = np.searchsorted(keys, mine)
+    if np.any(at >= len(keys)) or not np.array_equal(keys[np.minimum(at, len(keys) - 1)], mine):
+        return None
+    data = np.zeros(len(keys))
+    data[at] = A.data
+    return data
 
 
 @njit(cache=True)

@@ -206,12 +206,15 @@ class _Part:
         # between set-ups, their own coarse columns (R_p, R_p^T)
         self.local = linear.KrylovSolver(self.own_body, modes[lo:hi], rtol, max_iterations,
                                          restart)
-        self.S = self.preconditioner = None
+        self.S = self.preconditioner = self.seed = None
 
-    def setup(self, rows: sp.csr_matrix) -> None:
+    def setup(self, rows: sp.csr_matrix, seed: sp.csc_matrix | None = None) -> None:
         """Take this process's rows of ``S`` (CSR, the columns numbered globally): renumber
         them with the ghosts after the own dofs, agree the ghost exchange with the other
-        processes, invert the changed diagonal blocks, gather and factorise ``S_0``."""
+        processes, invert the changed diagonal blocks, gather and factorise ``S_0``;
+        ``seed``: the coarse matrix's whole pattern, when process 0 first knows it (kept)."""
+        if seed is not None:
+            self.seed = seed
         lo, hi, n = self.lo, self.hi, self.hi - self.lo
         cols = rows.indices
         outside = (cols < lo) | (cols >= hi)
@@ -224,7 +227,8 @@ class _Part:
         groups = self.local.local_inverses(self.S, body_ext)
         coarse_rows = (self.local.RT @ (rows @ self.R)).tocsr()
         S0 = sp.vstack(self.comm.allgather(coarse_rows)).tocsc()
-        self.preconditioner = _PartPreconditioner(self, groups, self.local._coarse_lu(S0))
+        self.preconditioner = _PartPreconditioner(self, groups,
+                                                  self.local._coarse_lu(S0, self.seed))
 
     def _plan(self, ghosts: np.ndarray) -> None:
         """Which entries this process sends to which (the ghosts of the others in its range)
@@ -317,10 +321,13 @@ class MpiKrylovSolver(linear.KrylovSolver):
     def factorise_system(self, S: sp.csr_matrix, B, C, Dinv) -> linear.KrylovOperator:
         with timing.part("preconditioner set-up"):
             _command(self.comm, _SETUP, self.id)
+            # the coarse matrix's whole pattern, once it is known (``linear.coarse_seed``)
+            seed = self.coarse_seed() if self.part.seed is None else None
+            self.comm.bcast(seed, root=0)
             cuts = self.part.cuts
             for q in range(1, self.comm.size):
                 _send_rows(self.comm, q, S, int(cuts[q]), int(cuts[q + 1]))
-            self.part.setup(_rows(S, int(cuts[0]), int(cuts[1])))
+            self.part.setup(_rows(S, int(cuts[0]), int(cuts[1])), seed)
         return _Operator(self, S, B, C, Dinv, None)
 
 
@@ -402,7 +409,8 @@ def serve(comm) -> None:
                 body_of, modes, rtol, restart, max_iterations = comm.bcast(None, root=0)
                 parts[ident] = _Part(comm, body_of, modes, rtol, restart, max_iterations)
             elif code == _SETUP:
-                parts[ident].setup(_receive_rows(comm))
+                seed = comm.bcast(None, root=0)
+                parts[ident].setup(_receive_rows(comm), seed)
             elif code == _SOLVE:
                 b, x0 = comm.scatter(None, root=0)
                 comm.gather(parts[ident].solve(b, x0)[0], root=0)

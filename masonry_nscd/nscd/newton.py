@@ -648,6 +648,9 @@ class NewtonSolver:
         else:
             with timing.part("Newton matrix"):
                 data = jacobian_values(pat.slot, len(pat.indices), *args, eliminate=True)
+        if self._krylov is not None and self._krylov.structure is None:
+            # the coarse LU's pattern, analysed once
+            self._krylov.structure = (pat.indptr, pat.indices)
         # the pattern holds every entry that can be non-zero (the bodies' blocks whole, the
         # open joints' zeros): without the zeros the products of GMRES are a third cheaper
         return linear_solvers.nonzero_csr(pat.indptr, pat.indices, data, nf)
