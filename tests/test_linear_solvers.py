@@ -12,6 +12,9 @@ independent calculations and physics.
 * ``pardiso``: solutions of the Newton matrix as SuperLU's, a factor replaced by a later one
   refused, a run with it the run with SuperLU; asked for without MKL, an error naming the field.
 * the case field and the bench options: errors that name the field and its range.
+* the coarse LU: values laid on a larger pattern are the matrix; on the smoke wall its
+  pattern is analysed once however the joints open and close (three times without the
+  body system's structure).
 """
 
 from __future__ import annotations
@@ -526,3 +529,30 @@ def test_pardiso_takes_the_kernels_thread_count_unless_mkl_num_threads(monkeypat
     finally:
         threads.set_count(None)
     assert calls == [3, 1, 2]
+
+
+def test_values_laid_on_a_larger_pattern_are_the_matrix():
+    rng = np.random.default_rng(5)
+    A = sp.random(30, 30, density=0.2, random_state=rng, format="csc")
+    A.sort_indices()
+    big = (A + sp.random(30, 30, density=0.2, random_state=rng, format="csc")).tocsc()
+    big.sort_indices()
+    keys = np.repeat(np.arange(30), np.diff(big.indptr)) * 30 + big.indices
+    data = linear._on_pattern(keys, A)
+    on_big = sp.csc_matrix((data, big.indices, big.indptr), shape=A.shape)
+    assert np.array_equal(on_big.toarray(), A.toarray())
+    own = np.repeat(np.arange(30), np.diff(A.indptr)) * 30 + A.indices
+    assert linear._on_pattern(own[1:], A) is None  # an entry outside the pattern
+
+
+def test_the_coarse_pattern_is_analysed_once_per_solver():
+    """The smoke wall to its end with krylov: the coarse matrix's entries come and go as joints
+    open and close, but its LU is analysed once, on every entry it can have."""
+    if not pardiso.available():
+        pytest.skip("the coarse LU is SciPy's SuperLU without MKL")
+    integ = build_scene(load_case(SMOKE, [*QUIET, "solver.linear=krylov"])).integrator()
+    for _ in range(60):
+        integ.step()
+    ks = integ.newton._krylov
+    assert integ.newton.factorisations > 1
+    assert ks.coarse_analyses == 1
