@@ -185,7 +185,7 @@ class KrylovSolver:
         self._block_of = np.repeat(block_off, sizes)
         self._local = (np.arange(nf) - np.repeat(starts, sizes)).astype(np.int64)
         self._size_of = np.repeat(sizes, sizes).astype(np.int64)
-        # PARDISO's analysis of the coarse matrix's pattern (indptr, indices, handle), kept
+        # the coarse matrix's analysed pattern (indptr, indices, its keys, PARDISO's handle)
         self._coarse_pattern = None
         self.coarse_analyses = 0  # analyses of the coarse pattern so far
         #: every entry the body system can have, ``(indptr, indices)`` of a CSR pattern with
@@ -291,24 +291,17 @@ class KrylovSolver:
             return spla.splu(S0)
         S0.sort_indices()
         kept = self._coarse_pattern
+        base = seed
         if kept is not None:
             data = _on_pattern(kept[2], S0)
             if data is not None:
                 return kept[3].factorise(data)
             # an entry outside the kept pattern: analyse the union of the two, so that the
             # entries that come and go as joints open and close stay in it (as zeros)
-            union = (sp.csc_matrix((np.ones(len(kept[1])), kept[1], kept[0]), shape=S0.shape)
-                     + sp.csc_matrix((np.ones(S0.nnz), S0.indices, S0.indptr),
-                                     shape=S0.shape))
-            union.sort_indices()
-        elif seed is not None:
-            union = seed + sp.csc_matrix((np.ones(S0.nnz), S0.indices, S0.indptr),
-                                         shape=S0.shape)
-            union.sort_indices()
-        else:
-            union = S0
-        keys = np.repeat(np.arange(S0.shape[1], dtype=np.int64), np.diff(union.indptr)) \
-            * S0.shape[0] + union.indices
+            base = _ones(kept[0], kept[1], S0.shape)
+        union = S0 if base is None else base + _ones(S0.indptr, S0.indices, S0.shape)
+        union.sort_indices()
+        keys = _keys(union)
         kept = (union.indptr.copy(), union.indices.copy(), keys,
                 pardiso.Pardiso(union.indptr, union.indices, S0.shape[0], order=2, n_threads=1))
         self._coarse_pattern = kept
@@ -316,12 +309,24 @@ class KrylovSolver:
         return kept[3].factorise(_on_pattern(keys, S0))
 
 
+def _ones(indptr: np.ndarray, indices: np.ndarray, shape: tuple[int, int]) -> sp.csc_matrix:
+    """The CSC pattern ``(indptr, indices)`` with ones for values (sums of such patterns never
+    cancel an entry)."""
+    return sp.csc_matrix((np.ones(len(indices)), indices, indptr), shape=shape)
+
+
+def _keys(A: sp.csc_matrix) -> np.ndarray:
+    """The keys ``column n + row`` of the entries of ``A`` (CSC, ``n`` rows), sorted when its
+    indices are."""
+    cols = np.repeat(np.arange(A.shape[1], dtype=np.int64), np.diff(A.indptr))
+    return cols * A.shape[0] + A.indices
+
+
 def _on_pattern(keys: np.ndarray, A: sp.csc_matrix) -> np.ndarray | None:
     """The values of ``A`` (CSC, sorted indices) laid on a pattern given by its entries' keys
-    ``column n + row`` (sorted), zeros where ``A`` has no entry; None when ``A`` has an entry
-    outside it."""
-    n = A.shape[0]
-    mine = np.repeat(np.arange(A.shape[1], dtype=np.int64), np.diff(A.indptr)) * n + A.indices
+    (``_keys``, sorted), zeros where ``A`` has no entry; None when ``A`` has an entry outside
+    it."""
+    mine = _keys(A)
     at = np.searchsorted(keys, mine)
     if np.any(at >= len(keys)) or not np.array_equal(keys[np.minimum(at, len(keys) - 1)], mine):
         return None
