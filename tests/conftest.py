@@ -37,3 +37,17 @@ def wait_for_rows(proc, csv_path, rows: int, timeout_s: float = 120.0) -> None:
         if csv_path.exists() and len(csv_path.read_text().splitlines()) > rows:
             return
         time.sleep(0.05)
+
+
+def stop_by_sigterm(proc, timeout_s: float) -> None:
+    """Send SIGTERM to the run of subprocess ``proc`` and check that it stopped as
+    interrupted: exit code 130 and a message that says how to resume (a run that had already
+    finished skips the test)."""
+    import signal
+
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=timeout_s)
+    if proc.returncode == 0:  # pragma: no cover - the machine was faster than the polling
+        pytest.skip("the run finished before SIGTERM")
+    assert proc.returncode == 130, err
+    assert "--resume" in err

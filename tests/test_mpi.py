@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-from conftest import wait_for_rows
+from conftest import stop_by_sigterm, wait_for_rows
 from typer.testing import CliRunner
 
 from masonry_nscd.case import load_case
@@ -178,8 +178,6 @@ def test_a_direct_solver_on_two_processes_is_refused_by_name(tmp_path):
 def test_sigterm_on_two_processes_stops_at_the_step_end_then_resumes(tmp_path):
     """SIGTERM to ``masonry run --processes 2``: every process stops (exit 130, the outputs
     kept, none left running), and ``--resume --processes 2`` finishes the run."""
-    import signal
-
     import psutil
 
     out = tmp_path / "run"
@@ -192,12 +190,7 @@ def test_sigterm_on_two_processes_stops_at_the_step_end_then_resumes(tmp_path):
     wait_for_rows(proc, out / "force_displacement.csv", 60)
     children = psutil.Process(proc.pid).children(recursive=True)
     assert len([c for c in children if c.name().startswith("python")]) == 2  # the ranks
-    proc.send_signal(signal.SIGTERM)
-    _, err = proc.communicate(timeout=120)
-    if proc.returncode == 0:  # pragma: no cover - the machine was faster than the polling
-        pytest.skip("the run finished before SIGTERM")
-    assert proc.returncode == 130, err
-    assert "--resume" in err
+    stop_by_sigterm(proc, 120)
     _, alive = psutil.wait_procs(children, timeout=10)
     assert not alive
     done = subprocess.run([sys.executable, "-m", "masonry_nscd.cli", "run", "--resume", str(out),
