@@ -92,6 +92,48 @@ def test_the_local_preconditioner_inverts_each_bodys_diagonal_block():
     assert np.allclose(pre._local(r), expected, rtol=1e-12, atol=1e-12)
 
 
+def test_a_block_that_moved_less_than_the_tolerance_keeps_its_inverse():
+    """A body's block is inverted again when it moved by more than ``block_tolerance`` of its
+    Frobenius norm since its inverse was made, measured from that block (so that small moves
+    do not add up unseen); the others keep the inverse they have."""
+    body_of = np.repeat(np.arange(3), [6, 6, 6])
+    rng = np.random.default_rng(7)
+    n = len(body_of)
+    S0 = rng.normal(size=(n, n)) + 8.0 * np.eye(n)
+    ks = linear.KrylovSolver(body_of, rng.normal(size=(n, 6)))
+    ks.block_tolerance = 1e-3
+    ks._preconditioner(sp.csr_matrix(S0))
+    blocks = [np.ix_(body_of == b, body_of == b) for b in range(3)]
+    size = [np.linalg.norm(S0[blk]) for blk in blocks]
+    E = np.zeros((6, 6))
+    E[0, 1] = 1.0
+    S1 = S0.copy()
+    S1[blocks[0]] += 0.6e-3 * size[0] * E  # under the tolerance
+    S1[blocks[1]] += 1.5e-3 * size[1] * E  # over it
+    pre = ks._preconditioner(sp.csr_matrix(S1))
+    assert ks.blocks_inverted == 1
+    r = rng.normal(size=n)
+    local = pre._local(r)
+    d0, d1 = np.flatnonzero(body_of == 0), np.flatnonzero(body_of == 1)
+    assert np.allclose(local[d0], np.linalg.solve(S0[blocks[0]], r[d0]), rtol=1e-12)
+    assert np.allclose(local[d1], np.linalg.solve(S1[blocks[1]], r[d1]), rtol=1e-12)
+    # a second move of the first block under the tolerance, which with the first is over it
+    # from the block its inverse was made of
+    S2 = S1.copy()
+    S2[blocks[0]] += 0.6e-3 * size[0] * E
+    pre = ks._preconditioner(sp.csr_matrix(S2))
+    assert ks.blocks_inverted == 2
+    assert np.allclose(pre._local(r)[d0], np.linalg.solve(S2[blocks[0]], r[d0]), rtol=1e-12)
+
+
+def test_moved_blocks_at_tolerance_zero_is_any_change():
+    a = np.arange(8.0).reshape(2, 4)
+    b = a.copy()
+    b[1, 3] = np.nextafter(b[1, 3], np.inf)  # the smallest change there is
+    assert list(linear.moved_blocks(b, a, 0.0)) == [False, True]
+    assert list(linear.moved_blocks(b, a, 1e-3)) == [False, False]
+
+
 def test_rigid_body_modes_are_the_null_space_of_each_blocks_stiffness(smoke_scene):
     integ = smoke_scene.integrator()
     s = integ.sys

@@ -36,9 +36,10 @@ the wall to carry. Each iteration costs two products with ``S``, one with ``S_lo
 coarse solves: all linear in the bodies for a wall (the coarse LU has 6 unknowns per block and
 the two-dimensional connectivity of a wall). The local inverses are kept as dense blocks
 grouped by size and applied by one stacked product per size, not as a sparse matrix, and
-only the blocks that changed since the last set-up are inverted again (a body whose joints
-kept their tangents keeps its block: on the 8x wall's first 12 steps, 35 % of the blocks
-changed per set-up). Medians on the 8x wall's first 12 steps, per refresh of the matrix
+only the blocks that moved by more than ``block_tolerance`` (1e-3 of their Frobenius norm)
+since their inverse was made are inverted again: the joints' cohesive damage moves most blocks
+a little at every set-up (80 % of the 8x wall's blocks changed per set-up past the start of the
+push), and an inverse good to 1e-3 is as good a preconditioner (docs/scaling.md). Medians on the 8x wall's first 12 steps, per refresh of the matrix
 and its preconditioner: 244 ms when the Newton matrix was filled (22 ms), then sliced and
 multiplied by scipy, its inverses kept as a sparse matrix and its coarse LU by SuperLU;
 101 ms now (``S`` filled directly, 25 ms; the preconditioner, 76 ms). The setup
@@ -74,6 +75,8 @@ LINEAR_SOLVERS = ("auto", "lu", "pardiso", "krylov")
 #: ``auto`` picks krylov from this many unknowns of the Newton matrix (free dofs and three per
 #: multiplier point); below, pardiso where MKL is installed, else lu (docs/scaling.md)
 KRYLOV_MIN_UNKNOWNS = 100_000
+#: ``KrylovSolver.block_tolerance`` by default
+BLOCK_TOLERANCE = 1e-3
 
 
 def choose(linear: str, unknowns: int, processes: int = 1) -> str:
@@ -193,10 +196,13 @@ class KrylovSolver:
         #: then analysed once, on ``|R|^T P |R|``
         self.structure = None
         self._coarse_seed = None
-        # the last set-up's blocks (laid out as above) and their inverses, per group; blocks
-        # inverted again since
+        # the blocks the inverses were made of (laid out as above) and the inverses, per
+        # group; blocks inverted again since the first set-up
         self._last_blocks = None
         self.blocks_inverted = 0
+        #: a body's block is inverted again when it moved by more than this fraction of its
+        #: Frobenius norm since its inverse was made (0: at any change)
+        self.block_tolerance = BLOCK_TOLERANCE
 
     def factorise(self, J: sp.spmatrix) -> KrylovOperator:
         """The preconditioner of ``J`` (free dofs first, then three rows per multiplier
@@ -238,32 +244,41 @@ class KrylovSolver:
 
     def local_inverses(self, S: sp.csr_matrix, body_of: np.ndarray) -> list:
         """The inverses of the bodies' dense diagonal blocks of ``S`` by size, ``[(dofs (g,
-        k), inverses (g, k, k))]``, inverted again only where a block changed since the last
-        call. ``S``: this solver's rows (CSR), its columns numbered by ``body_of`` (the body of
-        each column; columns of other bodies, such as another process's, marked -1)."""
+        k), inverses (g, k, k))]``. A block is inverted again only where it moved from the
+        block its inverse was made of by more than ``block_tolerance`` of its Frobenius norm,
+        ``|A - A_inv| > block_tolerance |A_inv|``; the others keep their inverse. ``S``: this
+        solver's rows (CSR), its columns numbered by ``body_of`` (the body of each column;
+        columns of other bodies, such as another process's, marked -1)."""
         flat = np.zeros(self._group_off[-1])
         diagonal_blocks(S.indptr, S.indices, S.data, body_of, self._block_of,
                         self._local, self._size_of, flat)
         groups = []
+        if self._last_blocks is None:
+            # the blocks the inverses are of, laid out as ``flat``
+            self._last_blocks = (flat.copy(), [None] * len(self.groups))
+        made_of, inverses = self._last_blocks
         for n, ((k, starts), off) in enumerate(zip(self.groups, self._group_off[:-1],
                                                     strict=True)):
             shape = (len(starts), k, k)
-            blocks = flat[off:off + len(starts) * k * k].reshape(shape)
+            span = slice(off, off + len(starts) * k * k)
+            blocks = flat[span].reshape(shape)
             idx = starts[:, None] + np.arange(k)[None, :]  # (g, k) dofs of each body
-            if self._last_blocks is None:
+            if inverses[n] is None:
                 inv = _inverses(blocks)
             else:
-                # only the blocks that changed since the last set-up (a body whose joints kept
-                # their tangents keeps its block): the same inverses, bit for bit
-                last_flat, last_inv = self._last_blocks
-                old = last_flat[off:off + len(starts) * k * k].reshape(shape)
-                changed = np.flatnonzero(np.any(blocks != old, axis=(1, 2)))
-                inv = last_inv[n].copy()
+                old = made_of[span].reshape(shape)
+                moved = moved_blocks(blocks.reshape(len(starts), k * k),
+                                     old.reshape(len(starts), k * k), self.block_tolerance)
+                changed = np.flatnonzero(moved)
+                # in place: a preconditioner serves until the next set-up (the copy of the
+                # 8x wall's 13 MB of inverses took a fifth of the local level's set-up)
+                inv = inverses[n]
                 if len(changed):
                     inv[changed] = _inverses(blocks[changed])
+                    old[changed] = blocks[changed]
                 self.blocks_inverted += len(changed)
+            inverses[n] = inv
             groups.append((idx, inv))
-        self._last_blocks = (flat, [inv for _, inv in groups])
         return groups
 
     def coarse_seed(self) -> sp.csc_matrix | None:
@@ -376,6 +391,30 @@ def nonzero_csr(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
     out_data = np.empty(nnz)
     nonzero_entries(indptr, indices, data, out_indptr, out_indices, out_data)
     return sp.csr_matrix((out_data, out_indices, out_indptr), shape=(n, n))
+
+
+@njit(cache=True)
+def moved_blocks(blocks, made_of, tolerance):
+    """Per row of ``blocks`` (``(g, k k)``, each a flattened block): whether it differs from
+    the same row of ``made_of`` by more than ``tolerance`` of that row's Euclidean norm
+    (``tolerance`` 0: by any entry). A compiled pass that stops comparing a block at its first
+    difference when ``tolerance`` is 0."""
+    out = np.zeros(blocks.shape[0], dtype=np.bool_)
+    for b in range(blocks.shape[0]):
+        if tolerance == 0.0:
+            for j in range(blocks.shape[1]):
+                if blocks[b, j] != made_of[b, j]:
+                    out[b] = True
+                    break
+            continue
+        d2 = 0.0
+        a2 = 0.0
+        for j in range(blocks.shape[1]):
+            d = blocks[b, j] - made_of[b, j]
+            d2 += d * d
+            a2 += made_of[b, j] * made_of[b, j]
+        out[b] = d2 > tolerance * tolerance * a2
+    return out
 
 
 #: the fewest blocks a thread inverts (a thread's hand-over costs about one 54 x 54 inverse)
