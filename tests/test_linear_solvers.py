@@ -354,6 +354,34 @@ def test_a_replaced_pardiso_factor_refuses_to_solve():
 
 
 @needs_mkl
+def test_a_reproducible_pardiso_handle_gives_the_same_bits_on_two_threads():
+    """A coarse-like matrix (6 x 6 blocks on a grid of 60 x 40 bodies, nested dissection)
+    factorised again and again on two threads in MKL's reproducible mode: the same solution
+    bit for bit each time (without the mode, such factorisations differed in the last bits),
+    and the solution of the matrix."""
+    ny, nx = 60, 40
+    grid = np.arange(ny * nx).reshape(ny, nx)
+    pairs = [(grid.ravel(), grid.ravel()), (grid[:, :-1].ravel(), grid[:, 1:].ravel()),
+             (grid[:-1, :].ravel(), grid[1:, :].ravel()),
+             (grid[:-1, :-1].ravel(), grid[1:, 1:].ravel())]
+    r = np.concatenate([a for a, b in pairs] + [b for a, b in pairs[1:]])
+    c = np.concatenate([b for a, b in pairs] + [a for a, b in pairs[1:]])
+    P = sp.csr_matrix((np.ones(len(r)), (r, c)), shape=(ny * nx, ny * nx))
+    A = sp.kron(P, np.ones((6, 6)), format="csc")
+    A.data = np.random.default_rng(3).normal(size=A.nnz)
+    A = (A + 40.0 * sp.eye(A.shape[0])).tocsc()
+    A.sort_indices()
+    handle = pardiso.Pardiso(A.indptr, A.indices, A.shape[0], order=2, n_threads=2,
+                             reproducible=True)
+    assert handle.iparm[33] == 2
+    b = np.linspace(-1.0, 1.0, A.shape[0])
+    x = [handle.factorise(A.data).solve(b) for _ in range(4)]
+    assert all(np.array_equal(x[0], y) for y in x[1:])
+    assert np.linalg.norm(A @ x[0] - b) <= 1e-10 * np.linalg.norm(b)
+    handle.release()
+
+
+@needs_mkl
 def test_a_run_with_pardiso_is_the_run_with_lu():
     """The smoke case to its end with each direct solver: the same Newton iterations and the
     same force-displacement curve to round-off (1e-9 of the largest force)."""

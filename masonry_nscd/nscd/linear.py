@@ -299,9 +299,9 @@ class KrylovSolver:
         the entries of joints that opened kept as zeros: the pattern changes at most set-ups
         as joints open and close, and an analysis costs several factorisations
         (docs/scaling.md). Ordered by nested dissection: the bodies' 6 x 6 blocks make a
-        graph like the wall's, where it halves the fill of the minimum degree order. On one
-        thread: on two, its factorisations differed from one run to the next in the last
-        bits, and so did the runs (docs/scaling.md)."""
+        graph like the wall's, where it halves the fill of the minimum degree order. In MKL's
+        reproducible mode: on two threads without it, its factorisations differed from one
+        run to the next in the last bits, and so did the runs (docs/scaling.md)."""
         if not pardiso.available():
             return spla.splu(S0)
         S0.sort_indices()
@@ -318,7 +318,8 @@ class KrylovSolver:
         union.sort_indices()
         keys = _keys(union)
         kept = (union.indptr.copy(), union.indices.copy(), keys,
-                pardiso.Pardiso(union.indptr, union.indices, S0.shape[0], order=2, n_threads=1))
+                pardiso.Pardiso(union.indptr, union.indices, S0.shape[0], order=2,
+                                reproducible=True))
         self._coarse_pattern = kept
         self.coarse_analyses += 1
         return kept[3].factorise(_on_pattern(keys, S0))

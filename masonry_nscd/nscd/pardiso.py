@@ -113,13 +113,18 @@ def library() -> ctypes.CDLL | None:
 _threads_set = 0  # the OpenMP threads last given to MKL (0: none yet)
 
 
-def _use_threads(lib: ctypes.CDLL, fixed: int | None = None) -> None:
-    """Give MKL its threads before a factorisation: ``fixed`` when given, else
-    ``MKL_NUM_THREADS`` when set, else the per-point kernels' count (module docstring); set
-    only when it changed."""
-    global _threads_set
+def thread_count(fixed: int | None = None) -> int:
+    """The OpenMP threads of a factorisation: ``fixed`` when given, else ``MKL_NUM_THREADS``
+    when set, else the per-point kernels' count (module docstring)."""
     env = os.environ.get("MKL_NUM_THREADS", "").strip()
-    n = fixed if fixed else int(env) if env.isdigit() and int(env) > 0 else threads.count()
+    return fixed if fixed else int(env) if env.isdigit() and int(env) > 0 else threads.count()
+
+
+def _use_threads(lib: ctypes.CDLL, fixed: int | None = None) -> None:
+    """Give MKL its threads before a factorisation (``thread_count``); set only when it
+    changed."""
+    global _threads_set
+    n = thread_count(fixed)
     if n != _threads_set:
         lib.MKL_Set_Num_Threads(n)
         _threads_set = n
@@ -139,10 +144,13 @@ class Pardiso:
     ``order``: PARDISO's fill-reducing order, ``iparm[1]`` (0 minimum degree, the default:
     module docstring; 2 nested dissection by METIS). ``n_threads``: this handle's
     factorisations on that many threads whatever the environment (None: module docstring).
+    ``reproducible``: the factorisations on the threads this handle starts with in MKL's
+    conditional numerical reproducibility mode (``iparm[33]``), the same bits from one run to
+    the next; without it, nested dissection on two threads varies in the last bits.
     """
 
     def __init__(self, indptr: np.ndarray, indices: np.ndarray, n: int, order: int = 0,
-                 n_threads: int | None = None):
+                 n_threads: int | None = None, reproducible: bool = False):
         lib = library()
         if lib is None:
             raise PardisoError(MISSING)
@@ -162,6 +170,9 @@ class Pardiso:
         self.iparm[7] = 0  # iterative refinement only after a perturbed pivot (two steps)
         self.iparm[11] = 2  # solve with the transposed matrix (the CSC arrays as CSR: J^T)
         self.iparm[34] = 1  # zero-based indices
+        if reproducible:
+            self.n_threads = thread_count(n_threads)
+            self.iparm[33] = self.n_threads  # the same bits on these many threads
         self._data: np.ndarray | None = None
         self._analysed = False
         self.generation = 0  # counts the factorisations; a factor solves only if it is the last
