@@ -43,18 +43,22 @@ def test_gmres_solves_a_nonsymmetric_system_to_its_tolerance():
     A = np.eye(n) * 4.0 + rng.normal(size=(n, n)) * 0.3  # nonsymmetric, well conditioned
     b = rng.normal(size=n)
     x_ref = np.linalg.solve(A, b)
-    x, its = linear.gmres(lambda v: A @ v, lambda v: v, b, None, 1e-10, 50, 200)
+    x, its, left = linear.gmres(lambda v: A @ v, lambda v: v, b, None, 1e-10, 50, 200)
     assert np.linalg.norm(A @ x - b) <= 1e-10 * np.linalg.norm(b) * 1.0001
+    assert left == pytest.approx(np.linalg.norm(A @ x - b), rel=1e-12)  # the true residual
     assert np.allclose(x, x_ref, rtol=0, atol=1e-8 * np.abs(x_ref).max())
     assert its <= n
     # restarted every 5 iterations it still gets there, in more iterations
-    x5, its5 = linear.gmres(lambda v: A @ v, lambda v: v, b, None, 1e-10, 5, 2000)
+    x5, its5, _ = linear.gmres(lambda v: A @ v, lambda v: v, b, None, 1e-10, 5, 2000)
     assert np.allclose(x5, x_ref, rtol=0, atol=1e-8 * np.abs(x_ref).max()) and its5 >= its
     # an exact preconditioner: one iteration; the exact solution as the start: none
     Ainv = np.linalg.inv(A)
-    x1, its1 = linear.gmres(lambda v: A @ v, lambda v: Ainv @ v, b, None, 1e-10, 50, 200)
+    x1, its1, _ = linear.gmres(lambda v: A @ v, lambda v: Ainv @ v, b, None, 1e-10, 50, 200)
     assert its1 == 1 and np.allclose(x1, x_ref, atol=1e-10 * np.abs(x_ref).max())
     assert linear.gmres(lambda v: A @ v, lambda v: v, b, x_ref, 1e-10, 50, 200)[1] == 0
+    # a start whose residual is larger than |b| is not taken: the same solve as from zero
+    far = linear.gmres(lambda v: A @ v, lambda v: v, b, -10.0 * x_ref, 1e-10, 50, 200)
+    assert far[1] == its and np.array_equal(far[0], x)
 
 
 @pytest.fixture(scope="module")

@@ -502,11 +502,8 @@ class KrylovOperator:
         if rnorm == 0.0:
             v = np.zeros(nf)
         else:
-            x0 = None
-            if o._x is not None and np.linalg.norm(rhs - self.S @ o._x) < rnorm:
-                x0 = o._x
-            v, count = self._gmres(rhs, x0)
-            res = float(np.linalg.norm(rhs - self.S @ v)) / rnorm
+            v, count, left = self._gmres(rhs, o._x)
+            res = left / rnorm
             o.iterations += count
             o.last_iterations, o.last_residual = count, res
             if not (res <= 2.0 * o.rtol and np.all(np.isfinite(v))):
@@ -516,21 +513,27 @@ class KrylovOperator:
             return v
         return np.concatenate([v, self.Dinv @ (bg - self.C @ v)])
 
-    def _gmres(self, rhs: np.ndarray, x0: np.ndarray | None) -> tuple[np.ndarray, int]:
-        """GMRES on the body system ``S v = rhs`` from ``x0``: ``(v, iterations)``."""
+    def _gmres(self, rhs: np.ndarray, x0: np.ndarray | None
+               ) -> tuple[np.ndarray, int, float]:
+        """GMRES on the body system ``S v = rhs`` from ``x0`` (the last solution, or None):
+        ``(v, iterations, |rhs - S v|)`` (``gmres``)."""
         o = self.owner
         return gmres(self.S.dot, self.preconditioner.apply, rhs, x0, o.rtol, o.restart,
                      o.max_iterations)
 
 
 def gmres(matvec, precondition, b: np.ndarray, x0: np.ndarray | None, rtol: float,
-          restart: int, max_iterations: int, inner=None, norm=None) -> tuple[np.ndarray, int]:
+          restart: int, max_iterations: int, inner=None,
+          norm=None) -> tuple[np.ndarray, int, float]:
     """Restarted GMRES with right preconditioning: ``x = x0 + M^-1 V_k y`` minimising
     ``|b - A x|`` over the Krylov space of ``A M^-1`` built from ``r0 = b - A x0``, stopping
     when ``|b - A x| <= rtol |b|`` (its estimate from the Hessenberg least squares, checked
-    on the true residual at each restart). Arnoldi by classical Gram-Schmidt done twice (one
-    matrix product per pass over the basis); the small least-squares problem by Givens
-    rotations. Returns ``(x, iterations)``.
+    on the true residual at each restart). ``x0`` (a guess, such as the last solve's
+    solution, or None) is the start only when its residual is below ``|b|``, else zero.
+    Arnoldi by classical Gram-Schmidt done twice (one matrix product per pass over the basis);
+    the small least-squares problem by Givens rotations. Returns ``(x, iterations, |b - A
+    x|)``, the true residual of the last restart's check (so a caller needs no product of its
+    own to judge it).
 
     ``inner(V, w)``: the products ``V @ w`` of the rows of ``V`` with ``w``, and ``norm(w)``:
     ``|w|``; by default those of the vectors given. A solve over several processes gives
@@ -543,17 +546,21 @@ def gmres(matvec, precondition, b: np.ndarray, x0: np.ndarray | None, rtol: floa
             return float(np.linalg.norm(w))
     n = len(b)
     bnorm = norm(b)
-    x = np.zeros(n) if x0 is None else x0.copy()
+    x = np.zeros(n)
+    r, beta = b.copy(), bnorm
+    if x0 is not None:
+        r0 = b - matvec(x0)
+        beta0 = norm(r0)
+        if beta0 < bnorm:
+            x, r, beta = x0.copy(), r0, beta0
     iterations = 0
     V = np.empty((restart + 1, n))
     Z = np.empty((restart, n))
     H = np.zeros((restart + 1, restart))
     cs, sn = np.zeros(restart), np.zeros(restart)
     while True:
-        r = b - matvec(x)
-        beta = norm(r)
         if beta <= rtol * bnorm or iterations >= max_iterations:
-            return x, iterations
+            return x, iterations, beta
         V[0] = r / beta
         g = np.zeros(restart + 1)
         g[0] = beta
@@ -585,3 +592,5 @@ def gmres(matvec, precondition, b: np.ndarray, x0: np.ndarray | None, rtol: floa
             V[k] = w / hn
         y = np.linalg.solve(np.triu(H[:k, :k]), g[:k]) if k else np.zeros(0)
         x += y @ Z[:k]
+        r = b - matvec(x)
+        beta = norm(r)

@@ -275,9 +275,10 @@ class _Part:
         """``|w|`` over the processes' rows."""
         return float(np.sqrt(self.inner(w[None, :], w)[0]))
 
-    def solve(self, b: np.ndarray, x0: np.ndarray | None) -> tuple[np.ndarray, int]:
-        """GMRES on this range's rows of ``S v = b``, with the others: ``(v, iterations)``
-        (the same iterations on every process: its decisions come from the sums)."""
+    def solve(self, b: np.ndarray, x0: np.ndarray | None) -> tuple[np.ndarray, int, float]:
+        """GMRES on this range's rows of ``S v = b``, with the others: ``(v, iterations,
+        |b - S v|)`` (the same iterations and residual on every process: its decisions come
+        from the sums)."""
         pre, loc = self.preconditioner, self.local
         return linear.gmres(self.product, pre.apply, b, x0, loc.rtol, loc.restart,
                             loc.max_iterations, inner=self.inner, norm=self.norm)
@@ -334,14 +335,15 @@ class MpiKrylovSolver(linear.KrylovSolver):
 class _Operator(linear.KrylovOperator):
     """``linear.KrylovOperator`` with GMRES on all the processes."""
 
-    def _gmres(self, rhs: np.ndarray, x0: np.ndarray | None) -> tuple[np.ndarray, int]:
+    def _gmres(self, rhs: np.ndarray, x0: np.ndarray | None
+               ) -> tuple[np.ndarray, int, float]:
         o = self.owner
         _command(o.comm, _SOLVE, o.id)
         cuts = o.part.cuts
         b, x = o.comm.scatter([(rhs[a:e], None if x0 is None else x0[a:e])
                                for a, e in itertools.pairwise(cuts)], root=0)
-        v, count = o.part.solve(b, x)
-        return np.concatenate(o.comm.gather(v, root=0)), count
+        v, count, left = o.part.solve(b, x)
+        return np.concatenate(o.comm.gather(v, root=0)), count, left
 
 
 def _rows(S: sp.csr_matrix, lo: int, hi: int) -> sp.csr_matrix:
