@@ -35,6 +35,7 @@ from masonry_nscd.scenes import build_scene
 SMOKE = "cases/smoke.yaml"
 STUDY = "cases/wall_0.5MPa_elastic.yaml"
 QUIET = ["output.vtu=false", "output.hdf5=false", "output.energy=false"]
+needs_mkl = pytest.mark.skipif(not pardiso.available(), reason="Intel MKL is not installed")
 
 
 def test_gmres_solves_a_nonsymmetric_system_to_its_tolerance():
@@ -94,6 +95,51 @@ def test_the_local_preconditioner_inverts_each_bodys_diagonal_block():
     d = np.flatnonzero(body_of == 2)
     expected[d] = np.linalg.solve(S[np.ix_(d, d)], r[d])
     assert np.allclose(pre._local(r), expected, rtol=1e-12, atol=1e-12)
+
+
+@needs_mkl
+def test_the_coarse_matrix_summed_into_its_pattern_is_r_transpose_s_r():
+    """With the body system's pattern known, ``R^T S R`` is summed straight into the analysed
+    coarse pattern (``coarse_entries``): its LU solves the dense ``R^T S R``, for bodies of
+    7, 6, 8 and 6 dofs, one of them with a mode no dof moves (its column dropped), and a later
+    ``S`` with entries of the pattern left out (open joints). An ``S`` with an entry outside
+    the pattern is summed by scipy's products instead, with the same result."""
+    body_of = np.repeat(np.arange(4), [7, 6, 8, 6])
+    rng = np.random.default_rng(11)
+    n = len(body_of)
+    modes = rng.normal(size=(n, 6))
+    modes[body_of == 1, 4] = 0.0  # body 1's fifth mode: no coarse unknown
+    full = (rng.random((n, n)) < 0.5) | np.eye(n, dtype=bool)
+    full[np.ix_(body_of == 0, body_of == 3)] = False  # bodies 0 and 3 never touch
+    full[np.ix_(body_of == 3, body_of == 0)] = False
+    structure = sp.csr_matrix(full.astype(float))
+    ks = linear.KrylovSolver(body_of, modes)
+    ks.structure = (structure.indptr, structure.indices)
+    R = ks.R.toarray()
+    assert R.shape == (n, 23)
+    r = rng.normal(size=n)
+    for drop in (0.0, 0.3):
+        S = np.where(full & (rng.random((n, n)) >= drop), rng.normal(size=(n, n)), 0.0)
+        S += 6.0 * np.eye(n)
+        lu = ks._coarse_factor(sp.csr_matrix(S))
+        assert np.allclose(lu.solve(R.T @ r), np.linalg.solve(R.T @ S @ R, R.T @ r),
+                           rtol=1e-10, atol=0)
+    assert ks.coarse_analyses == 1
+    # the entries themselves, against the dense product at each entry of the pattern
+    kept = ks._coarse_pattern
+    data = np.zeros(len(kept.keys))
+    Sc = sp.csr_matrix(S)
+    assert linear.coarse_entries(Sc.indptr, Sc.indices, Sc.data, 0, body_of, ks.modes,
+                                 ks.n_bodies, *kept.pairs(ks.coarse_columns, ks.n_bodies),
+                                 data) == 0
+    S0 = R.T @ S @ R
+    assert np.allclose(data, S0.T.ravel()[kept.keys], rtol=1e-12, atol=1e-12 * abs(S0).max())
+    assert np.count_nonzero(S0) <= len(kept.keys)
+    S[0, n - 1] = 1.0  # bodies 0 and 3: outside the pattern
+    lu = ks._coarse_factor(sp.csr_matrix(S))
+    assert np.allclose(lu.solve(R.T @ r), np.linalg.solve(R.T @ S @ R, R.T @ r), rtol=1e-10,
+                       atol=0)
+    assert ks.coarse_analyses == 2
 
 
 def test_a_block_that_moved_less_than_the_tolerance_keeps_its_inverse():
@@ -311,7 +357,6 @@ def test_solver_linear_is_validated(monkeypatch):
     assert res.exit_code == 2 and "solver.linear" in res.output
 
 
-needs_mkl = pytest.mark.skipif(not pardiso.available(), reason="Intel MKL is not installed")
 
 
 @needs_mkl

@@ -126,18 +126,25 @@ def rigid_body_modes(body_dof0: np.ndarray, deformable: np.ndarray,
     return modes
 
 
+def coarse_columns(body_of: np.ndarray, modes: np.ndarray) -> np.ndarray:
+    """The coarse unknowns some free dof moves, ``6 b + k`` for the mode ``k`` of body ``b``
+    (sorted): the columns of :func:`coarse_space`, the modes of imposed motions dropped."""
+    cols = (6 * np.asarray(body_of, dtype=np.int64)[:, None] + np.arange(6)).ravel()
+    return np.unique(cols[np.asarray(modes, dtype=float).ravel() != 0.0])
+
+
 def coarse_space(body_of: np.ndarray, modes: np.ndarray) -> sp.csc_matrix:
     """``R`` (free dofs x coarse unknowns, CSC): the rigid-body modes ``modes`` (``(nf, 6)``)
     of the bodies ``body_of`` (sorted) as six columns per body in the order of the bodies, the
-    empty columns (imposed motions) dropped."""
+    empty columns (imposed motions) dropped (``coarse_columns``)."""
     nf = len(body_of)
+    m = np.asarray(modes, dtype=float).ravel()
     rows = np.repeat(np.arange(nf), 6)
-    cols = (6 * body_of[:, None] + np.arange(6)).ravel()
-    R = sp.csc_matrix((np.asarray(modes, dtype=float).ravel(), (rows, cols)),
-                      shape=(nf, 6 * (int(body_of.max()) + 1 if nf else 0)))
-    R.eliminate_zeros()
-    used = np.flatnonzero(np.diff(R.indptr) > 0)
-    return R[:, used].tocsc()
+    cols = (6 * np.asarray(body_of, dtype=np.int64)[:, None] + np.arange(6)).ravel()
+    used = coarse_columns(body_of, modes)
+    on = m != 0.0
+    return sp.csc_matrix((m[on], (rows[on], np.searchsorted(used, cols[on]))),
+                         shape=(nf, len(used)))
 
 
 class KrylovFailure(RuntimeError):
@@ -171,7 +178,11 @@ class KrylovSolver:
         self.last_residual = 0.0
         self._x = None  # the last solution: the start of the next solve
         self.body_of = body_of
+        self.modes = np.ascontiguousarray(modes, dtype=float)
         self.R = coarse_space(body_of, modes)
+        #: the coarse unknowns (``coarse_columns``) and the bodies they number
+        self.coarse_columns = coarse_columns(body_of, modes)
+        self.n_bodies = int(body_of.max()) + 1 if nf else 0
         self.RT = self.R.T.tocsr()
         # the bodies' dof ranges in the free numbering, grouped by size for batched inverses
         starts = np.flatnonzero(np.r_[True, body_of[1:] != body_of[:-1]]) if nf else \
@@ -188,8 +199,8 @@ class KrylovSolver:
         self._block_of = np.repeat(block_off, sizes)
         self._local = (np.arange(nf) - np.repeat(starts, sizes)).astype(np.int64)
         self._size_of = np.repeat(sizes, sizes).astype(np.int64)
-        # the coarse matrix's analysed pattern (indptr, indices, its keys, PARDISO's handle)
-        self._coarse_pattern = None
+        # the coarse matrix's analysed pattern (``_CoarsePattern``)
+        self._coarse_pattern: _CoarsePattern | None = None
         self.coarse_analyses = 0  # analyses of the coarse pattern so far
         #: every entry the body system can have, ``(indptr, indices)`` of a CSR pattern with
         #: its zeros (the Newton solver's fixed pattern), when known: the coarse pattern is
@@ -239,8 +250,26 @@ class KrylovSolver:
     def _preconditioner(self, S: sp.csr_matrix) -> Preconditioner:
         """The two-level preconditioner of ``S``."""
         groups = self.local_inverses(S, self.body_of)
-        return Preconditioner(self, S, groups, self._coarse_lu((self.RT @ S @ self.R).tocsc(),
-                                                               self.coarse_seed()))
+        return Preconditioner(self, S, groups, self._coarse_factor(S))
+
+    def _coarse_factor(self, S: sp.csr_matrix):
+        """The LU of the coarse matrix ``S_0 = R^T S R``. Once the seed's pattern is analysed
+        (``structure`` known, PARDISO installed), ``S_0`` is summed straight into it by
+        ``coarse_entries``: on the 8x wall 3 ms where scipy's two products and the laying of
+        their result on the pattern took 18 ms, a half of a set-up (docs/scaling.md). Else by
+        those products (``_coarse_lu``)."""
+        seed = self.coarse_seed()
+        if seed is not None and pardiso.available():
+            if self._coarse_pattern is None:
+                self._analyse(_ones(seed.indptr, seed.indices, seed.shape))
+            kept = self._coarse_pattern
+            data = np.zeros(len(kept.keys))
+            pair_keys, pos = kept.pairs(self.coarse_columns, self.n_bodies)
+            missed = coarse_entries(S.indptr, S.indices, S.data, 0, self.body_of, self.modes,
+                                    self.n_bodies, pair_keys, pos, data)
+            if missed == 0:
+                return kept.handle.factorise(data)
+        return self._coarse_lu((self.RT @ S @ self.R).tocsc(), seed)
 
     def local_inverses(self, S: sp.csr_matrix, body_of: np.ndarray) -> list:
         """The inverses of the bodies' dense diagonal blocks of ``S`` by size, ``[(dofs (g,
@@ -308,21 +337,50 @@ class KrylovSolver:
         kept = self._coarse_pattern
         base = seed
         if kept is not None:
-            data = _on_pattern(kept[2], S0)
+            data = _on_pattern(kept.keys, S0)
             if data is not None:
-                return kept[3].factorise(data)
+                return kept.handle.factorise(data)
             # an entry outside the kept pattern: analyse the union of the two, so that the
             # entries that come and go as joints open and close stay in it (as zeros)
-            base = _ones(kept[0], kept[1], S0.shape)
+            base = _ones(kept.indptr, kept.indices, S0.shape)
         union = S0 if base is None else base + _ones(S0.indptr, S0.indices, S0.shape)
-        union.sort_indices()
-        keys = _keys(union)
-        kept = (union.indptr.copy(), union.indices.copy(), keys,
-                pardiso.Pardiso(union.indptr, union.indices, S0.shape[0], order=2,
-                                reproducible=True))
-        self._coarse_pattern = kept
+        kept = self._analyse(union)
+        return kept.handle.factorise(_on_pattern(kept.keys, S0))
+
+    def _analyse(self, pattern: sp.csc_matrix) -> _CoarsePattern:
+        """Analyse the coarse ``pattern`` (its entries' values unused) and keep it."""
+        pattern.sort_indices()
+        self._coarse_pattern = _CoarsePattern(pattern)
         self.coarse_analyses += 1
-        return kept[3].factorise(_on_pattern(keys, S0))
+        return self._coarse_pattern
+
+
+class _CoarsePattern:
+    """An analysed pattern of the coarse matrix: ``indptr``, ``indices`` (CSC, sorted), the
+    entries' ``keys`` (``_keys``) and PARDISO's handle, analysed by nested dissection and
+    factorising in MKL's reproducible mode (``KrylovSolver._coarse_lu``)."""
+
+    def __init__(self, pattern: sp.csc_matrix):
+        self.indptr, self.indices = pattern.indptr.copy(), pattern.indices.copy()
+        self.keys = _keys(pattern)
+        self.handle = pardiso.Pardiso(pattern.indptr, pattern.indices, pattern.shape[0],
+                                      order=2, reproducible=True)
+        self._pairs = None
+
+    def pairs(self, columns: np.ndarray, n_bodies: int) -> tuple[np.ndarray, np.ndarray]:
+        """Where the entries of each pair of bodies are, for ``coarse_entries``: the pairs'
+        keys ``b_row n_bodies + b_col`` (sorted) and ``pos`` (pairs, 6, 6), the entry of the
+        modes ``(p, q)`` of the pair (-1: none), ``columns`` the coarse unknowns
+        (``coarse_columns``); made once."""
+        if self._pairs is None:
+            body, mode = columns // 6, columns % 6
+            rows = self.indices
+            cols = np.repeat(np.arange(len(self.indptr) - 1), np.diff(self.indptr))
+            keys, at = np.unique(body[rows] * n_bodies + body[cols], return_inverse=True)
+            pos = np.full((len(keys), 6, 6), -1, dtype=np.int64)
+            pos[at, mode[rows], mode[cols]] = np.arange(len(rows))
+            self._pairs = (keys, pos)
+        return self._pairs
 
 
 def _ones(indptr: np.ndarray, indices: np.ndarray, shape: tuple[int, int]) -> sp.csc_matrix:
@@ -392,6 +450,56 @@ def nonzero_csr(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
     out_data = np.empty(nnz)
     nonzero_entries(indptr, indices, data, out_indptr, out_indices, out_data)
     return sp.csr_matrix((out_data, out_indices, out_indptr), shape=(n, n))
+
+
+@njit(cache=True)
+def coarse_entries(indptr, indices, data, row0, body_of, modes, n_bodies, pair_keys, pos, out):
+    """Sum the rows of ``S`` given (CSR: row ``r`` is dof ``row0 + r``, the columns dofs)
+    into the coarse matrix ``S_0 = R^T S R`` laid on an analysed pattern (``out``, by
+    ``_CoarsePattern.pairs``: ``pair_keys``, ``pos``): with ``b_i`` the body of dof ``i``
+    and ``m_i`` its row of the rigid-body ``modes``,
+
+        S_0[(b_i, p), (b_j, q)] += m_i[p] t_q,   t_q = sum_{j of b_j} S_ij m_j[q]
+
+    the sums ``t`` over the run of a row's columns in one body first (a body's dofs are
+    contiguous), so a row costs six products per entry and 36 per body it touches. Returns
+    the number of non-zero terms that found no entry in the pattern (0 when it holds them
+    all)."""
+    t = np.empty(6)
+    missed = 0
+    n_pairs = pair_keys.shape[0]
+    for r in range(indptr.shape[0] - 1):
+        i = row0 + r
+        bi = body_of[i]
+        k = indptr[r]
+        end = indptr[r + 1]
+        while k < end:
+            bj = body_of[indices[k]]
+            for q in range(6):
+                t[q] = 0.0
+            while k < end and body_of[indices[k]] == bj:
+                j = indices[k]
+                s = data[k]
+                for q in range(6):
+                    t[q] += s * modes[j, q]
+                k += 1
+            key = bi * n_bodies + bj
+            pair = np.searchsorted(pair_keys, key)
+            found = pair < n_pairs and pair_keys[min(pair, n_pairs - 1)] == key
+            for p in range(6):
+                m = modes[i, p]
+                if m == 0.0:
+                    continue
+                for q in range(6):
+                    v = m * t[q]
+                    if v == 0.0:
+                        continue
+                    at = pos[pair, p, q] if found else -1
+                    if at < 0:
+                        missed += 1
+                    else:
+                        out[at] += v
+    return missed
 
 
 @njit(cache=True)
