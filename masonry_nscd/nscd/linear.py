@@ -255,9 +255,9 @@ class KrylovSolver:
     def _coarse_factor(self, S: sp.csr_matrix):
         """The LU of the coarse matrix ``S_0 = R^T S R``. Once the seed's pattern is analysed
         (``structure`` known, PARDISO installed), ``S_0`` is summed straight into it by
-        ``coarse_entries``: on the 8x wall 3 ms where scipy's two products and the laying of
-        their result on the pattern took 18 ms, a half of a set-up (docs/scaling.md). Else by
-        those products (``_coarse_lu``)."""
+        ``coarse_entries``, rather than by scipy's two products and the laying of their result
+        on the pattern, half of a set-up at 8x (docs/scaling.md). Else by those products
+        (``_coarse_lu``)."""
         seed = self.coarse_seed()
         if seed is not None and pardiso.available():
             if self._coarse_pattern is None:
