@@ -22,9 +22,9 @@ body system
 fixed pattern, ``newton.jacobian_values(..., eliminate=True)``, and gives it with ``B``, ``C``
 and ``D^-1`` to ``factorise_system``: no Newton matrix is made, which took a third of a step
 of the 64x wall as scipy's slicing and products), solved by restarted GMRES with a two-level
-additive-multiplicative preconditioner over the bodies::
+multiplicative preconditioner over the bodies, the coarse level first::
 
-    y = R S_0^-1 R^T b,   z = y + S_loc^-1 (b - S y),   P^-1 b = z + R S_0^-1 R^T (b - S z)
+    y = R S_0^-1 R^T b,   P^-1 b = y + S_loc^-1 (b - S y)
 
 ``S_loc``: the diagonal blocks of ``S``, one per body (its own ``M_hat``, the springs of its
 joints and its glue), inverted densely; ``R`` (dofs x 6 bodies): the six rigid-body motions of
@@ -32,9 +32,11 @@ every body (``rigid_body_modes``); ``S_0 = R^T S R``: the wall as rigid blocks o
 springs, 6 unknowns per body, factorised by sparse LU. The local solves take the deformation
 inside each block, the coarse one the motion of the blocks against one another, which a
 one-level (block-Jacobi) method would need about as many iterations as there are blocks across
-the wall to carry. Each iteration costs two products with ``S``, one with ``S_loc^-1`` and two
-coarse solves: all linear in the bodies for a wall (the coarse LU has 6 unknowns per block and
-the two-dimensional connectivity of a wall). The local inverses are kept as dense blocks
+the wall to carry. Each iteration costs two products with ``S`` (GMRES's and this one's), one
+with ``S_loc^-1`` and one coarse solve: all linear in the bodies for a wall (the coarse LU has
+6 unknowns per block and the two-dimensional connectivity of a wall). A second coarse
+correction after the local one (``z + R S_0^-1 R^T (b - S z)``) saves a few iterations but
+costs a third product and a second coarse solve in each (docs/scaling.md). The local inverses are kept as dense blocks
 grouped by size and applied by one stacked product per size, not as a sparse matrix, and
 only the blocks that moved by more than ``block_tolerance`` (1e-3 of their Frobenius norm)
 since their inverse was made are inverted again: the joints' cohesive damage moves most blocks
@@ -584,11 +586,10 @@ class Preconditioner:
         return self.S @ x
 
     def apply(self, r: np.ndarray) -> np.ndarray:
-        """``P^-1 r``."""
+        """``P^-1 r``: the coarse correction, then the local one on what it leaves."""
         r = np.ravel(r)
         y = self._coarse(r)
-        z = y + self._local(r - self.product(y))
-        return z + self._coarse(r - self.product(z))
+        return y + self._local(r - self.product(y))
 
 
 class KrylovOperator:

@@ -19,10 +19,10 @@ of every vector of GMRES. Per Newton matrix (a set-up), a process holds:
 
 Per GMRES iteration (``linear.gmres`` on each process's rows), what crosses between processes:
 
-- for each product ``S x`` (three per iteration, with the preconditioner's two): the ghosts'
+- for each product ``S x`` (two per iteration, with the preconditioner's): the ghosts'
   entries of ``x``, sent by their owners (``Alltoallv``);
 - for the inner products and the norms: each process's partial sums, added (``Allreduce``);
-- for each coarse correction ``R S_0^-1 R^T r`` (two per iteration): the coarse residual
+- for each coarse correction ``R S_0^-1 R^T r`` (one per iteration): the coarse residual
   ``R_p^T r_p`` of each process, gathered on all (``Allgatherv``); each solves ``S_0`` and
   keeps its own bodies' part.
 
