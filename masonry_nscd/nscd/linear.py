@@ -36,23 +36,23 @@ the wall to carry. Each iteration costs two products with ``S`` (GMRES's and thi
 with ``S_loc^-1`` and one coarse solve: all linear in the bodies for a wall (the coarse LU has
 6 unknowns per block and the two-dimensional connectivity of a wall). A second coarse
 correction after the local one (``z + R S_0^-1 R^T (b - S z)``) saves a few iterations but
-costs a third product and a second coarse solve in each (docs/scaling.md). The local inverses are kept as dense blocks
-grouped by size and applied by one stacked product per size, not as a sparse matrix, and
-only the blocks that moved by more than ``block_tolerance`` (1e-3 of their Frobenius norm)
-since their inverse was made are inverted again: the joints' cohesive damage moves most blocks
-a little at every set-up (80 % of the 8x wall's blocks changed per set-up past the start of the
-push), and an inverse good to 1e-3 is as good a preconditioner (docs/scaling.md). Medians on the 8x wall's first 12 steps, per refresh of the matrix
-and its preconditioner: 244 ms when the Newton matrix was filled (22 ms), then sliced and
-multiplied by scipy, its inverses kept as a sparse matrix and its coarse LU by SuperLU;
-101 ms now (``S`` filled directly, 25 ms; the preconditioner, 76 ms). The setup
-(``factorise``) is redone only where the LU would be refactorised; keeping a preconditioner
-of an earlier matrix for the new one was tried and lost (8 times the study's wall, 12 steps:
-2,905 GMRES iterations against 278, the steps 40 % slower: the joints' springs change by
-orders of magnitude when they open or close). The solution of the previous solve (the
-iteration or the step before) starts GMRES when its residual is below that of zero. A solve
-whose relative residual ``|rhs - S v| / |rhs|`` stays above ``rtol`` after ``max_iterations``
-is reported (``KrylovFailure``): the Newton solver then factorises the same matrix by LU and
-says so.
+costs a third product and a second coarse solve in each (docs/scaling.md). The local inverses
+are kept as dense blocks grouped by size and applied by one stacked product per size, not as a
+sparse matrix, and only the blocks that moved by more than ``block_tolerance`` (1e-3 of their
+Frobenius norm) since their inverse was made are inverted again: the joints' cohesive damage
+moves most blocks a little at every set-up (80 % of the 8x wall's blocks changed per set-up
+past the start of the push), and an inverse good to 1e-3 is as good a preconditioner
+(docs/scaling.md). Medians on the 8x wall's first 12 steps, per refresh of the matrix and its
+preconditioner: 244 ms when the Newton matrix was filled (22 ms), then sliced and multiplied by
+scipy, its inverses kept as a sparse matrix and its coarse LU by SuperLU; 101 ms now (``S``
+filled directly, 25 ms; the preconditioner, 76 ms). The setup (``factorise``) is redone only
+where the LU would be refactorised; keeping a preconditioner of an earlier matrix for the new
+one was tried and lost (8 times the study's wall, 12 steps: 2,905 GMRES iterations against 278,
+the steps 40 % slower: the joints' springs change by orders of magnitude when they open or
+close). The solution of the previous solve (the iteration or the step before) starts GMRES when
+its residual is below that of zero. A solve whose relative residual ``|rhs - S v| / |rhs|``
+stays above ``rtol`` after ``max_iterations`` is reported (``KrylovFailure``): the Newton
+solver then factorises the same matrix by LU and says so.
 
 ``pardiso``: the sparse LU of Intel MKL (``nscd/pardiso.py``), in the same fixed pattern as
 ``lu``: the same solutions to round-off, two to three times faster factorisations.
