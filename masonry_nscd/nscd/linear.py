@@ -255,23 +255,42 @@ class KrylovSolver:
         return Preconditioner(self, S, groups, self._coarse_factor(S))
 
     def _coarse_factor(self, S: sp.csr_matrix):
-        """The LU of the coarse matrix ``S_0 = R^T S R``. Once the seed's pattern is analysed
-        (``structure`` known, PARDISO installed), ``S_0`` is summed straight into it by
-        ``coarse_entries``, rather than by scipy's two products and the laying of their result
-        on the pattern, half of a set-up at 8x (docs/scaling.md). Else by those products
-        (``_coarse_lu``)."""
+        """The LU of the coarse matrix ``S_0 = R^T S R``: summed straight into the seed's
+        analysed pattern (``coarse_on_seed``) once the seed is known, else by scipy's
+        products (``_coarse_lu``)."""
         seed = self.coarse_seed()
-        if seed is not None and pardiso.available():
-            if self._coarse_pattern is None:
-                self._analyse(_ones(seed.indptr, seed.indices, seed.shape))
-            kept = self._coarse_pattern
-            data = np.zeros(len(kept.keys))
-            pair_keys, pos = kept.pairs(self.coarse_columns, self.n_bodies)
-            missed = coarse_entries(S.indptr, S.indices, S.data, 0, self.body_of, self.modes,
-                                    self.n_bodies, pair_keys, pos, data)
-            if missed == 0:
-                return kept.handle.factorise(data)
+        if seed is not None:
+            lu = self.coarse_on_seed(seed, S, 0, self.body_of, self.modes, self.coarse_columns,
+                                     self.n_bodies)
+            if lu is not None:
+                return lu
         return self._coarse_lu((self.RT @ S @ self.R).tocsc(), seed)
+
+    def coarse_on_seed(self, seed: sp.csc_matrix, rows: sp.csr_matrix, row0: int,
+                       body_of: np.ndarray, modes: np.ndarray, columns: np.ndarray,
+                       n_bodies: int, total=None):
+        """The LU of ``S_0 = R^T S R`` summed by ``coarse_entries`` straight into the analysed
+        pattern of ``seed`` (``coarse_seed``), rather than by scipy's two products and the
+        laying of their result on the pattern, half of a set-up at 8x (docs/scaling.md).
+        ``rows``: rows of ``S`` from dof ``row0`` on, its columns the dofs of ``body_of`` and
+        ``modes`` (all the free dofs), ``columns`` and ``n_bodies`` their coarse unknowns
+        (``coarse_columns``) and bodies; ``total``: sums the processes' parts of an array in
+        place (each process gives its own rows), None on one process. None when PARDISO is
+        not installed or a term found no entry in the pattern (the caller then sums by
+        scipy's products)."""
+        if not pardiso.available():
+            return None
+        if self._coarse_pattern is None:
+            self._analyse(_ones(seed.indptr, seed.indices, seed.shape))
+        kept = self._coarse_pattern
+        data = np.zeros(len(kept.keys) + 1)  # the last: the terms that found no entry
+        data[-1] = coarse_entries(rows.indptr, rows.indices, rows.data, row0, body_of, modes,
+                                  n_bodies, *kept.pairs(columns, n_bodies), data[:-1])
+        if total is not None:
+            total(data)
+        if data[-1] != 0.0:
+            return None
+        return kept.handle.factorise(data[:-1])
 
     def local_inverses(self, S: sp.csr_matrix, body_of: np.ndarray) -> list:
         """The inverses of the bodies' dense diagonal blocks of ``S`` by size, ``[(dofs (g,

@@ -206,13 +206,22 @@ class _Part:
         # between set-ups, their own coarse columns (R_p, R_p^T)
         self.local = linear.KrylovSolver(self.own_body, modes[lo:hi], rtol, max_iterations,
                                          restart)
+        # every free dof's body and modes, and the coarse unknowns: this range's rows of S
+        # summed into the coarse matrix (``linear.KrylovSolver.coarse_on_seed``)
+        self.body_of = np.asarray(body_of, dtype=np.int64)
+        self.modes = np.ascontiguousarray(modes, dtype=float)
+        self.columns = linear.coarse_columns(body_of, modes)
+        self.n_bodies = int(self.body_of.max()) + 1 if len(body_of) else 0
         self.S = self.preconditioner = self.seed = None
 
     def setup(self, rows: sp.csr_matrix, seed: sp.csc_matrix | None = None) -> None:
         """Take this process's rows of ``S`` (CSR, the columns numbered globally): renumber
         them with the ghosts after the own dofs, agree the ghost exchange with the other
-        processes, invert the changed diagonal blocks, gather and factorise ``S_0``;
-        ``seed``: the coarse matrix's whole pattern, when process 0 first knows it (kept)."""
+        processes, invert the changed diagonal blocks, make and factorise ``S_0``: each
+        process sums its rows into the seed's pattern and the processes add their parts
+        (``Allreduce``), or, before the seed is known, each gathers every process's rows of
+        ``R^T S R``; ``seed``: the coarse matrix's whole pattern, when process 0 first knows
+        it (kept)."""
         if seed is not None:
             self.seed = seed
         lo, hi, n = self.lo, self.hi, self.hi - self.lo
@@ -225,10 +234,21 @@ class _Part:
                                shape=(n, n + len(ghosts)))
         body_ext = np.r_[self.own_body, np.full(len(ghosts), -1, dtype=np.int64)]
         groups = self.local.local_inverses(self.S, body_ext)
-        coarse_rows = (self.local.RT @ (rows @ self.R)).tocsr()
-        S0 = sp.vstack(self.comm.allgather(coarse_rows)).tocsc()
-        self.preconditioner = _PartPreconditioner(self, groups,
-                                                  self.local._coarse_lu(S0, self.seed))
+        lu = None
+        if self.seed is not None:
+            lu = self.local.coarse_on_seed(self.seed, rows, lo, self.body_of, self.modes,
+                                           self.columns, self.n_bodies, self._total)
+        if lu is None:
+            coarse_rows = (self.local.RT @ (rows @ self.R)).tocsr()
+            S0 = sp.vstack(self.comm.allgather(coarse_rows)).tocsc()
+            lu = self.local._coarse_lu(S0, self.seed)
+        self.preconditioner = _PartPreconditioner(self, groups, lu)
+
+    def _total(self, a: np.ndarray) -> None:
+        """``a`` summed over the processes, in place."""
+        from mpi4py import MPI
+
+        self.comm.Allreduce(MPI.IN_PLACE, a, op=MPI.SUM)
 
     def _plan(self, ghosts: np.ndarray) -> None:
         """Which entries this process sends to which (the ghosts of the others in its range)
