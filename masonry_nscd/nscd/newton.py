@@ -106,6 +106,16 @@ def _full(k, need, slot):
     return slot.shape[0] > 0 and k + need > slot.shape[0]
 
 
+@njit(cache=True, inline="always")
+def _same_dofs(side_dofs, a):
+    """Whether contact point ``a + 1`` acts on the same dofs as point ``a``."""
+    for s in range(2):
+        for j in range(side_dofs.shape[2]):
+            if side_dofs[a + 1, s, j] != side_dofs[a, s, j]:
+                return False
+    return True
+
+
 @njit(cache=True)
 def _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_coef,
                       mult_of, area, K, Gu, Gr, full_block, h, theta, keep_zeros, eliminate,
@@ -118,7 +128,13 @@ def _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, s
     ``eliminate``: the body system with the multipliers eliminated instead,
     ``S = A + B D^-1 C`` (free dofs only, ``linear.py``): a multiplier point adds
     ``coef_i . Gu[g] . coef_j`` between its dofs, the caller giving ``D^-1 Gu`` as ``Gu``
-    (``D`` the point's block of the Newton matrix, ``NewtonSolver._multipliers``)."""
+    (``D`` the point's block of the Newton matrix, ``NewtonSolver._multipliers``). There every
+    point adds a block ``coef_i . X . coef_j`` between the same kind of unknowns, so the
+    blocks of consecutive points on the same dofs (the Gauss points of one face, four in a
+    row on the study's walls) are summed in a small dense buffer first and emitted once: a
+    quarter of the triplets, each a scattered addition into ``data`` and a slot in the
+    pattern (docs/scaling.md, session 21). The Newton matrix itself keeps its order of sums,
+    and with it the direct solver's iterates bit for bit."""
     if slot.shape[0] > 0:
         data[:] = 0.0
         keep_zeros = True
@@ -149,6 +165,7 @@ def _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, s
                     k = _emit(k, fi, fj, val, rows, cols, vals, slot, data)
     dofs = np.empty(ms, dtype=np.int64)
     coef = np.empty((ms, 3))
+    block = np.zeros((ms, ms))  # the body system's sum over a run of points on the same dofs
     for a in range(npt):
         m = 0
         for s in range(2):
@@ -163,20 +180,34 @@ def _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, s
                     coef[m, c] = side_coef[a, s, j, c]
                 m += 1
         g = mult_of[a]
-        if _full(k, m * m if g < 0 or eliminate else 6 * m, slot):
-            return slot.shape[0] + 1
-        if g >= 0 and eliminate:
-            # E = D^-1 Gu (given as Gu), row_i = coef_i . E and the entries row_i . coef_j
-            # (all of them: the pattern of S does not depend on the values)
-            E = Gu[g]
+        if eliminate:
+            # X = D^-1 Gu (given as Gu) for a multiplier, h^2 theta S_a K_a for a joint; the
+            # block's entries (coef_i . X) . coef_j, all of them: the pattern of S does not
+            # depend on the values
+            if g >= 0:
+                X = Gu[g]
+                w = 1.0
+            else:
+                X = K[a]
+                w = h * h * theta * area[a]
             for i in range(m):
-                e0 = coef[i, 0] * E[0, 0] + coef[i, 1] * E[1, 0] + coef[i, 2] * E[2, 0]
-                e1 = coef[i, 0] * E[0, 1] + coef[i, 1] * E[1, 1] + coef[i, 2] * E[2, 1]
-                e2 = coef[i, 0] * E[0, 2] + coef[i, 1] * E[1, 2] + coef[i, 2] * E[2, 2]
+                x0 = coef[i, 0] * X[0, 0] + coef[i, 1] * X[1, 0] + coef[i, 2] * X[2, 0]
+                x1 = coef[i, 0] * X[0, 1] + coef[i, 1] * X[1, 1] + coef[i, 2] * X[2, 1]
+                x2 = coef[i, 0] * X[0, 2] + coef[i, 1] * X[1, 2] + coef[i, 2] * X[2, 2]
                 for j in range(m):
-                    val = e0 * coef[j, 0] + e1 * coef[j, 1] + e2 * coef[j, 2]
-                    k = _emit(k, dofs[i], dofs[j], val, rows, cols, vals, slot, data)
-        elif g < 0:
+                    block[i, j] += w * (x0 * coef[j, 0] + x1 * coef[j, 1] + x2 * coef[j, 2])
+            if a + 1 < npt and _same_dofs(side_dofs, a):
+                continue  # the next point adds to the same block
+            if _full(k, m * m, slot):
+                return slot.shape[0] + 1
+            for i in range(m):
+                for j in range(m):
+                    k = _emit(k, dofs[i], dofs[j], block[i, j], rows, cols, vals, slot, data)
+                    block[i, j] = 0.0
+            continue
+        if _full(k, m * m if g < 0 else 6 * m, slot):
+            return slot.shape[0] + 1
+        if g < 0:
             w = h * h * theta * area[a]
             for i in range(m):
                 # row_i = coef_i . K
