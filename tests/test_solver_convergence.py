@@ -88,3 +88,26 @@ def test_newton_and_gauss_seidel_give_the_same_contact_forces(loaded_wall):
     fg, rg = _next_step(loaded_wall, "nlgs", 1e-7)
     assert rg.converged
     assert _rel(loaded_wall, fg, fn) < 1e-3
+
+
+def test_creeping_newton_iterations_take_the_next_fresh_direction_whole():
+    """``newton._Stall``: three iterations in a row along fresh directions, each cut short by
+    the line search and lowering the merit norm by less than 1 %, ask for the next fresh
+    direction whole; the norms are those of the 64x wall's first step, which crept at a norm of
+    7.5e-3 for 18 iterations before this rule (docs/scaling.md)."""
+    from masonry_nscd.nscd.newton import _Stall
+
+    creeping = [(7.77e-3, 7.70e-3), (7.70e-3, 7.65e-3), (7.65e-3, 7.60e-3)]
+    stall = _Stall()
+    # 7.85e-3 to 7.77e-3 gains 1.02 %: not yet creeping
+    assert not stall.after(True, 0.125, 7.85e-3, 7.77e-3)
+    assert [stall.after(True, 0.125, a, b) for a, b in creeping] == [False, False, True]
+    # and the count starts again
+    assert [stall.after(True, 0.125, a, b) for a, b in creeping] == [False, False, True]
+    # a step that gains 2 %, a full step, or a direction from an older matrix breaks the run
+    for breaker in [(True, 0.125, 1.0, 0.98), (True, 1.0, 1.0, 0.999), (False, 0.125, 1.0, 0.999)]:
+        stall = _Stall()
+        seen = [stall.after(True, 0.125, a, b) for a, b in creeping[:2]]
+        seen.append(stall.after(*breaker))
+        seen.append(stall.after(True, 0.125, *creeping[2]))
+        assert seen == [False, False, False, False]
