@@ -41,12 +41,10 @@ Iterations:
 * where the directions of fresh matrices only creep (``_Stall``: three in a row cut short by the
   line search, each lowering the norm by less than 1 %), the next fresh direction is taken
   whole, the norm allowed to rise: the creeping steps stop just short of the kinks the
-  Newton step would cross. Measured on the first step of the wall 64 times the study's (the
-  gravity's first load, where the head joints sit at the kink between open and closed): 50
-  iterations creeping at a norm of 7.5e-3 and the step made again as halves (40 and 9
-  iterations), against 45 iterations at h with the full step taken at the 38th
-  (docs/scaling.md, session 21). The study's walls never creep so: their curves are the same
-  bit for bit.
+  Newton step would cross. Seen on the first step of the wall 64 times the study's (gravity's
+  first load, the head joints at the kink between open and closed), which crept until its
+  iteration cap and was made again as halves (docs/scaling.md, session 21); the study's walls
+  never creep so.
 
 Measured on the reference wall with elastic blocks (100 steps from U_x = 0.3 mm, CPU time):
 plain chord steps 9.2 iterations and 0.35 factorisations per step, 26.8 ms; accelerated, 7.0
@@ -870,14 +868,14 @@ class NewtonSolver:
             step = self._anderson(x, dx, history.last, history.d_x, history.d_f,
                                   history.weight) if accelerated else dx
             history.last = (x, dx)
-            # an accelerated step is taken whole or not at all: where it does not decrease the
-            # norm, the plain step's line search follows (a shorter accelerated step was thrown
-            # away for the plain one all the same: docs/performance.md, session 18)
             if whole and fresh:
                 # the iterations crept (``_Stall``): the fresh direction whole, whatever the norm
                 alpha, descent, v_try, r_try, ev_try = self._line_search(
                     residual, v, r_glue, dx, ev.norm, True, halve=False)
                 return ev, alpha, fresh, v_try, r_try, ev_try
+            # an accelerated step is taken whole or not at all: where it does not decrease the
+            # norm, the plain step's line search follows (a shorter accelerated step was thrown
+            # away for the plain one all the same: docs/performance.md, session 18)
             alpha, descent, v_try, r_try, ev_try = self._line_search(
                 residual, v, r_glue, step, ev.norm, fresh and not accelerated,
                 halve=not accelerated)
