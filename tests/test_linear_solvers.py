@@ -357,8 +357,6 @@ def test_solver_linear_is_validated(monkeypatch):
     assert res.exit_code == 2 and "solver.linear" in res.output
 
 
-
-
 @needs_mkl
 def test_pardiso_solves_the_newton_matrix_as_superlu(smoke_scene):
     """The smoke wall's Newton matrix (glue rows included, compliance 1e-9 of the Delassus

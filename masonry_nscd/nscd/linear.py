@@ -128,25 +128,31 @@ def rigid_body_modes(body_dof0: np.ndarray, deformable: np.ndarray,
     return modes
 
 
+def _mode_entries(body_of: np.ndarray, modes: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The non-zero entries of the rigid-body ``modes`` (``(nf, 6)``): their free dof, their
+    coarse unknown ``6 b + k`` (the mode ``k`` of the dof's body ``b``) and their value."""
+    m = np.asarray(modes, dtype=float).ravel()
+    rows = np.repeat(np.arange(len(body_of)), 6)
+    cols = (6 * np.asarray(body_of, dtype=np.int64)[:, None] + np.arange(6)).ravel()
+    on = m != 0.0
+    return rows[on], cols[on], m[on]
+
+
 def coarse_columns(body_of: np.ndarray, modes: np.ndarray) -> np.ndarray:
     """The coarse unknowns some free dof moves, ``6 b + k`` for the mode ``k`` of body ``b``
     (sorted): the columns of :func:`coarse_space`, the modes of imposed motions dropped."""
-    cols = (6 * np.asarray(body_of, dtype=np.int64)[:, None] + np.arange(6)).ravel()
-    return np.unique(cols[np.asarray(modes, dtype=float).ravel() != 0.0])
+    return np.unique(_mode_entries(body_of, modes)[1])
 
 
 def coarse_space(body_of: np.ndarray, modes: np.ndarray) -> sp.csc_matrix:
     """``R`` (free dofs x coarse unknowns, CSC): the rigid-body modes ``modes`` (``(nf, 6)``)
     of the bodies ``body_of`` (sorted) as six columns per body in the order of the bodies, the
     empty columns (imposed motions) dropped (``coarse_columns``)."""
-    nf = len(body_of)
-    m = np.asarray(modes, dtype=float).ravel()
-    rows = np.repeat(np.arange(nf), 6)
-    cols = (6 * np.asarray(body_of, dtype=np.int64)[:, None] + np.arange(6)).ravel()
-    used = coarse_columns(body_of, modes)
-    on = m != 0.0
-    return sp.csc_matrix((m[on], (rows[on], np.searchsorted(used, cols[on]))),
-                         shape=(nf, len(used)))
+    rows, cols, values = _mode_entries(body_of, modes)
+    used = np.unique(cols)
+    return sp.csc_matrix((values, (rows, np.searchsorted(used, cols))),
+                         shape=(len(body_of), len(used)))
 
 
 class KrylovFailure(RuntimeError):
