@@ -27,6 +27,8 @@ parameter rows (:mod:`masonry_nscd.contact.scatter`).
 
 from __future__ import annotations
 
+from typing import Any, NamedTuple
+
 import numpy as np
 
 from masonry_nscd.contact import laws
@@ -57,12 +59,42 @@ def unit_name(course: int, first: int, last: int, position: int, count: int) -> 
 
 def build_wall(case) -> Scene:
     """The scene of a wall case: units, beams, joints, loads, stages (module docstring)."""
-    w, blk, sup, ld = case.wall, case.blocks, case.supports, case.loading
+    w = case.wall
+    clamped = case.supports.clamped_courses
+    first, last = clamped, w.courses - 1 - clamped  # the courses between the beams
+    bodies, info, top_course = _units(case, first, last)
+    n_units = len(bodies)
+    rig = _rig(case, first, last)
+    bodies += rig.beams
+    i_low = n_units
+    i_up = n_units + 1 if len(rig.beams) == 2 else None
+    points, params, drawn = _joints(case, bodies, i_low, i_up)
+    dof0 = dof_offsets(bodies)
+    loads, holds = _loads(case, bodies, n_units, dof0, i_up)
     length, height = wall_size(w)
-    t, j = w.thickness_m, w.joint_thickness_m
-    levels = course_levels(w)
-    k = sup.clamped_courses
-    first, last = k, w.courses - 1 - k  # the courses between the beams
+    meta = {"joint_thickness_m": w.joint_thickness_m, "wall_length_m": length,
+            "wall_height_m": height, "contact_point_rule": case.contact_point_rule}
+    push = _push_stage(case, rig, bodies, dof0, top_course, i_low, i_up)
+    if push.measured_what is not None:
+        meta["measured"] = push.measured_what
+    solver = SolverSettings.from_case(case, _endo3d_params(case))
+    reactions = {"top": i_up, "bottom": i_low} if i_up is not None else {"bottom": i_low}
+    return Scene(
+        name=case.name, builder="wall", bodies=bodies, points=points, groups=GROUPS,
+        params=params, loads=loads, solver=solver,
+        point_fields={f"joint_{k}": v for k, v in drawn.items()},
+        structure=list(range(n_units)), body_info=info, driven=push.driven,
+        reactions=reactions, stages=push.stages, push_stage=push.name, target_m=push.target_m,
+        expected_end_s=push.end_s, time_limit_s=push.limit_s, holds=holds,
+        history=push.history, measured=push.measured, meta=meta,
+    )
+
+
+def _units(case, first: int, last: int) -> tuple[list, list[dict], list[int]]:
+    """The units of courses ``first`` to ``last`` (0-based): their bodies (blocks meshed as
+    ``wall.elements_per_unit`` and ``wall.refine`` say, or rigid bodies), their places
+    (``body_info``), and the indices of those of the course ``last``."""
+    w, blk = case.wall, case.blocks
     every = unit_boxes(w)
     divisions = unit_divisions(w, every)
     boxes = [(b, d) for b, d in zip(every, divisions) if first <= b.course <= last]
@@ -77,27 +109,45 @@ def build_wall(case) -> Scene:
         if b.kind == "lintel":
             name = place["name"] = f"lintel over opening {b.opening + 1}"
             material = MAT_ELASTIC
-        origin, size = (b.x0, b.y0, 0.0), (b.length, b.height, t)
+        origin, size = (b.x0, b.y0, 0.0), (b.length, b.height, w.thickness_m)
         if blk.material == "rigid":
             bodies.append(RigidBody.box(origin, size, blk.density_kg_m3, div, name=name))
         else:
             bodies.append(Block.box(origin, size, div, E=blk.E_Pa, nu=blk.nu,
                                     density=blk.density_kg_m3, material=material, name=name))
         info.append(place)
-    n_units = len(bodies)
+    top_course = [i for i, (b, _) in enumerate(boxes) if b.course == last]
+    return bodies, info, top_course
 
-    # --- the rig ------------------------------------------------------------------------------
+
+class _Rig(NamedTuple):
+    """The beams of the rig: ``[lower, upper]`` or ``[lower]`` (``supports.top_beam``
+    absent), and the motion that drives the run: the horizontal stage's history (None under
+    a ground motion) or the ground motion's (None otherwise)."""
+
+    beams: list
+    history: Any
+    ground: Any
+
+
+def _rig(case, first: int, last: int) -> _Rig:
+    """The two rigid steel beams (module docstring): the lower one fixed or moved by the
+    ground motion, the upper one driven in x by the horizontal stage's history, with the
+    supports' holds."""
+    w, sup, ld = case.wall, case.supports, case.loading
+    length, height = wall_size(w)
+    t = w.thickness_m
+    levels = course_levels(w)
     y_low = levels[first - 1][1] if first else 0.0  # top of the lower beam
     y_up = levels[last + 1][0] if last + 1 < w.courses else height  # bottom of the upper one
     Xl, cl = hex8.box_mesh(np.array([0.0, -BEAM_HEIGHT_M, 0.0]),
                            np.array([length, y_low + BEAM_HEIGHT_M, t]), (1, 1, 1))
     gm = ld.ground_motion
-    hz = ld.horizontal
     ground = gm.history() if gm is not None else None
     if ground is None:
         lower = RigidBody.fixed(center=(length / 2, -BEAM_HEIGHT_M / 2, t / 2),
                                 name="lower beam", X=Xl, conn=cl)
-        history = hz.displacement_history()  # monotonic: Ramp(rate, start, ramp), as before
+        history = ld.horizontal.displacement_history()  # monotonic: Ramp(rate, start, ramp)
         imposed = {X: history.velocity, Z: at_rest, 3: at_rest, 4: at_rest, ROT_Z: at_rest}
     else:  # the base moves with the record; the top beam is free in x
         motion = dict.fromkeys(range(6), at_rest)
@@ -121,15 +171,17 @@ def build_wall(case) -> Scene:
                       inertia=inertia, imposed_velocity=imposed, name="upper beam", X=Xu,
                       conn=cu, reference=(length / 2, height + sup.load_height_m, t / 2),
                       support=True)
-    top_beam = sup.top_beam == "present"
-    bodies += [lower, upper] if top_beam else [lower]
-    i_low = n_units
-    i_up = n_units + 1 if top_beam else None
+    beams = [lower, upper] if sup.top_beam == "present" else [lower]
+    return _Rig(beams, history, ground)
 
-    # --- joints -------------------------------------------------------------------------------
-    glued = k == 0
+
+def _joints(case, bodies: list, i_low: int, i_up: int | None):
+    """The joint points between the bodies (contact detection up to the joint thickness),
+    named by group (module docstring), with their rows of parameters, scattered when
+    ``joint.scatter`` says so: ``(points, params, drawn)``."""
+    glued = case.supports.clamped_courses == 0
     beam_group = {i_low: "glue_bottom" if glued else "bed_bottom"}
-    if top_beam:
+    if i_up is not None:
         beam_group[i_up] = "glue_top" if glued else "bed_top"
 
     def classify(joint, antagonist):
@@ -142,19 +194,25 @@ def build_wall(case) -> Scene:
         kind = laws.KIND_GLUED if name.startswith("glue") else laws.KIND_JOINT
         return GROUPS.index(name), kind, 0
 
-    detection = find_joints(bodies, max_gap=j)
+    w = case.wall
+    detection = find_joints(bodies, max_gap=w.joint_thickness_m)
     points = joint_points(bodies, detection.joints, classify, n_gauss=w.contact_points_per_face,
                           rule=case.contact_point_rule)
     params, rows, drawn = scatter_rows(
         case.joint, points, np.array([p.kind == laws.KIND_JOINT for p in points], dtype=bool))
     for p, row in zip(points, rows):
         p.law = int(row)
+    return points, params, drawn
 
-    # --- loads, stages, stop rule -------------------------------------------------------------
-    dof0 = dof_offsets(bodies)
-    ndof = int(dof0[-1])
+
+def _loads(case, bodies: list, n_units: int, dof0: np.ndarray,
+           i_up: int | None) -> tuple[Loads, list[Hold]]:
+    """Gravity on the units and the vertical stress on the upper beam, each with its tanh
+    ramp, and the hold of the upper beam in y once the horizontal stage starts
+    (``load_then_fixed``)."""
+    sup, ld = case.supports, case.loading
     loads = Loads()
-    G = np.zeros(ndof)
+    G = np.zeros(int(dof0[-1]))
     for i, b in enumerate(bodies[:n_units]):
         if isinstance(b, RigidBody):
             G[dof0[i]:dof0[i + 1]] = b.weight_load((0.0, -1.0, 0.0))
@@ -163,58 +221,78 @@ def build_wall(case) -> Scene:
     g = ld.gravity
     loads.add(G, Ramp(g.value_m_s2, g.start_s, g.ramp_s))
     holds = []
-    if top_beam and sup.top_vertical in ("load", "load_then_fixed"):
+    if i_up is not None and sup.top_vertical in ("load", "load_then_fixed"):
+        length, _ = wall_size(case.wall)
         vs = ld.vertical_stress
-        Fv = np.zeros(ndof)
-        Fv[dof0[i_up] + Y] = -vs.value_Pa * length * t
+        Fv = np.zeros(int(dof0[-1]))
+        Fv[dof0[i_up] + Y] = -vs.value_Pa * length * case.wall.thickness_m
         loads.add(Fv, Ramp(1.0, vs.start_s, vs.ramp_s))
     if sup.top_vertical == "load_then_fixed":
-        holds.append(Hold(i_up, Y, hz.start_s))
-    endo = None
-    if blk.material == "endo3d":
-        from masonry_nscd.materials.point_driver import params_from_case
+        holds.append(Hold(i_up, Y, ld.horizontal.start_s))
+    return loads, holds
 
-        endo = params_from_case(case)
+
+def _endo3d_params(case):
+    """The ENDO3D parameters of the blocks (None unless ``blocks.material`` is endo3d)."""
+    if case.blocks.material != "endo3d":
+        return None
+    from masonry_nscd.materials.point_driver import params_from_case
+
+    return params_from_case(case)
+
+
+class _Push(NamedTuple):
+    """The stage that drives the run and how it ends and is measured (``Scene``'s fields of
+    the same meaning)."""
+
+    stages: list[Stage]
+    name: str
+    driven: int
+    target_m: float | None
+    end_s: float
+    limit_s: float
+    history: dict
+    measured: tuple | None
+    measured_what: str | None  # the scene's ``meta["measured"]`` (None: the driven beam)
+
+
+def _push_stage(case, rig: _Rig, bodies: list, dof0: np.ndarray, top_course: list[int],
+                i_low: int, i_up: int | None) -> _Push:
+    """The stages (gravity, the vertical stress, then the horizontal stage or the ground
+    motion), when the run stops, what drives it and what the curve measures; under a ground
+    motion the drift is measured relative to the base, at the top beam's reference point or
+    at the top course's centre of mass."""
+    ld = case.loading
     stages = [Stage("gravity", 0.0), Stage("vertical", ld.vertical_stress.start_s)]
-    meta = {"joint_thickness_m": j, "wall_length_m": length, "wall_height_m": height,
-            "contact_point_rule": case.contact_point_rule}
-    if ground is not None:  # run to the end of the record; drift relative to the base
-        target, end, limit = None, ground.end_s, ground.end_s
-        stages.append(Stage("ground_motion", gm.start_s))
-        push, driven = "ground_motion", i_low
-        info_history = {"kind": "ground_motion", "end_s": ground.end_s, "cycles": [],
-                        "record": gm.file, "scale": gm.scale, "direction": gm.direction,
-                        "start_s": gm.start_s,
-                        "peak_acceleration_m_s2": ground.peak_acceleration_m_s2}
-        if top_beam:
-            points_x = [(int(dof0[i_up] + X), 1.0)]
-            points_y = [(int(dof0[i_up] + Y), 1.0)]
-            meta["measured"] = ("the top beam's reference point (supports.load_height_m above "
-                                "the wall) relative to the base")
-        else:
-            top = [i for i, (b, _) in enumerate(boxes) if b.course == last]
-            points_x, points_y = _centre_of_mass_dofs(bodies, dof0, top)
-            meta["measured"] = "the centre of mass of the top course relative to the base"
-        measured = (_relative(points_x, int(dof0[i_low] + X)),
-                    _relative(points_y, int(dof0[i_low] + Y)))
-    else:
+    ground = rig.ground
+    if ground is None:
+        hz, history = ld.horizontal, rig.history
         if history.end_s is None:  # monotonic: stop on the displacement (time as a guard)
             target, end, limit = hz.target_m, ld.end_time_s, ld.end_time_s + 0.5 * hz.ramp_s
         else:  # cyclic, table: stop when the motion is over
             target, end, limit = None, history.end_s, history.end_s
         stages.append(Stage("horizontal", hz.start_s))
-        push, driven, info_history, measured = "horizontal", i_up, history.info(), None
-    solver = SolverSettings.from_case(case, endo)
-    reactions = {"top": i_up, "bottom": i_low} if top_beam else {"bottom": i_low}
-    return Scene(
-        name=case.name, builder="wall", bodies=bodies, points=points, groups=GROUPS,
-        params=params, loads=loads, solver=solver,
-        point_fields={f"joint_{k}": v for k, v in drawn.items()},
-        structure=list(range(n_units)), body_info=info, driven=driven,
-        reactions=reactions, stages=stages, push_stage=push, target_m=target,
-        expected_end_s=end, time_limit_s=limit, holds=holds, history=info_history,
-        measured=measured, meta=meta,
-    )
+        return _Push(stages, "horizontal", i_up, target, end, limit, history.info(), None,
+                     None)
+    # run to the end of the record; drift relative to the base
+    gm = ld.ground_motion
+    stages.append(Stage("ground_motion", gm.start_s))
+    info_history = {"kind": "ground_motion", "end_s": ground.end_s, "cycles": [],
+                    "record": gm.file, "scale": gm.scale, "direction": gm.direction,
+                    "start_s": gm.start_s,
+                    "peak_acceleration_m_s2": ground.peak_acceleration_m_s2}
+    if i_up is not None:
+        points_x = [(int(dof0[i_up] + X), 1.0)]
+        points_y = [(int(dof0[i_up] + Y), 1.0)]
+        what = ("the top beam's reference point (supports.load_height_m above the wall) "
+                "relative to the base")
+    else:
+        points_x, points_y = _centre_of_mass_dofs(bodies, dof0, top_course)
+        what = "the centre of mass of the top course relative to the base"
+    measured = (_relative(points_x, int(dof0[i_low] + X)),
+                _relative(points_y, int(dof0[i_low] + Y)))
+    return _Push(stages, "ground_motion", i_low, None, ground.end_s, ground.end_s,
+                 info_history, measured, what)
 
 
 def _relative(points: list[tuple[int, float]], base: int) -> tuple[np.ndarray, np.ndarray]:
