@@ -27,7 +27,7 @@ parameter rows (:mod:`masonry_nscd.contact.scatter`).
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -40,6 +40,10 @@ from masonry_nscd.model.bodies import body_mass
 from masonry_nscd.model.detection import find_joints, joint_points
 from masonry_nscd.scenes.layout import course_levels, unit_boxes, unit_divisions, wall_size
 from masonry_nscd.scenes.scene import Hold, Scene, SolverSettings, Stage
+
+if TYPE_CHECKING:  # types of the annotations only: both load on use
+    from masonry_nscd.loading.ground_motion import GroundMotion
+    from masonry_nscd.loading.histories import DisplacementHistory
 
 X, Y, Z = 0, 1, 2
 ROT_Z = 5
@@ -126,8 +130,8 @@ class _Rig(NamedTuple):
     a ground motion) or the ground motion's (None otherwise)."""
 
     beams: list
-    history: Any
-    ground: Any
+    history: DisplacementHistory | None
+    ground: GroundMotion | None
 
 
 def _rig(case, first: int, last: int) -> _Rig:
