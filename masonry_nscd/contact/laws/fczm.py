@@ -302,6 +302,80 @@ def _tangential_slip(r1, r2, h11, h12, h22, hmin, hmax, phi, lam):
 
 
 @njit(cache=True)
+def _normal_root(N0, g1, g2, gn, r1, r2, rn, h11, h12, h22, hmin, hmax, mu_eff, h, s1, s2,
+                 lam, t1, t2):
+    """The root ``N`` (Pa) of ``h(N) = N0 + g.s(mu_eff N) - N`` for :func:`_slide`, from the
+    frictionless slide: ``h = h(0)``, its slip ``s`` (m), ``lam = |s|`` and ``t = -ds/dphi``.
+    Newton's method kept inside a bracket, after a scan of ``[0, hi]`` for a sign change when
+    ``h(0) < 0`` and ``kappa >= 1`` (:func:`_slide`'s docstring). Returns ``(found, N, s1, s2,
+    lam)``: whether a root was found, and the slip and its length there."""
+    gs = g1 * s1 + g2 * s2
+    # bracket [xl, xr] of a root of h: h >= 0 at xl when pos_left, at xr otherwise
+    hi = min(rn / mu_eff, N0 + gn * rn / hmin)  # h(hi) <= 0
+    xl = 0.0
+    xr = hi
+    pos_left = True
+    N = 0.0
+    if h < 0.0:
+        if mu_eff * gn < hmin:
+            return False, N, s1, s2, lam  # h decreases strictly: no root
+        # kappa >= 1: sample h on [0, hi] for a sign change
+        n_scan = 32
+        pos_left = False
+        for k in range(1, n_scan + 1):
+            N = hi * k / n_scan
+            s1, s2, lam, t1, t2 = _tangential_slip(r1, r2, h11, h12, h22, hmin, hmax,
+                                                   mu_eff * N, lam)
+            gs = g1 * s1 + g2 * s2
+            h = N0 + gs - N
+            if h >= 0.0:
+                xr = N
+                break
+            xl = N
+        if h < 0.0:
+            return False, N, s1, s2, lam
+    dh = -1.0 - mu_eff * (g1 * t1 + g2 * t2)
+    # Newton on h, kept inside the bracket
+    converged = False
+    for _ in range(100):
+        if h == 0.0:
+            converged = True
+            break
+        if (h > 0.0) == pos_left:
+            xl = N
+        else:
+            xr = N
+        new = N - h / dh if dh < 0.0 else xl
+        scale = abs(N0) + abs(gs) + N
+        if dh < 0.0 and xl <= new <= xr:
+            if abs(new - N) <= 1e-8 * scale:
+                # last step: s to first order, s(phi + dphi) = s - t dphi, which
+                # zeroes h exactly and leaves O(dphi^2) in the tangential equation
+                dphi = mu_eff * (new - N)
+                s1 -= t1 * dphi
+                s2 -= t2 * dphi
+                lam = _norm2(s1, s2)
+                N = new
+                converged = True
+                break
+        else:
+            new = 0.5 * (xl + xr)
+            if xr - xl <= 1e-15 * scale:
+                converged = True
+                break
+        # first guess of the slip length: lam - e.t dphi
+        if lam > 0.0:
+            lam -= ((s1 * t1 + s2 * t2) / lam) * (mu_eff * (new - N))
+        N = new
+        s1, s2, lam, t1, t2 = _tangential_slip(r1, r2, h11, h12, h22, hmin, hmax,
+                                               mu_eff * N, lam)
+        gs = g1 * s1 + g2 * s2
+        h = N0 + gs - N
+        dh = -1.0 - mu_eff * (g1 * t1 + g2 * t2)
+    return converged, N, s1, s2, lam
+
+
+@njit(cache=True)
 def _slide(a, b, c, d, e, f, v0, v1, v2, T, u0_1, u0_2, kt, mu_eff, uc) -> int:
     """Sliding contact: ``u_c,n = 0``, Coulomb at its limit, slip along the friction traction.
 
@@ -420,69 +494,9 @@ def _slide(a, b, c, d, e, f, v0, v1, v2, T, u0_1, u0_2, kt, mu_eff, uc) -> int:
             if h < -tiny:
                 return -1
         else:
-            # bracket [xl, xr] of a root of h: h >= 0 at xl when pos_left, at xr otherwise
-            hi = min(rn / mu_eff, N0 + gn * rn / hmin)  # h(hi) <= 0
-            xl = 0.0
-            xr = hi
-            pos_left = True
-            N = 0.0
-            if h < 0.0:
-                if mu_eff * gn < hmin:
-                    return -1  # h decreases strictly: no root
-                # kappa >= 1: sample h on [0, hi] for a sign change
-                n_scan = 32
-                pos_left = False
-                for k in range(1, n_scan + 1):
-                    N = hi * k / n_scan
-                    s1, s2, lam, t1, t2 = _tangential_slip(r1, r2, h11, h12, h22, hmin, hmax,
-                                                           mu_eff * N, lam)
-                    gs = g1 * s1 + g2 * s2
-                    h = N0 + gs - N
-                    if h >= 0.0:
-                        xr = N
-                        break
-                    xl = N
-                if h < 0.0:
-                    return -1
-            dh = -1.0 - mu_eff * (g1 * t1 + g2 * t2)
-            # Newton on h, kept inside the bracket
-            converged = False
-            for _ in range(100):
-                if h == 0.0:
-                    converged = True
-                    break
-                if (h > 0.0) == pos_left:
-                    xl = N
-                else:
-                    xr = N
-                new = N - h / dh if dh < 0.0 else xl
-                scale = abs(N0) + abs(gs) + N
-                if dh < 0.0 and xl <= new <= xr:
-                    if abs(new - N) <= 1e-8 * scale:
-                        # last step: s to first order, s(phi + dphi) = s - t dphi, which
-                        # zeroes h exactly and leaves O(dphi^2) in the tangential equation
-                        dphi = mu_eff * (new - N)
-                        s1 -= t1 * dphi
-                        s2 -= t2 * dphi
-                        lam = _norm2(s1, s2)
-                        N = new
-                        converged = True
-                        break
-                else:
-                    new = 0.5 * (xl + xr)
-                    if xr - xl <= 1e-15 * scale:
-                        converged = True
-                        break
-                # first guess of the slip length: lam - e.t dphi
-                if lam > 0.0:
-                    lam -= ((s1 * t1 + s2 * t2) / lam) * (mu_eff * (new - N))
-                N = new
-                s1, s2, lam, t1, t2 = _tangential_slip(r1, r2, h11, h12, h22, hmin, hmax,
-                                                       mu_eff * N, lam)
-                gs = g1 * s1 + g2 * s2
-                h = N0 + gs - N
-                dh = -1.0 - mu_eff * (g1 * t1 + g2 * t2)
-            if not converged:
+            found, N, s1, s2, lam = _normal_root(N0, g1, g2, gn, r1, r2, rn, h11, h12, h22,
+                                                 hmin, hmax, mu_eff, h, s1, s2, lam, t1, t2)
+            if not found:
                 return -1
     if s1 == 0.0 and s2 == 0.0:
         return -1  # a slide of zero length is the stick, which was refused
