@@ -1672,6 +1672,109 @@ def _intact_update(s_tr, state_in, params, state_out, sigma):
 
 
 @njit(cache=True)
+def _open_cracks(dlR, Q, xe, W, Wm, wk):
+    """The crack openings ``W`` and their maxima ``W_max`` (m, 3x3, updated in place) after
+    the Rankine multipliers ``dlR`` of the step along the principal directions ``Q``: each
+    opens by ``dlR_k`` times the element's extent along ``e_k`` (Hillerborg), and ``W_max``
+    keeps, in the basis of ``W``, the largest opening met along each of its directions."""
+    for k in range(3):
+        if dlR[k] != 0.0:
+            dw = dlR[k] * _extent(xe, Q, k)
+            for i in range(3):
+                for j in range(3):
+                    W[i, j] += dw * Q[i, k] * Q[j, k]
+    ww = wk[7, 1]
+    Vw = wk[10]
+    _eig_sym3_work(W, ww, Vw, wk[6])
+    w_scale = max(ww[0], max(ww[1], ww[2]))
+    if w_scale > 0.0 and _has_repeated(ww, 0.0):
+        # repeated openings: W_max, then the element, order their eigenspace. With one
+        # crack the repeated eigenvalue is 0, where max(W_max,kk, 0) = W_max,kk whatever
+        # the basis (W_max is positive semi-definite): nothing to do
+        zero = DEGENERATE_REL * w_scale
+        if not (_pair_value(ww) <= zero):
+            _state_basis(ww, Vw, Wm, 0.0, xe, zero)
+    for k in range(3):
+        ww[k] = max(ww[k], 0.0)
+    # W_max in the basis of W: diagonal maxima, off-diagonal terms kept
+    B = wk[11]
+    _in_basis(Vw, Wm, B)
+    for k in range(3):
+        B[k, k] = max(B[k, k], ww[k])
+    for i in range(3):
+        for j in range(3):
+            accW = 0.0
+            accM = 0.0
+            for k in range(3):
+                accW += ww[k] * Vw[i, k] * Vw[j, k]
+                for m in range(3):
+                    accM += Vw[i, k] * B[k, m] * Vw[j, m]
+            W[i, j] = accW
+            Wm[i, j] = accM
+
+
+@njit(cache=True)
+def _crack_damages(W, Wm, xe, params, wm, P, d_t, d_r, work):
+    """The tensile damages ``d_t`` and the reclosure damages ``d_r`` along the principal
+    directions ``P`` of the largest openings ``W_max`` (eigenvalues ``wm``, m):
+    ``d_t = 1 - (w_k / (w_k + w_max))^2`` and ``d_r = 1 - (w_r / (w_r + w_cur))^2``, with
+    ``w_cur = e . W . e`` the current opening along each direction (``work``: 3x3 scratch)."""
+    _eig_sym3_work(Wm, wm, P, work)
+    # repeated eigenvalues of W_max (one crack: (0, 0, w)): the basis of their eigenspace, where
+    # the reclosure takes w_i,cur, from W, then from the element's edges (no crack: no damage)
+    w_scale = max(abs(wm[0]), max(abs(wm[1]), abs(wm[2])))
+    if w_scale > 0.0 and _has_repeated(wm, 0.0):
+        _state_basis(wm, P, W, DEGENERATE_REL * w_scale, xe, DEGENERATE_REL * w_scale)
+    w_k = params[P_W_K]
+    w_r = params[P_W_R]
+    for k in range(3):
+        wk_ = max(0.0, wm[k])
+        ratio = w_k / (w_k + wk_)
+        d_t[k] = 1.0 - ratio * ratio
+        wc = 0.0
+        for i in range(3):
+            for j in range(3):
+                wc += P[i, k] * W[i, j] * P[j, k]
+        wc = max(wc, 0.0)
+        rho = w_r / (w_r + wc)
+        d_r[k] = 1.0 - rho * rho
+
+
+@njit(cache=True)
+def _apparent_stress(s, Q, P, d_t, d_r, d_c, d_cpp, nup, sigma, wk):
+    """The apparent stress ``sigma`` (Pa, Voigt) from the principal effective stresses ``s``
+    (directions ``Q``): its tensile part damaged by the cracks ``d_t`` and its compressive part
+    by their reclosure ``d_r`` (``_crack_damage``, along ``P``), the compressive part also by
+    the pre-peak damage ``d_cpp``, and the whole by the post-peak one ``d_c``:
+    ``sigma = (1 - d_c) (T+ + (1 - d_cpp) T-)``. ``nup`` is ``lambda / M`` (``wk``: work
+    arrays of :func:`_update`)."""
+    Sp = wk[14]
+    Sp[:] = 0.0
+    Sm = wk[15]
+    Sm[:] = 0.0
+    for k in range(3):
+        sp = max(0.0, s[k])
+        sm = s[k] - sp
+        for i in range(3):
+            for j in range(3):
+                qq = Q[i, k] * Q[j, k]
+                Sp[i, j] += sp * qq
+                Sm[i, j] += sm * qq
+    Tp = wk[16]
+    Tm = wk[17]
+    _crack_damage(Sp, P, d_t, nup, Tp, wk[18:21])
+    _crack_damage(Sm, P, d_r, nup, Tm, wk[18:21])
+    f_c = 1.0 - d_c
+    f_cpp = 1.0 - d_cpp
+    sigma[0] = f_c * (Tp[0, 0] + f_cpp * Tm[0, 0])
+    sigma[1] = f_c * (Tp[1, 1] + f_cpp * Tm[1, 1])
+    sigma[2] = f_c * (Tp[2, 2] + f_cpp * Tm[2, 2])
+    sigma[3] = f_c * (0.5 * (Tp[1, 2] + Tp[2, 1]) + f_cpp * 0.5 * (Tm[1, 2] + Tm[2, 1]))
+    sigma[4] = f_c * (0.5 * (Tp[0, 2] + Tp[2, 0]) + f_cpp * 0.5 * (Tm[0, 2] + Tm[2, 0]))
+    sigma[5] = f_c * (0.5 * (Tp[0, 1] + Tp[1, 0]) + f_cpp * 0.5 * (Tm[0, 1] + Tm[1, 0]))
+
+
+@njit(cache=True)
 def _update(eps, state_in, params, xe, state_out, sigma, wk, shortcut=True):
     """:func:`endo3d_update` with the work array ``wk`` (N_WORK, 3, 3) given: the 3x3
     matrices and 3-vectors of the update are its slices, so that a batch of points allocates
@@ -1778,67 +1881,16 @@ def _update(eps, state_in, params, xe, state_out, sigma, wk, shortcut=True):
     _from6(state_in, S_W, W)
     _from6(state_in, S_W_MAX, Wm)
     if dlR[0] != 0.0 or dlR[1] != 0.0 or dlR[2] != 0.0:
-        for k in range(3):
-            if dlR[k] != 0.0:
-                dw = dlR[k] * _extent(xe, Q, k)
-                for i in range(3):
-                    for j in range(3):
-                        W[i, j] += dw * Q[i, k] * Q[j, k]
-        ww = wk[7, 1]
-        Vw = wk[10]
-        _eig_sym3_work(W, ww, Vw, wk[6])
-        w_scale = max(ww[0], max(ww[1], ww[2]))
-        if w_scale > 0.0 and _has_repeated(ww, 0.0):
-            # repeated openings: W_max, then the element, order their eigenspace. With one
-            # crack the repeated eigenvalue is 0, where max(W_max,kk, 0) = W_max,kk whatever
-            # the basis (W_max is positive semi-definite): nothing to do
-            zero = DEGENERATE_REL * w_scale
-            if not (_pair_value(ww) <= zero):
-                _state_basis(ww, Vw, Wm, 0.0, xe, zero)
-        for k in range(3):
-            ww[k] = max(ww[k], 0.0)
-        # W_max in the basis of W: diagonal maxima, off-diagonal terms kept
-        B = wk[11]
-        _in_basis(Vw, Wm, B)
-        for k in range(3):
-            B[k, k] = max(B[k, k], ww[k])
-        for i in range(3):
-            for j in range(3):
-                accW = 0.0
-                accM = 0.0
-                for k in range(3):
-                    accW += ww[k] * Vw[i, k] * Vw[j, k]
-                    for m in range(3):
-                        accM += Vw[i, k] * B[k, m] * Vw[j, m]
-                W[i, j] = accW
-                Wm[i, j] = accM
+        _open_cracks(dlR, Q, xe, W, Wm, wk)
         _to6(W, state_out, S_W)
         _to6(Wm, state_out, S_W_MAX)
 
     # ---- damages -------------------------------------------------------------------------------
     wm = wk[7, 2]
     P = wk[12]
-    _eig_sym3_work(Wm, wm, P, wk[6])
-    # repeated eigenvalues of W_max (one crack: (0, 0, w)): the basis of their eigenspace, where
-    # the reclosure takes w_i,cur, from W, then from the element's edges (no crack: no damage)
-    w_scale = max(abs(wm[0]), max(abs(wm[1]), abs(wm[2])))
-    if w_scale > 0.0 and _has_repeated(wm, 0.0):
-        _state_basis(wm, P, W, DEGENERATE_REL * w_scale, xe, DEGENERATE_REL * w_scale)
-    w_k = params[P_W_K]
-    w_r = params[P_W_R]
     d_t = wk[13, 0]
     d_r = wk[13, 1]
-    for k in range(3):
-        wk_ = max(0.0, wm[k])
-        ratio = w_k / (w_k + wk_)
-        d_t[k] = 1.0 - ratio * ratio
-        wc = 0.0
-        for i in range(3):
-            for j in range(3):
-                wc += P[i, k] * W[i, j] * P[j, k]
-        wc = max(wc, 0.0)
-        rho = w_r / (w_r + wc)
-        d_r[k] = 1.0 - rho * rho
+    _crack_damages(W, Wm, xe, params, wm, P, d_t, d_r, wk[6])
     # sorted tensile damages and largest opening, for the outputs
     a0 = d_t[0]
     a1 = d_t[1]
@@ -1879,31 +1931,7 @@ def _update(eps, state_in, params, xe, state_out, sigma, wk, shortcut=True):
     state_out[S_D_C] = d_c
 
     # ---- apparent stress -------------------------------------------------------------------------
-    Sp = wk[14]
-    Sp[:] = 0.0
-    Sm = wk[15]
-    Sm[:] = 0.0
-    for k in range(3):
-        sp = max(0.0, s[k])
-        sm = s[k] - sp
-        for i in range(3):
-            for j in range(3):
-                qq = Q[i, k] * Q[j, k]
-                Sp[i, j] += sp * qq
-                Sm[i, j] += sm * qq
-    nup = E_lame / M
-    Tp = wk[16]
-    Tm = wk[17]
-    _crack_damage(Sp, P, d_t, nup, Tp, wk[18:21])
-    _crack_damage(Sm, P, d_r, nup, Tm, wk[18:21])
-    f_c = 1.0 - d_c
-    f_cpp = 1.0 - d_cpp
-    sigma[0] = f_c * (Tp[0, 0] + f_cpp * Tm[0, 0])
-    sigma[1] = f_c * (Tp[1, 1] + f_cpp * Tm[1, 1])
-    sigma[2] = f_c * (Tp[2, 2] + f_cpp * Tm[2, 2])
-    sigma[3] = f_c * (0.5 * (Tp[1, 2] + Tp[2, 1]) + f_cpp * 0.5 * (Tm[1, 2] + Tm[2, 1]))
-    sigma[4] = f_c * (0.5 * (Tp[0, 2] + Tp[2, 0]) + f_cpp * 0.5 * (Tm[0, 2] + Tm[2, 0]))
-    sigma[5] = f_c * (0.5 * (Tp[0, 1] + Tp[1, 0]) + f_cpp * 0.5 * (Tm[0, 1] + Tm[1, 0]))
+    _apparent_stress(s, Q, P, d_t, d_r, d_c, d_cpp, E_lame / M, sigma, wk)
     return status
 
 
