@@ -1327,6 +1327,130 @@ def _trial_admissible(s, r, c_n, params, open_tol):
 
 
 @njit(cache=True)
+def _correct_active_set(s, r, dlR, dlD, mode, closed, excl, lam_d_n, c_n, h_n, params,
+                        open_tol):
+    """Whether the pass of :func:`_return_mapping` that ended at ``s`` (with the multipliers
+    ``dlR``, ``dlD`` and the active set ``mode``) must be made again, after one correction of
+    the active set (``closed``, ``excl`` changed in place). The corrections, one kind per
+    restart, in this order (the multipliers of a pass that needs a correction of one kind say
+    nothing about the next kinds):
+
+    1. Drucker-Prager flowed and was then skipped (three Rankine-type constraints): its flow is
+       in the pass's plastic strains; redo the pass without it;
+    2. a reclosure went past the full closure: that direction is closed (prescribed increment
+       ``-r_i``);
+    3. multipliers of the wrong sign: the most wrong one is excluded (one at a time: the others
+       change once it is gone; all multipliers are strains);
+    4. an excluded surface that the final stress violates is admitted again, a closed direction
+       whose stress is above ``-REF`` is opened again (decided on an earlier pass, with another
+       active set, neither is final).
+    """
+    rt = params[P_RT]
+    ref = params[P_REF]
+    tol = params[P_TOL]
+    redo = False
+    if mode[3] == 0 and dlD != 0.0:
+        excl[_EXCL_D] = True
+        redo = True
+    if not redo:
+        for i in range(3):
+            if mode[i] == -1 and r[i] + dlR[i] < -open_tol:
+                closed[i] = True
+                redo = True
+    if not redo:
+        # (ties, to round-off, go to the lowest index: directions of a repeated principal
+        # stress are ordered by the state, see _refine_basis)
+        worst = -1
+        wrong = 0.0
+        for i in range(3):
+            if mode[i] == 1 and -dlR[i] > wrong * (1.0 + 1e-9):
+                worst = i
+                wrong = -dlR[i]
+            elif mode[i] == -1 and dlR[i] > wrong * (1.0 + 1e-9):
+                worst = i
+                wrong = dlR[i]
+        if -dlD > wrong * (1.0 + 1e-9):
+            worst = _EXCL_D
+        elif worst >= 0 and mode[worst] == -1:
+            worst += 3
+        if worst >= 0:
+            excl[worst] = True
+            redo = True
+    if not redo:
+        for i in range(3):
+            if closed[i] and s[i] + ref > tol:
+                # a closure decided on an earlier pass that the final stress does not hold
+                closed[i] = False
+                redo = True
+            if mode[i] != 0 or closed[i]:
+                continue
+            if excl[i] and s[i] - rt > tol:
+                excl[i] = False
+                redo = True
+            if excl[3 + i] and s[i] + ref < -tol and r[i] + dlR[i] > open_tol:
+                excl[3 + i] = False
+                redo = True
+        if excl[_EXCL_D] and _dp_violated(s, lam_d_n, dlD, c_n, h_n, params, mode):
+            excl[_EXCL_D] = False
+            redo = True
+    return redo
+
+
+@njit(cache=True)
+def _search_active_sets(s_trial, r, closed, mode, lam_d_n, c_n, h_n, params, open_tol, s, dlR,
+                        depD, dev, kind, Jm, fv, xs, dlD):
+    """Where the corrections of :func:`_return_mapping` cycle (non-associated flow, corners,
+    closures): the active sets tried in turn, fewest active surfaces first, each direction
+    inactive, Rankine, or, if its crack is open, reclosure or full closure, and Drucker-Prager
+    off or on. The first closest point (:func:`_closest_point`) that converges to a point
+    meeting the Kuhn-Tucker conditions is the answer. Returns ``(found, dlambda_D, tried)``:
+    ``dlambda_D`` that of the last set tried (``dlD`` when none was), ``tried`` the count."""
+    tried = 0
+    found = False
+    wk = np.empty(4)
+    for size in range(5):
+        for code4 in range(128):
+            c = code4
+            cnt = 0
+            ntens = 0
+            nrecl = 0
+            ok = True
+            for i in range(3):
+                opt = c % 4  # 0 inactive, 1 Rankine, 2 reclosure, 3 closed
+                c //= 4
+                if opt >= 2 and not r[i] > open_tol:
+                    ok = False
+                mode[i] = 1 if opt == 1 else (-1 if opt == 2 else 0)
+                closed[i] = opt == 3
+                if opt != 0:
+                    cnt += 1
+                if opt == 1 or opt == 2:
+                    ntens += 1
+                if opt == 2:
+                    nrecl += 1
+            mode[3] = c  # 0 or 1
+            if mode[3] == 1 and ntens == 3 and nrecl == 0:
+                # Drucker-Prager is skipped with three Rankine constraints (their corner,
+                # R_t (1, 1, 1), satisfies it: delta R_t <= C_min <= C); with a reclosure
+                # among them the corner can violate it, and the hardening (H > 0) can
+                # restore it: that set is tried
+                ok = False
+            cnt += mode[3]
+            if not ok or cnt != size:
+                continue
+            code, dlD = _closest_point(s_trial, r, closed, mode, lam_d_n, params, s, dlR,
+                                       depD, dev, kind, Jm, fv, xs, wk)
+            tried += 1
+            if code == 0 and _kkt_holds(s, r, dlR, dlD, mode, closed, lam_d_n, c_n, h_n,
+                                        params, open_tol):
+                found = True
+                break
+        if found:
+            break
+    return found, dlD, tried
+
+
+@njit(cache=True)
 def _return_mapping(s, r, lam_d_n, c_n, h_n, params, open_tol, dlR, depD):
     """Return mapping from the principal trial stress ``s`` (3,) (Pa, overwritten by the
     returned stress), ``r`` (3,) = ``e_i . eps_pR . e_i`` at the start of the step,
@@ -1337,9 +1461,6 @@ def _return_mapping(s, r, lam_d_n, c_n, h_n, params, open_tol, dlR, depD):
     set corrections, then a closest-point search over the active sets)."""
     E_lame = params[P_LAME]
     G = params[P_G]
-    rt = params[P_RT]
-    ref = params[P_REF]
-    tol = params[P_TOL]
     s_trial = s.copy()
     mode = np.zeros(4, dtype=np.int64)
     excl = np.zeros(7, dtype=np.bool_)  # surfaces not to activate (see _EXCL_D)
@@ -1369,112 +1490,18 @@ def _return_mapping(s, r, lam_d_n, c_n, h_n, params, open_tol, dlR, depD):
             break
         if code == 1:
             break
-        # corrections of the active set, one kind per restart, in this order (the multipliers
-        # of a pass that needs a correction of one kind say nothing about the next kinds):
-        # (1) Drucker-Prager flowed and was then skipped (three Rankine-type constraints): its
-        #     flow is in the pass's plastic strains; redo the pass without it;
-        # (2) a reclosure went past the full closure: that direction is closed (prescribed
-        #     increment -r_i);
-        # (3) multipliers of the wrong sign: the most wrong one is excluded (one at a time: the
-        #     others change once it is gone; all multipliers are strains);
-        # (4) an excluded surface that the final stress violates is admitted again, a closed
-        #     direction whose stress is above -REF is opened again (decided on an earlier
-        #     pass, with another active set, neither is final).
-        redo = False
-        if mode[3] == 0 and dlD != 0.0:
-            excl[_EXCL_D] = True
-            redo = True
-        if not redo:
-            for i in range(3):
-                if mode[i] == -1 and r[i] + dlR[i] < -open_tol:
-                    closed[i] = True
-                    redo = True
-        if not redo:
-            # (ties, to round-off, go to the lowest index: directions of a repeated principal
-            # stress are ordered by the state, see _refine_basis)
-            worst = -1
-            wrong = 0.0
-            for i in range(3):
-                if mode[i] == 1 and -dlR[i] > wrong * (1.0 + 1e-9):
-                    worst = i
-                    wrong = -dlR[i]
-                elif mode[i] == -1 and dlR[i] > wrong * (1.0 + 1e-9):
-                    worst = i
-                    wrong = dlR[i]
-            if -dlD > wrong * (1.0 + 1e-9):
-                worst = _EXCL_D
-            elif worst >= 0 and mode[worst] == -1:
-                worst += 3
-            if worst >= 0:
-                excl[worst] = True
-                redo = True
-        if not redo:
-            for i in range(3):
-                if closed[i] and s[i] + ref > tol:
-                    # a closure decided on an earlier pass that the final stress does not hold
-                    closed[i] = False
-                    redo = True
-                if mode[i] != 0 or closed[i]:
-                    continue
-                if excl[i] and s[i] - rt > tol:
-                    excl[i] = False
-                    redo = True
-                if excl[3 + i] and s[i] + ref < -tol and r[i] + dlR[i] > open_tol:
-                    excl[3 + i] = False
-                    redo = True
-            if excl[_EXCL_D] and _dp_violated(s, lam_d_n, dlD, c_n, h_n, params, mode):
-                excl[_EXCL_D] = False
-                redo = True
-        if not redo:
+        if not _correct_active_set(s, r, dlR, dlD, mode, closed, excl, lam_d_n, c_n, h_n,
+                                   params, open_tol):
             status = 0
             break
     if status == 1:
-        # the rules cycle (non-associated flow, corners, closures): try the active sets, fewest
-        # active surfaces first, each direction inactive, Rankine, or, if its crack is open,
-        # reclosure or full closure, and Drucker-Prager off or on; the first pass that
-        # converges to a point satisfying the Kuhn-Tucker conditions is the answer
-        found = False
-        wk = np.empty(4)
-        for size in range(5):
-            for code4 in range(128):
-                c = code4
-                cnt = 0
-                ntens = 0
-                nrecl = 0
-                ok = True
-                for i in range(3):
-                    opt = c % 4  # 0 inactive, 1 Rankine, 2 reclosure, 3 closed
-                    c //= 4
-                    if opt >= 2 and not r[i] > open_tol:
-                        ok = False
-                    mode[i] = 1 if opt == 1 else (-1 if opt == 2 else 0)
-                    closed[i] = opt == 3
-                    if opt != 0:
-                        cnt += 1
-                    if opt == 1 or opt == 2:
-                        ntens += 1
-                    if opt == 2:
-                        nrecl += 1
-                mode[3] = c  # 0 or 1
-                if mode[3] == 1 and ntens == 3 and nrecl == 0:
-                    # Drucker-Prager is skipped with three Rankine constraints (their corner,
-                    # R_t (1, 1, 1), satisfies it: delta R_t <= C_min <= C); with a reclosure
-                    # among them the corner can violate it, and the hardening (H > 0) can
-                    # restore it: that set is tried
-                    ok = False
-                cnt += mode[3]
-                if not ok or cnt != size:
-                    continue
-                code, dlD = _closest_point(s_trial, r, closed, mode, lam_d_n, params, s, dlR,
-                                           depD, dev, kind, Jm, fv, xs, wk)
-                n_iter += 1
-                if code == 0 and _kkt_holds(s, r, dlR, dlD, mode, closed, lam_d_n, c_n, h_n,
-                                            params, open_tol):
-                    found = True
-                    break
-            if found:
-                status = 0
-                break
+        # the rules cycle (non-associated flow, corners, closures): search the active sets
+        found, dlD, tried = _search_active_sets(s_trial, r, closed, mode, lam_d_n, c_n, h_n,
+                                                params, open_tol, s, dlR, depD, dev, kind, Jm,
+                                                fv, xs, dlD)
+        n_iter += tried
+        if found:
+            status = 0
     if status != 0 and dlD < 0.0:
         # the iterate written when the return mapping fails must not lower lambda_D: remove
         # its Drucker-Prager flow (the stress stays C0 : (eps - eps_pR - eps_pD))
