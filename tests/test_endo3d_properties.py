@@ -283,3 +283,44 @@ def test_nonproportional_cycle_can_release_energy():
 def test_module_constants():
     assert m.N_STATE == len(m.endo3d_initial_state())
     assert math.isclose(m.elastic_matrix(1.0, 0.0)[0, 0], 1.0)
+
+
+def test_a_strain_whose_active_set_corrections_cycle_ends_admissible():
+    """The return mapping's last resort, the search over the active sets
+    (``endo3d._search_active_sets``), on a state and a strain where the cutting-plane passes and
+    their corrections of the active set cycle. Found by a random search of strain paths (twelve
+    random increments from the virgin state, the study's parameters with a 5 mm crushing band,
+    an element 0.15 x 0.05 x 0.15 m; the kernels run as Python with a counter on the search).
+    The point it returns must be converged and admissible: updated again at the same strain
+    from that state, the trial is elastic, so the apparent stress and the state are the same
+    (but the iteration count)."""
+    from masonry_nscd.fe import hex8
+
+    eps = np.array([0.00013498221383425203, 0.004918595128487089, 0.005627258660139776,
+                    -2.088304788845283e-05, 0.0008167246299402223, 0.0032169738736691766])
+    nonzero = {
+        0: -262590.27066690195, 1: 964840.4734097002, 2: 997749.7972572016,
+        3: 8894.721084383664, 4: -53301.82070140859, 5: 210694.27185893455,
+        6: 0.004324067040847104, 7: 0.004491370562891839, 8: 0.003603689717826517,
+        9: -0.0003655986169628828, 10: 0.0006698619632163756, 11: 0.001205863618731003,
+        18: 0.000786189998426393, 19: 0.0007218801792320251, 20: 0.0008149501439235777,
+        21: -0.00020652369085084876, 22: 7.969373164170678e-05, 23: 0.00015589999878542387,
+        24: 0.0009360701347669755, 25: 0.0008545675005470412, 26: 0.000693823715864998,
+        27: -0.0002967987181952513, 28: 0.00024242648224126267, 29: 3.464982407422772e-05,
+        31: 0.6967864645891405, 33: 0.997611948612715, 34: 0.9963661722002652,
+        35: 0.9815161754192515, 36: 0.0011678050531300406, 37: 5.0}
+    state = np.zeros(m.N_STATE)
+    for i, v in nonzero.items():
+        state[i] = v
+    prm = m.endo3d_params(E=11.1e9, nu=0.2, R_t=1.0e6, eps_pic_t=1.0e6 / 11.1e9, G_ft=60.0,
+                          R_c=9.46e6, eps_pic_c=0.013, delta=0.4, beta=0.2, eps_kdc=0.018,
+                          DCPK=1.0, REF=0.3e6, GFR=4.5, crushing_length=0.005)
+    X, conn = hex8.box_mesh(np.zeros(3), np.array([0.15, 0.05, 0.15]), (1, 1, 1))
+    xe = np.ascontiguousarray(X[conn[0]])
+    out, sigma = np.empty(m.N_STATE), np.empty(6)
+    assert m.endo3d_update(eps, state, prm, xe, out, sigma) == 0
+    again, sigma_again = np.empty(m.N_STATE), np.empty(6)
+    assert m.endo3d_update(eps, out, prm, xe, again, sigma_again) == 0
+    np.testing.assert_allclose(sigma_again, sigma, rtol=0.0, atol=1e-12 * np.max(np.abs(sigma)))
+    keep = np.arange(m.N_STATE) != m.S_ITER
+    np.testing.assert_allclose(again[keep], out[keep], rtol=1e-9, atol=0.0)
