@@ -1538,6 +1538,29 @@ def _pre_peak_damage(s_eq, lam_d, d_cpp_n, params):
 
 
 @njit(cache=True)
+def _post_peak_damage(s, Q, epsD, d_c_n, params, xe):
+    """Post-peak compressive damage ``d_c`` (-) after an update that left the Drucker-Prager
+    plastic strain ``epsD`` (3x3) and the principal effective stresses ``s`` (directions
+    ``Q``), from ``d_c_n``: ``max(d_c_n, kappa / (kappa + eps_kdc))`` with ``kappa = tr eps_pD
+    - beta lambda_pk`` once positive; with a crushing length ``l_c`` (m), ``eps_kdc`` is scaled
+    by ``l_c / L``, ``L`` the element's extent along the most compressive direction (module
+    docstring)."""
+    kappa = epsD[0, 0] + epsD[1, 1] + epsD[2, 2] - params[P_BETA] * params[P_LAMBDA_PK]
+    d_c = d_c_n
+    if kappa > 0.0:
+        eps_kdc = params[P_EPS_KDC]
+        if params[P_L_CRUSH] > 0.0:  # regularised: along the most compressive direction
+            k_c = 0
+            for k in range(1, 3):
+                if s[k] < s[k_c]:
+                    k_c = k
+            eps_kdc *= params[P_L_CRUSH] / _extent(xe, Q, k_c)
+        dn = kappa / (kappa + eps_kdc)
+        d_c = max(d_c, dn)
+    return d_c
+
+
+@njit(cache=True)
 def _principal_values(A):
     """Eigenvalues ``s1 >= s2 >= s3`` of the symmetric 3x3 ``A`` (its upper triangle read) in
     closed form (the trigonometric solution of the characteristic cubic):
@@ -1812,7 +1835,6 @@ def _update(eps, state_in, params, xe, state_out, sigma, wk, shortcut=True):
     M = params[P_M]
     rt = params[P_RT]
     delta = params[P_DELTA]
-    beta = params[P_BETA]
 
     # ---- trial effective stress ------------------------------------------------------------
     epsR = wk[0]
@@ -1942,19 +1964,7 @@ def _update(eps, state_in, params, xe, state_out, sigma, wk, shortcut=True):
     d_cpp = _pre_peak_damage(s_eq, lam_d, state_in[S_D_CPP], params)
     state_out[S_D_CPP] = d_cpp
 
-    # post-peak compressive damage
-    kappa = epsD[0, 0] + epsD[1, 1] + epsD[2, 2] - beta * params[P_LAMBDA_PK]
-    d_c = state_in[S_D_C]
-    if kappa > 0.0:
-        eps_kdc = params[P_EPS_KDC]
-        if params[P_L_CRUSH] > 0.0:  # regularised: along the most compressive direction
-            k_c = 0
-            for k in range(1, 3):
-                if s[k] < s[k_c]:
-                    k_c = k
-            eps_kdc *= params[P_L_CRUSH] / _extent(xe, Q, k_c)
-        dn = kappa / (kappa + eps_kdc)
-        d_c = max(d_c, dn)
+    d_c = _post_peak_damage(s, Q, epsD, state_in[S_D_C], params, xe)
     state_out[S_D_C] = d_c
 
     # ---- apparent stress -------------------------------------------------------------------------
