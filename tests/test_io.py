@@ -207,6 +207,50 @@ def test_shape_errors(tmp_path):
     assert not (tmp_path / "a.vtu").exists()
 
 
+def test_a_checked_vtu_file_keeps_the_values_it_was_given(tmp_path):
+    # the recorder writes it later, on its background thread, while the run changes its arrays
+    # (float64 arrays are converted, so copied, when checked; float32 and integers are not)
+    pts, hexes = two_hexes()
+    u = np.full((12, 3), 1e-3, dtype=np.float32)
+    block = np.array([3, 7])
+    f = vtu.blocks_file(pts, hexes, {"displacement": u}, {"block": block})
+    hexes[:] = hexes[::-1]
+    u[:] = 7.0
+    block[:] = 0
+    f.write(tmp_path / "later.vtu")
+    m = meshio.read(tmp_path / "later.vtu")
+    assert np.array_equal(m.cells[0].data, two_hexes()[1])
+    assert np.array_equal(m.point_data["displacement"], np.full((12, 3), 1e-3, dtype=np.float32))
+    assert np.array_equal(m.cell_data["block"][0], [3, 7])
+
+
+def test_background_writer_writes_in_order_and_keeps_its_first_error(tmp_path):
+    from masonry_nscd.errors import RunOutputError
+    from masonry_nscd.io.background import BackgroundWriter
+
+    made = []
+
+    def write(path):
+        made.append(Path(path).name)
+        if Path(path).name == "b":
+            raise PermissionError(13, "Permission denied", str(path))
+        Path(path).write_text("x")
+
+    w = BackgroundWriter()
+    w.submit(write, tmp_path / "a")
+    w.wait()
+    assert (tmp_path / "a").read_text() == "x" and made == ["a"]
+    w.submit(write, tmp_path / "b")
+    for _ in range(3):  # raised at every call from now on, naming the file
+        with pytest.raises(RunOutputError, match="cannot write .*b: Permission denied"):
+            w.wait()
+    with pytest.raises(RunOutputError):
+        w.submit(write, tmp_path / "c")
+    with pytest.raises(RunOutputError):
+        w.close()
+    assert made == ["a", "b"] and not (tmp_path / "c").exists()
+
+
 # -- HDF5 -----------------------------------------------------------------------------------
 CASE_YAML = "name: wall\nloading:\n  pressure_Pa: 0.5e6\n# ünïcode comment\n"
 

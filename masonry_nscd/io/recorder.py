@@ -6,7 +6,8 @@ r"""The recorder: everything a run writes into its folder, behind one interface.
 * ``energy.csv``: a row per output step (the energy balance, ``nscd/energy.py``), appended
   and fsynced before the checkpoint;
 * at output steps (:meth:`Recorder.write_output`): the VTU files of the blocks and of the joint
-  points and the HDF5 step; then, at most once every :data:`SYNC_EVERY_S` of wall time, at the
+  points (checked at once, encoded and written on a background thread while the run steps on,
+  :mod:`masonry_nscd.io.background`) and the HDF5 step; then, at most once every :data:`SYNC_EVERY_S` of wall time, at the
   last output step, and when the run stops for any reason (:meth:`Recorder.close`), the
   bookkeeping of the last output step (:meth:`Recorder._sync`): the PVD collection, the curve in
   the HDF5 file, and last ``checkpoint.npz``: the integrator's state plus what the run needs
@@ -47,6 +48,7 @@ import numpy as np
 from masonry_nscd.errors import RunFailure, RunInputError, RunOutputError
 from masonry_nscd.io import runfolder as rf
 from masonry_nscd.io.atomic import atomic_write, writing
+from masonry_nscd.io.background import BackgroundWriter
 from masonry_nscd.nscd import checkpoint
 from masonry_nscd.nscd.checkpoint import CheckpointError, load_checkpoint
 
@@ -192,10 +194,15 @@ class Recorder:
         self.pvd: list[tuple[float, str, int]] = []
         self.curve: dict[str, list] = {c: [] for c in rf.CSV_COLUMNS}
         # the bookkeeping of the last output step not yet written (``_sync``): the number of
-        # PVD entries and of curve rows then, the integrator's state and the run's scalars
+        # PVD entries and of curve rows then, the integrator's state and the run's scalars;
+        # ``_queued``, that of the output step whose VTU files are still being written, which
+        # becomes ``_unsynced`` once they are on disk (``_settle``)
         self._unsynced: tuple[int, int, dict[str, np.ndarray], dict[str, Any]] | None = None
+        self._queued: tuple[int, int, dict[str, np.ndarray], dict[str, Any]] | None = None
         self._synced = monotonic()
         self._pending = io.StringIO()  # CSV rows not yet in the file
+        # the VTU files, encoded and written while the run steps on (io.background)
+        self._files = BackgroundWriter() if vtu else None
         self._writer = csv.writer(self._pending)
         self._csv = None
 
@@ -302,8 +309,9 @@ class Recorder:
         and the bookkeeping (PVD, HDF5 curve, checkpoint) now or at a later sync (module
         docstring). A NaN or infinity in a field raises ValueError naming it (nothing of it
         written)."""
-        from masonry_nscd.io.vtu import write_blocks_vtu, write_points_vtu
+        from masonry_nscd.io.vtu import blocks_file, points_file
 
+        self._settle()  # the last output step's files (long written, as a rule)
         self.flush_rows()
         if energy_row is not None:
             if not all(math.isfinite(v) for v in energy_row):
@@ -316,28 +324,39 @@ class Recorder:
                 os.fsync(f.fileno())
         if self.vtu:
             files = (rf.vtu_file("blocks", step), rf.vtu_file("joints", step))
-            with writing(self.outdir / files[0]):
-                write_blocks_vtu(self.outdir / files[0], self.nodes, self.hexes,
-                                 point_data=out.block_points, cell_data=out.block_cells)
-            with writing(self.outdir / files[1]):
-                write_points_vtu(self.outdir / files[1], self.points,
-                                 point_data=out.joint_points)
+            # both checked (and copied) before either is written, then written meanwhile
+            vtus = (blocks_file(self.nodes, self.hexes, point_data=out.block_points,
+                                cell_data=out.block_cells),
+                    points_file(self.points, point_data=out.joint_points))
+            for name, vtu in zip(files, vtus, strict=True):
+                self._files.submit(vtu.write, self.outdir / name)
             self.pvd += [(time, files[0], 0), (time, files[1], 1)]
         if self.h5 is not None:
             with writing(self.h5_path):
                 self.h5.write_step(step, time, out.h5)
-        self._unsynced = (len(self.pvd), len(self.curve[rf.CSV_COLUMNS[0]]),
-                          checkpoint.checkpoint_arrays(integ), {
-                              "step": np.int64(step), "finished": np.int64(done),
-                              "unconverged": np.int64(unconverged),
-                              "worst_residual": np.float64(worst_residual)})
+        self._queued = (len(self.pvd), len(self.curve[rf.CSV_COLUMNS[0]]),
+                        checkpoint.checkpoint_arrays(integ), {
+                            "step": np.int64(step), "finished": np.int64(done),
+                            "unconverged": np.int64(unconverged),
+                            "worst_residual": np.float64(worst_residual)})
         if done or monotonic() - self._synced >= SYNC_EVERY_S:
+            self._settle()
             self._sync()
+
+    def _settle(self) -> None:
+        """Wait for the VTU files of the last output step: on disk, its bookkeeping is the one
+        to sync; a failed write drops it (the run stops, its checkpoint the one before) and
+        raises the RunOutputError naming the file."""
+        queued, self._queued = self._queued, None
+        if self._files is not None:
+            self._files.wait()
+        if queued is not None:
+            self._unsynced = queued
 
     def _sync(self) -> None:
         """Write the bookkeeping of the last output step (module docstring): the PVD
         collection, the curve of results.h5 up to that step, then its checkpoint (last, so
-        that what it points to is on disk before it)."""
+        that what it points to is on disk before it; its VTU files are, ``_settle``)."""
         from masonry_nscd.io.vtu import write_pvd
 
         entries, rows, state, scalars = self._unsynced
@@ -366,6 +385,11 @@ class Recorder:
         with contextlib.suppress(RunOutputError, OSError):
             if self._csv is not None:
                 self.flush_rows()
+        with contextlib.suppress(RunOutputError, OSError):
+            self._settle()  # a failed VTU write: the last output step whose files are whole
+        if self._files is not None:
+            with contextlib.suppress(RunOutputError, OSError):
+                self._files.close()
         if self._unsynced is not None:  # a run stopped between two syncs
             with contextlib.suppress(RunOutputError, OSError):
                 self._sync()

@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import os
 import sys
+import threading
 from collections.abc import Mapping, Sequence
 from functools import lru_cache
 from pathlib import Path
@@ -156,6 +157,8 @@ class _Repeats:
 
 
 _REPEATS = _Repeats()
+#: the cache is shared by the threads that write files (a run's background writer, ``io.recorder``)
+_REPEATS_LOCK = threading.Lock()
 
 
 def _encoded(arr: NDArray, compression: str | None) -> bytes:
@@ -166,10 +169,12 @@ def _encoded(arr: NDArray, compression: str | None) -> bytes:
     raw = arr.tobytes()
     if compression is None:
         return np.uint64(len(raw)).tobytes() + raw
-    packed = _REPEATS.get(raw, compression)
+    with _REPEATS_LOCK:
+        packed = _REPEATS.get(raw, compression)
     if packed is None:
-        packed = _compressed(raw, compression)
-        _REPEATS.put(raw, compression, packed)
+        packed = _compressed(raw, compression)  # outside the lock: zlib lets other threads run
+        with _REPEATS_LOCK:
+            _REPEATS.put(raw, compression, packed)
     return packed
 
 
@@ -201,8 +206,6 @@ def _write_mesh(
 ) -> None:
     """An UnstructuredGrid of one cell type, every array in the appended data (raw bytes,
     little or big endian as the machine, UInt64 headers), written atomically."""
-    if compression not in (None, *_COMPRESSORS):
-        raise ValueError(f"compression: zlib, lzma or None, got {compression!r}")
     if len(points) == 0 or len(cells) == 0:
         compression = None  # empty arrays: no blocks to compress (and meshio reads them so)
     nc, per = cells.shape
@@ -252,6 +255,61 @@ def _write_file(tmp: str, head: bytes, chunks: list[bytes]) -> None:
         f.write(b"\n</AppendedData>\n</VTKFile>\n")
 
 
+class VtuFile:
+    """A .vtu file checked and ready to write: its arrays validated (module docstring,
+    "Guarantees") and copied, so that the caller may change its own arrays before
+    :meth:`write` runs (on another thread, say). Made by :func:`blocks_file` and
+    :func:`points_file`."""
+
+    def __init__(self, points: NDArray, cell_type: str, cells: NDArray,
+                 point_data: dict[str, NDArray], cell_data: dict[str, NDArray],
+                 compression: str | None):
+        if compression not in (None, *_COMPRESSORS):
+            raise ValueError(f"compression: zlib, lzma or None, got {compression!r}")
+        self._args = (points.copy(), cell_type, cells.copy(),
+                      {k: v.copy() for k, v in point_data.items()},
+                      {k: v.copy() for k, v in cell_data.items()}, compression)
+
+    def write(self, path: PathLike) -> None:
+        """Encode the arrays and write the file ``path``, atomically."""
+        _write_mesh(path, *self._args)
+
+
+def blocks_file(
+    points: ArrayLike,
+    hexes: ArrayLike,
+    point_data: Mapping[str, ArrayLike] | None = None,
+    cell_data: Mapping[str, ArrayLike] | None = None,
+    *,
+    compression: str | None = "zlib",
+) -> VtuFile:
+    """Hexahedral blocks as a checked :class:`VtuFile` (arguments of :func:`write_blocks_vtu`;
+    ValueError naming the field on a bad array)."""
+    pts = _points_array(points)
+    h = checked_array("hexes", hexes)
+    if h.dtype.kind not in "iu" or h.ndim != 2 or h.shape[1] != 8:
+        raise ValueError(f"hexes: integer array of shape (ne, 8) expected, got {h.dtype} {h.shape}")
+    if h.size and (h.min() < 0 or h.max() >= len(pts)):
+        raise ValueError(f"hexes: node indices must lie in [0, {len(pts)}), got {h.min()}..{h.max()}")
+    pd = _data_arrays("point_data", point_data, len(pts), "one row per node")
+    cd = _data_arrays("cell_data", cell_data, len(h), "one row per hexahedron")
+    return VtuFile(pts, "hexahedron", h.astype(np.int64), pd, cd, compression)
+
+
+def points_file(
+    points: ArrayLike,
+    point_data: Mapping[str, ArrayLike] | None = None,
+    *,
+    compression: str | None = "zlib",
+) -> VtuFile:
+    """A cloud of points as a checked :class:`VtuFile` (arguments of
+    :func:`write_points_vtu`)."""
+    pts = _points_array(points)
+    pd = _data_arrays("point_data", point_data, len(pts), "one row per point")
+    vertices = np.arange(len(pts), dtype=np.int64).reshape(-1, 1)
+    return VtuFile(pts, "vertex", vertices, pd, {}, compression)
+
+
 def write_blocks_vtu(
     path: PathLike,
     points: ArrayLike,
@@ -269,15 +327,7 @@ def write_blocks_vtu(
     point_data: name -> (n,) or (n, k) arrays; cell_data: name -> (ne,) or (ne, k) arrays.
     compression: "zlib" (default), "lzma" or None.
     """
-    pts = _points_array(points)
-    h = checked_array("hexes", hexes)
-    if h.dtype.kind not in "iu" or h.ndim != 2 or h.shape[1] != 8:
-        raise ValueError(f"hexes: integer array of shape (ne, 8) expected, got {h.dtype} {h.shape}")
-    if h.size and (h.min() < 0 or h.max() >= len(pts)):
-        raise ValueError(f"hexes: node indices must lie in [0, {len(pts)}), got {h.min()}..{h.max()}")
-    pd = _data_arrays("point_data", point_data, len(pts), "one row per node")
-    cd = _data_arrays("cell_data", cell_data, len(h), "one row per hexahedron")
-    _write_mesh(path, pts, "hexahedron", h.astype(np.int64), pd, cd, compression)
+    blocks_file(points, hexes, point_data, cell_data, compression=compression).write(path)
 
 
 def write_points_vtu(
@@ -292,10 +342,7 @@ def write_points_vtu(
     points: (m, 3) coordinates, m. point_data: name -> (m,) or (m, k) arrays (e.g. d_coh,
     opening and slip in m, normal and shear tractions in Pa, status as integers).
     """
-    pts = _points_array(points)
-    pd = _data_arrays("point_data", point_data, len(pts), "one row per point")
-    vertices = np.arange(len(pts), dtype=np.int64).reshape(-1, 1)
-    _write_mesh(path, pts, "vertex", vertices, pd, {}, compression)
+    points_file(points, point_data, compression=compression).write(path)
 
 
 @lru_cache(maxsize=1 << 16)
