@@ -62,3 +62,63 @@ def test_endo3d_cube_in_compression_follows_the_point_driver():
     assert stress[-1] < -5e6
     assert abs(stress[-1]) < 0.8 * E * abs(strain[-1])
     assert np.allclose(stress[10:], expected[10:], rtol=2e-3, atol=2e3)
+
+
+def test_the_residual_without_the_blocks_dense_product_is_the_same_function():
+    # On the ENDO3D blocks' dofs the step residual M_hat (v - v_free) + c(v) is computed as
+    # M v + h theta F_int(u) + b with b fixed over the step (integrator.MaterialCorrection):
+    # the same function of v, at any iterate, and at theta < 1 the (1 - theta) K0 v_n term too.
+    from masonry_nscd.nscd import newton as nw
+    from masonry_nscd.nscd.checkpoint import integrator_state, restore_integrator
+    from masonry_nscd.nscd.step_residual import StepResidual
+
+    rate = 2e-3 * H
+    cube = Block.box((0, 0, 0), (H, H, H), (2, 2, 1), E=E, nu=NU, density=2000.0,
+                     material=MAT_ENDO3D)
+    plate = np.array([H, 0.1, H])
+    Xb, cb = box_mesh(np.array([0.0, -0.1, 0.0]), plate, (1, 1, 1))
+    bottom = RigidBody.fixed(center=(H / 2, -0.05, H / 2), X=Xb, conn=cb)
+    Xt, ct = box_mesh(np.array([0.0, H, 0.0]), plate, (1, 1, 1))
+    top = RigidBody(center=(H / 2, H + 0.05, H / 2), mass=1.0, inertia=np.ones(3),
+                    imposed_velocity={0: at_rest, 1: lambda t: -rate, 2: at_rest, 3: at_rest,
+                                      4: at_rest, 5: at_rest}, X=Xt, conn=ct, support=True)
+    bodies = [cube, bottom, top]
+    pts = contact_points(bodies, lambda joint, ant: (0, jl.KIND_JOINT, 0), max_gap=0.0)
+    P = jl.joint_params(mu=0.5, d_spring=0.0, K_I_spring=100 * E / H, K_II_spring=100 * E / H)
+    integ = Integrator(bodies, pts, P, Loads(), h=1e-2, theta=0.7, tolerance=1e-7,
+                       max_iterations=50, method="newton", endo3d_params=_params(),
+                       endo3d_tau=1e-3)
+    for _ in range(60):  # past the pre-peak damage's start: the blocks' law is not linear
+        assert integ.step().converged
+    seen = {}
+    solve = nw.NewtonSolver.solve
+
+    def capture(self, v_free, u_old, U_old, params, uc_old, beta_old, T, dv_guess,
+                correction=None, t_end=None):
+        seen["args"] = (self, v_free.copy(), u_old.copy(), U_old.copy(), params, uc_old.copy(),
+                        beta_old.copy(), T.copy(), correction)
+        seen["fint_n"] = correction._fint_n.copy()
+        seen["state"] = integrator_state(integ)
+        return solve(self, v_free, u_old, U_old, params, uc_old, beta_old, T, dv_guess,
+                     correction, t_end)
+
+    nw.NewtonSolver.solve = capture
+    try:
+        integ.step()
+    finally:
+        nw.NewtonSolver.solve = solve
+    restore_integrator(integ, seen["state"])  # the step's start again
+    sv, v_free, *rest, corr = seen["args"]
+    corr._fint_n = seen["fint_n"]
+    split = StepResidual(sv, v_free, *rest, corr)
+    assert split._blocks is not None  # the blocks' rows by M v + h theta F_int(u) + b
+    whole = StepResidual(sv, v_free, *rest, corr)
+    whole._mhat_op, whole._blocks = sv.mhat_op, None  # M_hat (v - v_free) + c(v)
+    rng = np.random.default_rng(3)
+    r = sv._solutions[-1][2]
+    for scale in (0.0, 1e-4, 1e-2):  # the solution, and iterates away from it
+        v = sv._solutions[-1][1] * (1.0 + scale * rng.standard_normal(len(v_free)))
+        a, b = split(v, r), whole(v, r)
+        size = np.linalg.norm(sv.mhat_op.matvec(v - v_free)) + np.linalg.norm(b.correction)
+        assert np.linalg.norm(a.F - b.F) <= 1e-12 * size, (scale, np.linalg.norm(a.F - b.F), size)
+        assert np.array_equal(a.correction, b.correction)

@@ -479,7 +479,7 @@ class Integrator:
         kernels.local_velocities(s.side_dofs, s.side_coef, v_free, U_free)
         j = self.joints
         if self.newton is not None:
-            corr = None if self.material is None else MaterialCorrection(self)
+            corr = None if self.material is None else MaterialCorrection(self, fint)
             v1, T, uc, beta, status, sweeps, residual = self.newton.solve(
                 v_free, j.u, j.U, self.params, j.uc, j.beta, j.T, self._dv, correction=corr,
                 t_end=t1)
@@ -562,13 +562,36 @@ class MaterialCorrection:
     stresses and strains committed at ``u_n`` (``Endo3dBlocks.internal_forces``); and the size
     of the internal impulses it corrects, ``h theta |F_int(u)|`` (N s). The Newton residual
     asks for it as a batch (:meth:`batch`), to run the trial in the same hand-over to the
-    threads as the joint law."""
+    threads as the joint law.
 
-    def __init__(self, integ: Integrator):
+    On the blocks' dofs the residual's ``M_hat (v - v_free) + c(v)`` is also, the ``K0`` terms
+    cancelling (``M_hat = M + (theta h)^2 K0``, ``M`` lumped),
+
+        M v + h theta F_int(u) + b,   b = -M_hat v_free - h theta F_int(u_n)
+                                          - theta (1 - theta) h^2 K0 v_n          (N s)
+
+    with ``b`` fixed over the step (:meth:`constant_impulses`): the residual takes this form
+    (``StepResidual``), which needs no product by the blocks' dense ``M_hat`` per evaluation,
+    the trial's forces ``f_trial`` (N) standing for ``F_int(u)``. ``fint_n``: the internal forces
+    at the step's start, ``F_int(u_n)`` (N, every dof)."""
+
+    def __init__(self, integ: Integrator, fint_n: np.ndarray):
         self.integ = integ
         s = integ.sys
         self.h, self.theta, self.ndof = s.h, s.theta, s.ndof
         self.f_trial = np.zeros(s.ndof)
+        self.bodies = integ.material.index  # the ENDO3D blocks
+        self.dofs = integ.material.all_dofs  # and their dofs
+        self._fint_n = fint_n
+
+    def constant_impulses(self, mhat_op, v_free: np.ndarray) -> np.ndarray:
+        """``b`` on the blocks' dofs (class docstring), N s, for the step's free velocities
+        ``v_free`` (m/s) and the product ``mhat_op`` by ``M_hat``."""
+        h, th, integ, d = self.h, self.theta, self.integ, self.dofs
+        b = -mhat_op.matvec(v_free)[d] - h * th * self._fint_n[d]
+        if th != 1.0:
+            b -= th * (1.0 - th) * h * h * integ.sys.k_op.matvec(integ.v)[d]
+        return b
 
     def batch(self, v: np.ndarray) -> tuple:
         """``(kernel, n, min_size, finish)``: the trial at ``v`` as a batch for

@@ -508,6 +508,7 @@ class NewtonSolver:
         self.mhat_off = mhat_off
         self.mhat = mhat
         self.mhat_op = BlockDiagonal(sys.body_dof0, mhat_off, mhat)
+        self._mhat_without: tuple[tuple | None, BlockDiagonal | None] = (None, None)
         self.tolerance = tolerance
         self.max_iterations = max_iterations
         free = np.ones(sys.ndof, dtype=bool)
@@ -580,6 +581,21 @@ class NewtonSolver:
         # the solutions of the last two steps, for the predictor of the next one: (end time s,
         # None when not given; body velocities, multipliers' impulses N s, step size s)
         self._solutions: list[tuple[float | None, np.ndarray, np.ndarray, float]] = []
+
+    def mhat_without(self, bodies) -> BlockDiagonal | None:
+        """The product by ``M_hat`` of every body but ``bodies`` (zero on their dofs), kept for
+        the next calls with the same bodies; None when their blocks cannot be left out of the
+        groups of ``M_hat`` (bodies of one size not all in ``bodies``, laid out between them)."""
+        key = tuple(bodies)
+        if self._mhat_without[0] != key:
+            off = self.mhat_off.copy()
+            off[list(bodies)] = -1
+            try:
+                op = BlockDiagonal(self.sys.body_dof0, off, self.mhat)
+            except ValueError:
+                op = None
+            self._mhat_without = (key, op)
+        return self._mhat_without[1]
 
     @property
     def linear_iterations(self) -> int:

@@ -8,7 +8,9 @@ the step's data fixed (free velocities, the joints' displacements and states at 
 
 where a joint point's impulse follows from its law, ``r_a = -h S_a T_a(u_a)``, at
 ``u_a = u_a,n + h (1 - theta) U_a,n + h theta H_a^T v``, and ``c(v)`` is the material correction
-of blocks whose internal forces are not linear (ENDO3D). An evaluation also gives the
+of blocks whose internal forces are not linear (ENDO3D). On those blocks' dofs
+``M_hat (v - v_free) + c(v)`` is computed as ``M v + h theta F_int(u) + b``, the same function
+(``integrator.MaterialCorrection``) without a product by their dense ``M_hat`` per evaluation. An evaluation also gives the
 multipliers' derivatives ``Gu``, ``Gr`` that the Newton matrix needs, the laws' tangents ``K``
 when asked (:meth:`StepResidual.tangents`: the line search's trial points need none), and the
 merit norm of the line search, ``|F|`` with the glue rows scaled to impulse units and the
@@ -192,6 +194,16 @@ class StepResidual:
         self.u_pred = u_old + s.h * (1.0 - s.theta) * U_old
         self.nf = len(solver.free)
         self._R = np.empty(s.ndof)
+        # the product by M_hat (v - v_free): of every body, or of all but the ENDO3D blocks,
+        # whose rows are then M v + h theta F_int(u) + b (integrator.MaterialCorrection)
+        self._mhat_op, self._blocks = solver.mhat_op, None
+        if correction is not None:
+            rest = solver.mhat_without(correction.bodies)
+            if rest is not None:
+                d = correction.dofs
+                self._mhat_op = rest
+                self._blocks = (d, s.mass[d], correction.constant_impulses(solver.mhat_op, v_free),
+                                s.h * s.theta, correction.f_trial)
 
     def __call__(self, v: np.ndarray, r_glue: np.ndarray) -> Evaluation:
         """The residual at body velocities ``v`` (m/s) and multipliers' impulses ``r_glue``
@@ -227,7 +239,7 @@ class StepResidual:
                 evaluate_multipliers(u_pred, Hv, h, th, g, sv.mu, sv.rho, sv.eps, uc_old,
                                      r_glue, s.area, F[nf:], Gu, Gr, out_T, out_uc, out_status)
             t1 = time.perf_counter()
-            sv.mhat_op.matvec(v - self.v_free, R)
+            self._mhat_op.matvec(v - self.v_free, R)
             t2 = time.perf_counter()
             busy[:] = t2 - t0, t2 - t1
 
@@ -245,7 +257,10 @@ class StepResidual:
         # R_v -= H r: the joints' and the multipliers' impulses
         subtract_impulses(s.side_dofs, s.side_coef, mo, s.area, out_T, r_glue, h, R)
         timing.record("bodies' residual", busy[1] + time.perf_counter() - t1)
-        if cvec is not None:
+        if self._blocks is not None:
+            d, m, b, ht, f = self._blocks
+            R[d] += m * v[d] + b + ht * f[d]
+        elif cvec is not None:
             R[:] += cvec
         F[:nf] = R[sv.free]
         sc = self.scales
