@@ -201,6 +201,8 @@ class StepResidual:
             rest = solver.mhat_without(correction.bodies)
             if rest is not None:
                 d = correction.dofs
+                if len(d) and d[-1] - d[0] + 1 == len(d):  # one run of dofs (a wall's units)
+                    d = slice(int(d[0]), int(d[-1]) + 1)
                 self._mhat_op = rest
                 self._blocks = (d, s.mass[d], correction.constant_impulses(solver.mhat_op, v_free),
                                 s.h * s.theta, correction.f_trial)
