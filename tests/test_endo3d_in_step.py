@@ -27,9 +27,14 @@ def _params():
                          REF=0.3e6, GFR=4.5)
 
 
-def test_endo3d_cube_in_compression_follows_the_point_driver():
-    rate = 2e-3 * H  # shortening velocity, m/s: strain rate 2e-3 /s
-    cube = Block.box((0, 0, 0), (H, H, H), (1, 1, 1), E=E, nu=NU, density=2000.0,
+def _cube_between_plates(elements=(1, 1, 1), mu=0.0, **solver):
+    """The cube on a fixed plate, shortened by the upper plate at a strain rate of 2e-3 /s:
+    ``(integrator, cube, points, dof offsets)``. The joints have springs 100 times stiffer than
+    the cube (the strain is read on the cube itself, so the spring's share of the shortening
+    does not matter) and friction ``mu``; ``solver``: the integrator's settings beyond these
+    (h = 1e-2 s, Newton, tolerance 1e-7, theta 1 unless given)."""
+    rate = 2e-3 * H  # shortening velocity, m/s
+    cube = Block.box((0, 0, 0), (H, H, H), elements, E=E, nu=NU, density=2000.0,
                      material=MAT_ENDO3D)
     plate = np.array([H, 0.1, H])
     Xb, cb = box_mesh(np.array([0.0, -0.1, 0.0]), plate, (1, 1, 1))
@@ -39,13 +44,16 @@ def test_endo3d_cube_in_compression_follows_the_point_driver():
                     imposed_velocity={0: at_rest, 1: lambda t: -rate, 2: at_rest, 3: at_rest, 4: at_rest,
                                       5: at_rest}, X=Xt, conn=ct, support=True)
     bodies = [cube, bottom, top]
-    dof0 = dof_offsets(bodies)
     pts = contact_points(bodies, lambda joint, ant: (0, jl.KIND_JOINT, 0), max_gap=0.0)
-    # frictionless joints with springs 100 times stiffer than the cube (the strain is read on
-    # the cube itself, so the spring's share of the shortening does not matter)
-    P = jl.joint_params(mu=0.0, d_spring=0.0, K_I_spring=100 * E / H, K_II_spring=100 * E / H)
-    integ = Integrator(bodies, pts, P, Loads(), h=1e-2, theta=1.0, tolerance=1e-7,
-                       max_iterations=50, method="newton", endo3d_params=_params())
+    P = jl.joint_params(mu=mu, d_spring=0.0, K_I_spring=100 * E / H, K_II_spring=100 * E / H)
+    settings = {"h": 1e-2, "theta": 1.0, "tolerance": 1e-7, "max_iterations": 50,
+                "method": "newton", **solver}
+    integ = Integrator(bodies, pts, P, Loads(), endo3d_params=_params(), **settings)
+    return integ, cube, pts, dof_offsets(bodies)
+
+
+def test_endo3d_cube_in_compression_follows_the_point_driver():
+    integ, cube, pts, dof0 = _cube_between_plates()  # frictionless joints
     strain, stress = [], []
     for _ in range(250):  # to about 5e-3 of shortening
         rep = integ.step()
@@ -72,22 +80,7 @@ def test_the_residual_without_the_blocks_dense_product_is_the_same_function():
     from masonry_nscd.nscd.checkpoint import integrator_state, restore_integrator
     from masonry_nscd.nscd.step_residual import StepResidual
 
-    rate = 2e-3 * H
-    cube = Block.box((0, 0, 0), (H, H, H), (2, 2, 1), E=E, nu=NU, density=2000.0,
-                     material=MAT_ENDO3D)
-    plate = np.array([H, 0.1, H])
-    Xb, cb = box_mesh(np.array([0.0, -0.1, 0.0]), plate, (1, 1, 1))
-    bottom = RigidBody.fixed(center=(H / 2, -0.05, H / 2), X=Xb, conn=cb)
-    Xt, ct = box_mesh(np.array([0.0, H, 0.0]), plate, (1, 1, 1))
-    top = RigidBody(center=(H / 2, H + 0.05, H / 2), mass=1.0, inertia=np.ones(3),
-                    imposed_velocity={0: at_rest, 1: lambda t: -rate, 2: at_rest, 3: at_rest,
-                                      4: at_rest, 5: at_rest}, X=Xt, conn=ct, support=True)
-    bodies = [cube, bottom, top]
-    pts = contact_points(bodies, lambda joint, ant: (0, jl.KIND_JOINT, 0), max_gap=0.0)
-    P = jl.joint_params(mu=0.5, d_spring=0.0, K_I_spring=100 * E / H, K_II_spring=100 * E / H)
-    integ = Integrator(bodies, pts, P, Loads(), h=1e-2, theta=0.7, tolerance=1e-7,
-                       max_iterations=50, method="newton", endo3d_params=_params(),
-                       endo3d_tau=1e-3)
+    integ = _cube_between_plates((2, 2, 1), mu=0.5, theta=0.7, endo3d_tau=1e-3)[0]
     for _ in range(60):  # past the pre-peak damage's start: the blocks' law is not linear
         assert integ.step().converged
     seen = {}

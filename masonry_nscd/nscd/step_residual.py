@@ -10,11 +10,11 @@ where a joint point's impulse follows from its law, ``r_a = -h S_a T_a(u_a)``, a
 ``u_a = u_a,n + h (1 - theta) U_a,n + h theta H_a^T v``, and ``c(v)`` is the material correction
 of blocks whose internal forces are not linear (ENDO3D). On those blocks' dofs
 ``M_hat (v - v_free) + c(v)`` is computed as ``M v + h theta F_int(u) + b``, the same function
-(``integrator.MaterialCorrection``) without a product by their dense ``M_hat`` per evaluation. An evaluation also gives the
-multipliers' derivatives ``Gu``, ``Gr`` that the Newton matrix needs, the laws' tangents ``K``
-when asked (:meth:`StepResidual.tangents`: the line search's trial points need none), and the
-merit norm of the line search, ``|F|`` with the glue rows scaled to impulse units and the
-rigid contacts' rows as impulses (``F / w``, N s).
+(``integrator.MaterialCorrection``) without a product by their dense ``M_hat`` per evaluation.
+An evaluation also gives the multipliers' derivatives ``Gu``, ``Gr`` that the Newton matrix
+needs, the laws' tangents ``K`` when asked (:meth:`StepResidual.tangents`: the line search's
+trial points need none), and the merit norm of the line search, ``|F|`` with the glue rows
+scaled to impulse units and the rigid contacts' rows as impulses (``F / w``, N s).
 
 Convergence (:meth:`StepResidual.convergence`): the relative change of the contact forces
 between iterates, ``sqrt(sum |S dT|^2) / sqrt(sum |S T|^2)`` (the points with a law and the
