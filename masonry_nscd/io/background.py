@@ -74,9 +74,8 @@ class BackgroundWriter:
         except Exception as exc:  # noqa: BLE001 (raised again by check, wait and close)
             if self._error is None:
                 self._error = exc
-            if self._pool is not None:  # the writes after a failed one are not made
-                for f in self._pending:
-                    f.cancel()
+            for f in self._pending:  # the writes after a failed one are not made
+                f.cancel()
 
 
 def _write(write: Callable[[PathLike], None], path: str) -> None:

@@ -7,10 +7,11 @@ r"""The recorder: everything a run writes into its folder, behind one interface.
   and fsynced before the checkpoint;
 * at output steps (:meth:`Recorder.write_output`): the VTU files of the blocks and of the joint
   points (checked at once, encoded and written on a background thread while the run steps on,
-  :mod:`masonry_nscd.io.background`) and the HDF5 step; then, at most once every :data:`SYNC_EVERY_S` of wall time, at the
-  last output step, and when the run stops for any reason (:meth:`Recorder.close`), the
-  bookkeeping of the last output step (:meth:`Recorder._sync`): the PVD collection, the curve in
-  the HDF5 file, and last ``checkpoint.npz``: the integrator's state plus what the run needs
+  :mod:`masonry_nscd.io.background`) and the HDF5 step; then, at most once every
+  :data:`SYNC_EVERY_S` of wall time, at the last output step, and when the run stops for any
+  reason (:meth:`Recorder.close`), the bookkeeping of the last output step
+  (:meth:`Recorder._sync`): the PVD collection, the curve in the HDF5 file, and last
+  ``checkpoint.npz``: the integrator's state plus what the run needs
   to continue its outputs (the step, whether the run is finished, the PVD entries, the count
   of unconverged steps, the worst residual, the case), taken at that output step. So a run
   stopped by Ctrl-C, SIGTERM or a failure has its checkpoint at its last output step, and one

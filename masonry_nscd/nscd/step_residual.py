@@ -204,8 +204,7 @@ class StepResidual:
                 if len(d) and d[-1] - d[0] + 1 == len(d):  # one run of dofs (a wall's units)
                     d = slice(int(d[0]), int(d[-1]) + 1)
                 self._mhat_op = rest
-                self._blocks = (d, s.mass[d], correction.constant_impulses(solver.mhat_op, v_free),
-                                s.h * s.theta, correction.f_trial)
+                self._blocks = (d, s.mass[d], correction.constant_impulses(solver.mhat_op, v_free))
 
     def __call__(self, v: np.ndarray, r_glue: np.ndarray) -> Evaluation:
         """The residual at body velocities ``v`` (m/s) and multipliers' impulses ``r_glue``
@@ -260,8 +259,8 @@ class StepResidual:
         subtract_impulses(s.side_dofs, s.side_coef, mo, s.area, out_T, r_glue, h, R)
         timing.record("bodies' residual", busy[1] + time.perf_counter() - t1)
         if self._blocks is not None:
-            d, m, b, ht, f = self._blocks
-            R[d] += m * v[d] + b + ht * f[d]
+            d, m, b = self._blocks
+            R[d] += m * v[d] + b + h * th * self.correction.f_trial[d]
         elif cvec is not None:
             R[:] += cvec
         F[:nf] = R[sv.free]
