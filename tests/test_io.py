@@ -301,6 +301,25 @@ def test_curve_columns_are_rewritten_shrunk_and_replaced(tmp_path):
         np.testing.assert_array_equal(f["curve/c"][()], np.arange(6.0))
 
 
+def test_a_staged_output_step_keeps_the_values_it_was_given(tmp_path):
+    # the recorder stages a step and appends it on its background thread while the run
+    # changes its arrays in place: the step written is the one given, checked when staged
+    path = tmp_path / "results.h5"
+    with ResultsFile(path, CASE_YAML, make_mesh()) as rf:
+        u = np.arange(6.0)
+        append = rf.staged_step(3, 0.25, {"u": u})
+        u[:] = -1.0
+        with pytest.raises(ValueError, match="already written"):
+            rf.staged_step(3, 0.5, {"u": u})
+        with pytest.raises(ValueError, match=r"fields\['u'\]"):
+            rf.staged_step(4, 0.5, {"u": np.array([np.inf])})
+        assert read_results(path)["steps"] == []
+        append()
+    (step,) = read_results(path)["steps"]
+    assert step.step == 3 and step.time == 0.25
+    np.testing.assert_array_equal(step.fields["u"], np.arange(6.0))
+
+
 def test_results_round_trip(tmp_path):
     path = tmp_path / "out" / "results.h5"
     mesh = make_mesh()

@@ -1,12 +1,15 @@
 """Files written on a background thread while the run steps on.
 
-A run's VTU files are written at every output step, and encoding them (zlib) and writing them
-(an fsync each, :mod:`masonry_nscd.io.atomic`) takes a few ms a step that the steps need not
-wait for: both let other threads run, so on a second core they overlap the next steps
-(docs/performance.md, session 23). :class:`BackgroundWriter` runs ``write(path)`` calls, in
-the order given, on one thread of its own:
+A run's VTU files and its HDF5 output step are written at every output step, and encoding the
+VTU files (zlib) and writing them (an fsync each, :mod:`masonry_nscd.io.atomic`) takes a few
+ms a step that the steps need not wait for: the compression and the fsyncs let other threads
+run, so on a second core they overlap the next steps (docs/performance.md, sessions 23 and
+24; h5py's own calls hold the interpreter, about a quarter of the HDF5 step's time).
+:class:`BackgroundWriter` runs ``write(path)`` calls, in the order given, on one thread of its
+own:
 
-* what it writes must be the caller's no longer (``io.vtu.VtuFile`` holds copies);
+* what it writes must be the caller's no longer (``io.vtu.VtuFile`` and
+  ``ResultsFile.staged_step`` hold copies);
 * an error of a write (an ``OSError`` becomes the ``RunOutputError`` naming the file, as
   :func:`~masonry_nscd.io.atomic.writing` makes it) is raised in the caller's thread at the
   next :meth:`~BackgroundWriter.submit`, :meth:`~BackgroundWriter.check` or

@@ -6,8 +6,8 @@ r"""The recorder: everything a run writes into its folder, behind one interface.
 * ``energy.csv``: a row per output step (the energy balance, ``nscd/energy.py``), appended
   and fsynced before the checkpoint;
 * at output steps (:meth:`Recorder.write_output`): the VTU files of the blocks and of the joint
-  points (checked at once, encoded and written on a background thread while the run steps on,
-  :mod:`masonry_nscd.io.background`) and the HDF5 step; then, at most once every
+  points and the HDF5 step (checked at once, written on a background thread while the run
+  steps on, :mod:`masonry_nscd.io.background`); then, at most once every
   :data:`SYNC_EVERY_S` of wall time, at the last output step, and when the run stops for any
   reason (:meth:`Recorder.close`), the bookkeeping of the last output step
   (:meth:`Recorder._sync`): the PVD collection, the curve in the HDF5 file, and last
@@ -202,8 +202,9 @@ class Recorder:
         self._queued: tuple[int, int, dict[str, np.ndarray], dict[str, Any]] | None = None
         self._synced = monotonic()
         self._pending = io.StringIO()  # CSV rows not yet in the file
-        # the VTU files, encoded and written while the run steps on (io.background)
-        self._files = BackgroundWriter() if vtu else None
+        # the VTU files and the HDF5 output steps, encoded and written while the run steps on
+        # (io.background)
+        self._files = BackgroundWriter() if vtu or hdf5 else None
         self._writer = csv.writer(self._pending)
         self._csv = None
 
@@ -333,8 +334,9 @@ class Recorder:
                 self._files.submit(vtu.write, self.outdir / name)
             self.pvd += [(time, files[0], 0), (time, files[1], 1)]
         if self.h5 is not None:
-            with writing(self.h5_path):
-                self.h5.write_step(step, time, out.h5)
+            # checked (and copied) now, appended meanwhile, after the step's VTU files
+            append = self.h5.staged_step(step, time, out.h5)
+            self._files.submit(lambda _path: append(), self.h5_path)
         self._queued = (len(self.pvd), len(self.curve[rf.CSV_COLUMNS[0]]),
                         checkpoint.checkpoint_arrays(integ), {
                             "step": np.int64(step), "finished": np.int64(done),

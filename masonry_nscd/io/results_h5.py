@@ -55,7 +55,7 @@ from __future__ import annotations
 import contextlib
 import shutil
 import time as _time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from types import TracebackType
 from typing import Any, NamedTuple, Self
@@ -281,33 +281,50 @@ class ResultsFile:
     # -- writing ---------------------------------------------------------------------------
     def write_step(self, step: int, time: float, fields: Mapping[str, ArrayLike]) -> None:
         """Append output step ``step`` (int >= 0, not yet written) at ``time`` (s)."""
+        append = self.staged_step(step, time, fields)
+        try:
+            append()
+        except BaseException:
+            self._steps.discard(int(step))  # not written: it may be given again
+            raise
+
+    def staged_step(self, step: int, time: float,
+                    fields: Mapping[str, ArrayLike]) -> Callable[[], None]:
+        """Check output step ``step`` now, as :meth:`write_step` does (ValueError, the file
+        untouched), and return the call that appends it, to be made later and on any thread
+        (a run's recorder hands it to its background writer): it holds copies of the arrays,
+        so the caller may change them at once. The step counts as written from now on."""
         if isinstance(step, bool) or not isinstance(step, int | np.integer) or step < 0:
             raise ValueError(f"step must be a non-negative int, got {step!r}")
         step = int(step)
         t = float(time)
         if not np.isfinite(t):
             raise ValueError(f"time: {t} is not finite")
-        arrays = _checked_dict("fields", fields)
+        arrays = {k: np.array(v) for k, v in _checked_dict("fields", fields).items()}
         name = f"{step:06d}"
         if step in self._steps:
             raise ValueError(f"step {step} already written")
-        with self._open() as f:
-            steps = f["steps"]
-            if name in steps:
-                raise ValueError(f"step {step} already written")
-            g = steps.create_group(name)
-            try:
-                for k, v in arrays.items():
-                    _create_dataset(g, k, v, self.compression)
-                # the attrs go last: a group without them is an unfinished step
-                g.attrs["step"] = step
-                g.attrs["time"] = t
-            except BaseException:
-                with contextlib.suppress(Exception):
-                    del steps[name]
-                raise
-        fsync_file(self.path)
         self._steps.add(step)
+
+        def append() -> None:
+            with self._open() as f:
+                steps = f["steps"]
+                if name in steps:
+                    raise ValueError(f"step {step} already written")
+                g = steps.create_group(name)
+                try:
+                    for k, v in arrays.items():
+                        _create_dataset(g, k, v, self.compression)
+                    # the attrs go last: a group without them is an unfinished step
+                    g.attrs["step"] = step
+                    g.attrs["time"] = t
+                except BaseException:
+                    with contextlib.suppress(Exception):
+                        del steps[name]
+                    raise
+            fsync_file(self.path)
+
+        return append
 
     def write_curve(self, columns: Mapping[str, ArrayLike]) -> None:
         """Write or replace the 1-D columns ``/curve/<name>`` (same length within one call).
