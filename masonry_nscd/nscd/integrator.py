@@ -44,6 +44,7 @@ state of the run throughout: the state a rung's step ends in is put back into it
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass, replace
 
@@ -54,6 +55,7 @@ from masonry_nscd.contact import laws
 from masonry_nscd.loading import Loads, step_velocity
 from masonry_nscd.model import DOF_IMPOSED, ContactPoint, RigidBody
 from masonry_nscd.nscd import kernels
+from masonry_nscd.nscd.block_diagonal import BlockDiagonal
 from masonry_nscd.nscd.checkpoint import integrator_state, restore_integrator
 from masonry_nscd.nscd.step_size import StepSizeControl
 from masonry_nscd.nscd.system import build_system
@@ -219,6 +221,14 @@ class Integrator:
             if endo3d_params is not None else None
         if self.material is not None and not self.material:
             self.material = None
+        # the product by K of the linear blocks: the ENDO3D blocks' internal forces are the
+        # material's (``internal_forces`` writes them over whatever K u gave there)
+        self._k_linear = s.k_op
+        if self.material is not None:
+            off = s.k_off.copy()
+            off[self.material.index] = -1
+            with contextlib.suppress(ValueError):  # blocks of one size not all ENDO3D
+                self._k_linear = BlockDiagonal(s.body_dof0, off, s.k)
         self.tangent_updates = 0
         if self.material is not None and method != "newton":
             raise ValueError("ENDO3D blocks need the Newton solver (method 'newton'): the "
@@ -245,7 +255,7 @@ class Integrator:
     # --- one step -----------------------------------------------------------------------
     def internal_forces(self) -> np.ndarray:
         """Internal forces at the current displacements (N). Linear elastic blocks: K u."""
-        self.sys.k_op.matvec(self.u, self.fint)
+        self._k_linear.matvec(self.u, self.fint)
         if self.material is not None:
             self.material.internal_forces(self.u, self.fint, trial=False)
         self._fint_u = self.u
