@@ -246,6 +246,21 @@ class Integrator:
                                        min(max_iterations, NEWTON_MAX_ITERATIONS), self.params,
                                        linear=linear, node_xyz=node_xyz)
             self.newton.on_slow = self._on_slow
+        # The ENDO3D blocks' rows of the step residual in the form M v + h theta F_int(u) + b
+        # (``MaterialCorrection``), which needs no free velocity on their dofs: the products
+        # of the free velocity by M_hat^-1 and K then skip them, and it is v_n there. Not when
+        # their blocks cannot be left out of M_hat's (``NewtonSolver.mhat_without``): the
+        # residual then keeps M_hat (v - v_free) + c(v).
+        self._minv_free, self._k_free = s.minv_op, s.k_op
+        self.blocks_apart = False
+        if self.material is not None and self.newton is not None \
+                and self.newton.mhat_without(self.material.index) is not None:
+            off = s.minv_off.copy()
+            off[self.material.index] = -1
+            with contextlib.suppress(ValueError):
+                self._minv_free = BlockDiagonal(s.body_dof0, off, s.minv)
+                self._k_free = self._k_linear
+                self.blocks_apart = True
         # the energy balance (nscd/energy.py): its accumulated terms are part of the state
         from masonry_nscd.nscd.energy import ACCUMULATED, EnergyAccount
 
@@ -464,12 +479,15 @@ class Integrator:
 
             v_free = v_n + M_hat^-1 [h (theta F_n+1 + (1 - theta) F_n) - h F_int(u_n)
                                      - theta h^2 K v_n]
+
+        On the ENDO3D blocks' dofs it is ``v_n`` when ``blocks_apart`` (their rows of the
+        residual do not need it, ``MaterialCorrection``).
         """
         s = self.sys
         h, theta = s.h, s.theta
         rhs = h * (theta * F1 + (1.0 - theta) * self._F0) - h * fint
-        rhs -= theta * h * h * s.k_op.matvec(self.v)
-        return self.v + s.minv_op.matvec(rhs)
+        rhs -= theta * h * h * self._k_free.matvec(self.v)
+        return self.v + self._minv_free.matvec(rhs)
 
     def _step(self) -> StepReport:
         """One step of h (the module docstring's items 1 to 5), not subdivided."""
@@ -489,7 +507,7 @@ class Integrator:
         kernels.local_velocities(s.side_dofs, s.side_coef, v_free, U_free)
         j = self.joints
         if self.newton is not None:
-            corr = None if self.material is None else MaterialCorrection(self, fint)
+            corr = None if self.material is None else MaterialCorrection(self, fint, F1)
             v1, T, uc, beta, status, sweeps, residual = self.newton.solve(
                 v_free, j.u, j.U, self.params, j.uc, j.beta, j.T, self._dv, correction=corr,
                 t_end=t1)
@@ -575,33 +593,34 @@ class MaterialCorrection:
     threads as the joint law.
 
     On the blocks' dofs the residual's ``M_hat (v - v_free) + c(v)`` is also, the ``K0`` terms
-    cancelling (``M_hat = M + (theta h)^2 K0``, ``M`` lumped),
+    cancelling (``M_hat = M + (theta h)^2 K0``, ``M`` lumped, and ``M_hat v_free = M_hat v_n +
+    h F_theta - h F_int(u_n) - theta h^2 K0 v_n``, ``_free_velocity``),
 
-        M v + h theta F_int(u) + b,   b = -M_hat v_free - h theta F_int(u_n)
-                                          - theta (1 - theta) h^2 K0 v_n          (N s)
+        M v + h theta F_int(u) + b,   b = -M v_n - h F_theta + h (1 - theta) F_int(u_n)   (N s)
 
-    with ``b`` fixed over the step (:meth:`constant_impulses`): the residual takes this form
-    (``StepResidual``), which needs no product by the blocks' dense ``M_hat`` per evaluation,
-    the trial's forces ``f_trial`` (N) standing for ``F_int(u)``. ``fint_n``: the internal forces
-    at the step's start, ``F_int(u_n)`` (N, every dof)."""
+    the theta-method's momentum balance, with ``F_theta = theta F_n+1 + (1 - theta) F_n`` and
+    ``b`` fixed over the step (:meth:`constant_impulses`). When the integrator's
+    ``blocks_apart`` says so, the residual takes this form (``StepResidual``): it needs no
+    product by the blocks' dense ``M_hat`` per evaluation, nor their free velocity, the trial's
+    forces ``f_trial`` (N) standing for ``F_int(u)``. ``fint_n``: the internal forces at the
+    step's start, ``F_int(u_n)`` (N, every dof); ``F1``: the loads at its end (N)."""
 
-    def __init__(self, integ: Integrator, fint_n: np.ndarray):
+    def __init__(self, integ: Integrator, fint_n: np.ndarray, F1: np.ndarray):
         self.integ = integ
         s = integ.sys
         self.h, self.theta, self.ndof = s.h, s.theta, s.ndof
         self.f_trial = np.zeros(s.ndof)
         self.bodies = integ.material.index  # the ENDO3D blocks
         self.dofs = integ.material.all_dofs  # and their dofs
+        self.apart = integ.blocks_apart  # their rows as M v + h theta F_int(u) + b
         self._fint_n = fint_n
+        self._F1 = F1
 
-    def constant_impulses(self, mhat_op, v_free: np.ndarray) -> np.ndarray:
-        """``b`` on the blocks' dofs (class docstring), N s, for the step's free velocities
-        ``v_free`` (m/s) and the product ``mhat_op`` by ``M_hat``."""
+    def constant_impulses(self) -> np.ndarray:
+        """``b`` on the blocks' dofs (class docstring), N s."""
         h, th, integ, d = self.h, self.theta, self.integ, self.dofs
-        b = -mhat_op.matvec(v_free)[d] - h * th * self._fint_n[d]
-        if th != 1.0:
-            b -= th * (1.0 - th) * h * h * integ.sys.k_op.matvec(integ.v)[d]
-        return b
+        F = th * self._F1[d] + (1.0 - th) * integ._F0[d]
+        return -integ.sys.mass[d] * integ.v[d] - h * F + h * (1.0 - th) * self._fint_n[d]
 
     def batch(self, v: np.ndarray) -> tuple:
         """``(kernel, n, min_size, finish)``: the trial at ``v`` as a batch for

@@ -10,7 +10,8 @@ where a joint point's impulse follows from its law, ``r_a = -h S_a T_a(u_a)``, a
 ``u_a = u_a,n + h (1 - theta) U_a,n + h theta H_a^T v``, and ``c(v)`` is the material correction
 of blocks whose internal forces are not linear (ENDO3D). On those blocks' dofs
 ``M_hat (v - v_free) + c(v)`` is computed as ``M v + h theta F_int(u) + b``, the same function
-(``integrator.MaterialCorrection``) without a product by their dense ``M_hat`` per evaluation.
+(``integrator.MaterialCorrection``) without a product by their dense ``M_hat`` per evaluation
+nor their free velocity (the integrator's ``blocks_apart``: it is then ``v_n`` there).
 An evaluation also gives the multipliers' derivatives ``Gu``, ``Gr`` that the Newton matrix
 needs, the laws' tangents ``K`` when asked (:meth:`StepResidual.tangents`: the line search's
 trial points need none), and the merit norm of the line search, ``|F|`` with the glue rows
@@ -197,14 +198,12 @@ class StepResidual:
         # the product by M_hat (v - v_free): of every body, or of all but the ENDO3D blocks,
         # whose rows are then M v + h theta F_int(u) + b (integrator.MaterialCorrection)
         self._mhat_op, self._blocks = solver.mhat_op, None
-        if correction is not None:
-            rest = solver.mhat_without(correction.bodies)
-            if rest is not None:
-                d = correction.dofs
-                if len(d) and d[-1] - d[0] + 1 == len(d):  # one run of dofs (a wall's units)
-                    d = slice(int(d[0]), int(d[-1]) + 1)
-                self._mhat_op = rest
-                self._blocks = (d, s.mass[d], correction.constant_impulses(solver.mhat_op, v_free))
+        if correction is not None and correction.apart:
+            d = correction.dofs
+            if len(d) and d[-1] - d[0] + 1 == len(d):  # one run of dofs (a wall's units)
+                d = slice(int(d[0]), int(d[-1]) + 1)
+            self._mhat_op = solver.mhat_without(correction.bodies)
+            self._blocks = (d, s.mass[d], correction.constant_impulses())
 
     def __call__(self, v: np.ndarray, r_glue: np.ndarray) -> Evaluation:
         """The residual at body velocities ``v`` (m/s) and multipliers' impulses ``r_glue``
