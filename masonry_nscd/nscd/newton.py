@@ -126,11 +126,15 @@ def _same_dofs(side_dofs, a):
 @njit(cache=True)
 def _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_coef,
                       mult_of, area, K, Gu, Gr, full_block, h, theta, keep_zeros, eliminate,
-                      slot, rows, cols, vals, data):
+                      part, k0, slot, rows, cols, vals, data):
     """The entries of the Newton matrix, in a fixed order (``jacobian_coo``): as triplets
     into ``rows, cols, vals`` when ``slot`` is empty, else summed into ``data[slot[k]]`` (every
     entry, zeros included; ``data`` zeroed first). Returns the number of entries, or
     ``slot.shape[0] + 1`` when they would not fit the pattern (nothing written past it).
+
+    ``part``: 0 every entry; 1 the bodies' blocks only (the first entries); 2 the others only,
+    numbered from ``k0`` (the count that part 1 returned) and summed onto ``data`` as given
+    (not zeroed): parts 1 then 2 make the sums of part 0, in its order.
 
     ``eliminate``: the body system with the multipliers eliminated instead,
     ``S = A + B D^-1 C`` (free dofs only, ``linear.py``): a multiplier point adds
@@ -143,12 +147,13 @@ def _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, s
     pattern (docs/scaling.md, session 21). The Newton matrix itself keeps its order of sums,
     and with it the direct solver's iterates bit for bit."""
     if slot.shape[0] > 0:
-        data[:] = 0.0
+        if part != 2:
+            data[:] = 0.0
         keep_zeros = True
-    nb = body_dof0.shape[0] - 1
+    nb = body_dof0.shape[0] - 1 if part != 2 else 0
     npt = side_dofs.shape[0]
     ms = 2 * side_dofs.shape[2]
-    k = 0
+    k = k0
     for b in range(nb):
         d0 = body_dof0[b]
         n = body_dof0[b + 1] - d0
@@ -170,6 +175,8 @@ def _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, s
                 val = mhat[mo + i * n + j]
                 if val != 0.0 or keep_zeros:
                     k = _emit(k, fi, fj, val, rows, cols, vals, slot, data)
+    if part == 1:
+        return k
     dofs = np.empty(ms, dtype=np.int64)
     coef = np.empty((ms, 3))
     block = np.zeros((ms, ms))  # the body system's sum over a run of points on the same dofs
@@ -292,21 +299,38 @@ def jacobian_coo(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_c
     vals = np.empty(cap)
     k = _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_coef,
                           mult_of, area, K, Gu, Gr, full_block, h, theta, keep_zeros, eliminate,
-                          _NO_SLOT, rows, cols, vals, _NO_FLOAT)
+                          0, 0, _NO_SLOT, rows, cols, vals, _NO_FLOAT)
     return rows[:k], cols[:k], vals[:k]
+
+
+def bodies_values(slot, nnz, body_dof0, mhat_off, mhat, free_index, nfree, side_dofs,
+                  side_coef, mult_of, area, K, Gu, Gr, full_block, h, theta
+                  ) -> tuple[np.ndarray, int]:
+    """The values (``nnz``) of the Newton matrix from the bodies' blocks alone and the count
+    of their entries, for :func:`jacobian_values` of matrices with the same blocks."""
+    data = np.empty(nnz)
+    k = _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_coef,
+                          mult_of, area, K, Gu, Gr, full_block, h, theta, True, False, 1, 0,
+                          slot, _NO_INT, _NO_INT, _NO_FLOAT, data)
+    return data, k
 
 
 def jacobian_values(slot, nnz, body_dof0, mhat_off, mhat, free_index, nfree, side_dofs,
                     side_coef, mult_of, area, K, Gu, Gr, full_block, h, theta,
-                    eliminate=False) -> np.ndarray:
+                    eliminate=False, bodies=None) -> np.ndarray:
     """The values (``nnz``) of the Newton matrix in a fixed pattern whose entry ``k`` of
     ``jacobian_coo(..., keep_zeros=True)`` sits at ``slot[k]``: the same sums, without the
     triplets (24 bytes per entry: 1.2 GB at 64 times the study's wall). ``eliminate``: of
-    the body system ``S``, in the pattern of ``jacobian_coo(..., True, True)``."""
-    data = np.empty(nnz)
+    the body system ``S``, in the pattern of ``jacobian_coo(..., True, True)``. ``bodies``:
+    :func:`bodies_values` of these bodies' blocks, onto a copy of which only the other
+    entries are summed (the same sums bit for bit)."""
+    if bodies is None:
+        data, part, k0 = np.empty(nnz), 0, 0
+    else:
+        data, part, k0 = bodies[0].copy(), 2, bodies[1]
     k = _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_coef,
-                          mult_of, area, K, Gu, Gr, full_block, h, theta, True, eliminate, slot,
-                          _NO_INT, _NO_INT, _NO_FLOAT, data)
+                          mult_of, area, K, Gu, Gr, full_block, h, theta, True, eliminate, part,
+                          k0, slot, _NO_INT, _NO_INT, _NO_FLOAT, data)
     if k > len(slot):
         raise RuntimeError(f"the Newton matrix has more entries than its pattern ({len(slot)})")
     if k < len(slot):
@@ -561,6 +585,8 @@ class NewtonSolver:
             body_of = np.searchsorted(sys.body_dof0, self.free, side="right") - 1
             self._krylov = mpi.krylov_solver(body_of, modes)
         self._K_factorised = None
+        # (blocks, pattern's slots, their values and count or None): ``_bodies_values``
+        self._bodies_part: tuple | None = None
         # fixed pattern and order of the Newton matrix, found at the first factorisation
         self._pattern: _Pattern | None = None
         # the body blocks of the Newton matrix; the ENDO3D blocks' tangent may replace the
@@ -693,7 +719,8 @@ class NewtonSolver:
                 del r, c, v
         else:
             with timing.part("Newton matrix"):
-                data = jacobian_values(pat.slot, len(pat.indices), *args)
+                data = jacobian_values(pat.slot, len(pat.indices), *args,
+                                       bodies=self._bodies_values(pat, args))
         self.lu = None
         with timing.part("factorisation"):
             if not pivoting:
@@ -706,6 +733,21 @@ class NewtonSolver:
             if self.lu is None:
                 self.lu = pat.factorise(data, pivoting=True)
         self.factorisations += 1
+
+    def _bodies_values(self, pat: _Pattern, args) -> tuple[np.ndarray, int] | None:
+        """The Newton matrix's values from the bodies' blocks alone (``bodies_values``), kept
+        from the second matrix with the same blocks (``mhat_jac``) and pattern on: the elastic
+        blocks' never change, and their 0.29 M entries are half a fill of the study's wall.
+        None at the first matrix of new blocks (the ENDO3D blocks have a new tangent at every
+        refresh: their fills stay whole, with nothing kept)."""
+        held = self._bodies_part  # keyed by the slots: SuperLU's first LU reorders them
+        if held is None or held[0] is not self.mhat_jac or held[1] is not pat.slot:
+            self._bodies_part = (self.mhat_jac, pat.slot, None)
+            return None
+        if held[2] is None:
+            self._bodies_part = (held[0], held[1],
+                                 bodies_values(pat.slot, len(pat.indices), *args))
+        return self._bodies_part[2]
 
     def _body_system(self, args) -> sp.csr_matrix:
         """The Krylov solver's body system ``S = A + B D^-1 C`` (free dofs, CSR), summed
