@@ -517,7 +517,7 @@ def test_newton_matrix_values_fill_the_pattern_as_its_triplets_do(smoke_scene):
     that the triplets of ``jacobian_coo`` give through the pattern, bit for bit, in the natural
     pattern and in the pattern reordered by a first SuperLU factorisation; the matrix is the one
     scipy assembles from the triplets."""
-    from masonry_nscd.nscd.newton import _Pattern, jacobian_values
+    from masonry_nscd.nscd.newton import _Pattern, bodies_values, jacobian_values
 
     integ = smoke_scene.integrator()
     for _ in range(3):
@@ -531,6 +531,11 @@ def test_newton_matrix_values_fill_the_pattern_as_its_triplets_do(smoke_scene):
     for reordered in (False, True):
         data = jacobian_values(pat.slot, len(pat.indices), *args)
         assert np.array_equal(data, pat.values(v))
+        # the bodies' blocks summed once, the points' entries onto a copy: the same bits
+        bodies = bodies_values(pat.slot, len(pat.indices), *args)
+        assert 0 < bodies[1] < len(v)
+        assert np.array_equal(jacobian_values(pat.slot, len(pat.indices), *args, bodies=bodies),
+                              data)
         if not reordered:
             # scipy sums the repeated entries in another order: equal to round-off
             assert np.allclose(pat.matrix(data).toarray(), J.toarray(), rtol=1e-14,
