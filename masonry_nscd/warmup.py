@@ -45,6 +45,9 @@ GROUPS: dict[str, tuple[str, ...]] = {
     "newton": ("masonry_nscd.nscd.kernels.local_velocities",
                "masonry_nscd.nscd.step_residual.evaluate_multipliers",
                "masonry_nscd.nscd.step_residual.subtract_impulses",
+               "masonry_nscd.nscd.step_residual.momentum_rows",
+               "masonry_nscd.nscd.step_residual.traction_change",
+               "masonry_nscd.nscd.step_residual.change_norm",
                "masonry_nscd.nscd.newton._jacobian_entries",
                "masonry_nscd.nscd.newton.scatter_add"),
     # the ENDO3D blocks: the trial and its tangent share the material's update

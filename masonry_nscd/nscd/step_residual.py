@@ -122,6 +122,58 @@ def subtract_impulses(side_dofs, side_coef, mult_of, area, T, r_mult, h, R):
                     + side_coef[a, s, j, 2] * r2
 
 
+_NO_DOFS = np.zeros(0, dtype=np.int64)
+_NO_VALUES = np.zeros(0)
+
+
+@njit(cache=True)
+def momentum_rows(R, free, blocks, mass, v, b, hth, f_trial, F, glue_scale):
+    """The end of the residual: on the ENDO3D blocks' dofs ``blocks`` (none when empty)
+    ``R += M v + b + h theta f_trial`` (``mass`` and ``b`` per entry of ``blocks``), then
+    ``F[:nf] = R[free]``. Returns ``(sum F[:nf]^2, merit norm^2)``: the latter with the other
+    rows of ``F`` (the multipliers', already written) weighed by ``glue_scale`` (N s, N^2 s^2;
+    the caller adds the rigid contacts' rows where there are some)."""
+    for i in range(blocks.shape[0]):
+        d = blocks[i]
+        R[d] += mass[i] * v[d] + b[i] + hth * f_trial[d]
+    nf = free.shape[0]
+    momentum = 0.0
+    for i in range(nf):
+        x = R[free[i]]
+        F[i] = x
+        momentum += x * x
+    rest = 0.0
+    for i in range(nf, F.shape[0]):
+        rest += F[i] * F[i]
+    return momentum, momentum + glue_scale * glue_scale * rest
+
+
+@njit(cache=True)
+def traction_change(area, T, T_prev, lawful):
+    """``(sum over the points with lawful[a] of |S (T - T_prev)|^2, sum over every point of
+    |S T|^2)`` (N^2): the change of the contact forces between iterates and their size."""
+    num = 0.0
+    den = 0.0
+    for a in range(T.shape[0]):
+        for i in range(3):
+            x = area[a] * T[a, i]
+            den += x * x
+            if lawful[a]:
+                y = area[a] * (T[a, i] - T_prev[a, i])
+                num += y * y
+    return num, den
+
+
+@njit(cache=True)
+def change_norm(x, y):
+    """``|x - y|`` (2-norm)."""
+    s = 0.0
+    for i in range(x.shape[0]):
+        d = x[i] - y[i]
+        s += d * d
+    return math.sqrt(s)
+
+
 class Evaluation(NamedTuple):
     """The residual at one iterate and what comes with it."""
 
@@ -137,6 +189,7 @@ class Evaluation(NamedTuple):
     correction: np.ndarray | None  # material correction c(v) (ndof), N s; None without
     correction_scale: float  # the size of the internal impulses it corrects, N s
     K: list  # [the joints' tangents (npt, 3, 3), Pa/m], once StepResidual.tangents made them
+    momentum_sq: float  # sum of F[:nf]^2 (N^2 s^2), for the convergence measure
 
 
 class Scales:
@@ -154,9 +207,8 @@ class Scales:
         self.rigid_w = np.repeat(solver.w, 3)[solver.rigid_rows]
         self.glue_rows = nf + np.flatnonzero(solver.glue_rows)
         self.rigid_rows = nf + np.flatnonzero(solver.rigid_rows)
-        self.lawful = slice(None)
+        self.lawful = np.ones(s.npt, dtype=bool)
         if solver.has_rigid:
-            self.lawful = np.ones(s.npt, dtype=bool)
             self.lawful[solver.mult[solver.mu >= 0.0]] = False
         # the unknowns (free velocities, then the multipliers' impulses) in velocity units:
         # 1, 1 / glue_scale for the glue, w for rigid contacts (Anderson's least squares)
@@ -192,16 +244,16 @@ class StepResidual:
         self.beta_old = beta_old
         self.T_old = T
         self.correction = correction
+        self._f_trial = _NO_VALUES if correction is None else correction.f_trial
         self.u_pred = u_old + s.h * (1.0 - s.theta) * U_old
         self.nf = len(solver.free)
         self._R = np.empty(s.ndof)
         # the product by M_hat (v - v_free): of every body, or of all but the ENDO3D blocks,
         # whose rows are then M v + h theta F_int(u) + b (integrator.MaterialCorrection)
-        self._mhat_op, self._blocks = solver.mhat_op, None
+        self._mhat_op = solver.mhat_op
+        self._blocks = (_NO_DOFS, _NO_VALUES, _NO_VALUES)  # (their dofs, M there, b there)
         if correction is not None and correction.apart:
-            d = correction.dofs
-            if len(d) and d[-1] - d[0] + 1 == len(d):  # one run of dofs (a wall's units)
-                d = slice(int(d[0]), int(d[-1]) + 1)
+            d = np.asarray(correction.dofs, dtype=np.int64)
             self._mhat_op = solver.mhat_without(correction.bodies)
             self._blocks = (d, s.mass[d], correction.constant_impulses())
 
@@ -257,21 +309,20 @@ class StepResidual:
         # R_v -= H r: the joints' and the multipliers' impulses
         subtract_impulses(s.side_dofs, s.side_coef, mo, s.area, out_T, r_glue, h, R)
         timing.record("bodies' residual", busy[1] + time.perf_counter() - t1)
-        if self._blocks is not None:
-            d, m, b = self._blocks
-            R[d] += m * v[d] + b + h * th * self.correction.f_trial[d]
-        elif cvec is not None:
+        d, m, b = self._blocks
+        if cvec is not None and not len(d):
             R[:] += cvec
-        F[:nf] = R[sv.free]
         sc = self.scales
         gs = sc.glue_scale
         if sv.has_rigid:
-            norm = math.sqrt(np.sum(F[:nf] ** 2) + gs ** 2 * np.sum(F[sc.glue_rows] ** 2)
+            momentum, _ = momentum_rows(R, sv.free, d, m, v, b, h * th, self._f_trial, F, 0.0)
+            norm = math.sqrt(momentum + gs ** 2 * np.sum(F[sc.glue_rows] ** 2)
                              + sc.rigid_sq(F))
         else:
-            norm = math.sqrt(np.sum(F[:nf] ** 2) + gs ** 2 * np.sum(F[nf:] ** 2))
+            momentum, norm2 = momentum_rows(R, sv.free, d, m, v, b, h * th, self._f_trial, F, gs)
+            norm = math.sqrt(norm2)
         return Evaluation(F, norm, out_T, out_uc, out_beta, out_status, Hv, Gu, Gr, cvec, cscale,
-                          [None])
+                          [None], momentum)
 
     def tangents(self, ev: Evaluation) -> tuple:
         """``(K, Gu, Gr)`` at the iterate of ``ev`` for the Newton matrix: the joints'
@@ -299,23 +350,21 @@ class StepResidual:
         material correction ``c_prev`` of the iterate before (module docstring). Returns
         ``(measure, num, den)``: ``num`` and ``den`` the sums of squares of the traction
         change and of the tractions (N^2), for :meth:`parts`."""
-        s, lawful, h, nf = self.sys, self.scales.lawful, self.sys.h, self.nf
-        Tn, F = ev.T, ev.F
+        s, h, F = self.sys, self.sys.h, ev.F
         # the change of the tractions of the points with a law (a rigid contact's impulse
         # can shift between redundant points at no cost: its rows below judge it)
-        num = np.sum((s.area[lawful, None] * (Tn[lawful] - T_prev[lawful])) ** 2)
-        den = np.sum((s.area[:, None] * Tn) ** 2)
+        num, den = traction_change(s.area, ev.T, T_prev, self.scales.lawful)
         res = math.sqrt(num / den) if den > 0 else (0.0 if num == 0 else math.inf)
         if den > 0:
             # and the momentum balance against the contact impulses: at the friction limit
             # the tractions (mu N) stop changing before the velocities are right
-            res = max(res, math.sqrt(np.sum(F[:nf] ** 2) / den) / h)
+            res = max(res, math.sqrt(ev.momentum_sq / den) / h)
             if self.solver.has_rigid:
                 # and the rigid contacts' conditions, as the impulses that would meet them
                 res = max(res, math.sqrt(self.scales.rigid_sq(F) / den) / h)
         cvec, cscale = ev.correction, ev.correction_scale
         if cvec is not None and c_prev is not None:
-            dc = float(np.linalg.norm(cvec - c_prev))
+            dc = change_norm(cvec, c_prev)
             res = max(res, dc / cscale if cscale > 0 else (0.0 if dc == 0 else math.inf))
         return res, num, den
 
