@@ -53,7 +53,7 @@ GROUPS: dict[str, tuple[str, ...]] = {
     # the ENDO3D blocks: the trial and its tangent share the material's update
     "endo3d": ("masonry_nscd.fe.hex8.forces_from_gradients",
                "masonry_nscd.materials.blocks.trial_forces",
-               "masonry_nscd.materials.blocks.add_element_vectors",
+               "masonry_nscd.materials.blocks.gather_element_vectors",
                "masonry_nscd.materials.endo3d.endo3d_tangent_elements",
                "masonry_nscd.fe.hex8.stiffness_from_gradients"),
 }

@@ -28,8 +28,8 @@ def test_failed_gauss_points_are_counted_and_located(tmp_path, monkeypatch):
     orig_batch = blocks.Endo3dBlocks.trial_batch
     orig_commit = blocks.Endo3dBlocks.commit
 
-    def trial_batch(self, u, fint, departure=None):
-        kernel, n, min_size, finish = orig_batch(self, u, fint, departure)
+    def trial_batch(self, u, fint, departure=None, scale=1.0):
+        kernel, n, min_size, finish = orig_batch(self, u, fint, departure, scale)
 
         def finish_with_a_failure(results):
             finish(results)

@@ -125,11 +125,20 @@ def trial_forces(dN, w, edofs, u, state_in, params, xe, relax, C0, sigma_c, eps_
 
 
 @njit(cache=True)
-def add_element_vectors(edofs, v_e, f):
-    """``f[edofs[e, i]] += v_e[e, i]``, element by element (N)."""
+def gather_element_vectors(edofs, dofs, f_e, f, c_e, c, scale):
+    """``f`` and ``c`` zeroed at ``dofs`` (the elements' dofs), then ``f[edofs[e, i]] +=
+    f_e[e, i]`` and ``c[edofs[e, i]] += c_e[e, i]`` element by element (N), and ``c`` there
+    times ``scale`` (h theta for the material correction, N s); both are left as they are
+    elsewhere."""
+    for i in range(dofs.shape[0]):
+        f[dofs[i]] = 0.0
+        c[dofs[i]] = 0.0
     for e in range(edofs.shape[0]):
         for i in range(edofs.shape[1]):
-            f[edofs[e, i]] += v_e[e, i]
+            f[edofs[e, i]] += f_e[e, i]
+            c[edofs[e, i]] += c_e[e, i]
+    for i in range(dofs.shape[0]):
+        c[dofs[i]] *= scale
 
 
 class Endo3dBlocks:
@@ -208,13 +217,13 @@ class Endo3dBlocks:
             finish(threads.run_ranges(batch, n, min_size=min_size))
 
     def trial_batch(self, u: np.ndarray, fint: np.ndarray,
-                    departure: np.ndarray | None = None) -> tuple:
+                    departure: np.ndarray | None = None, scale: float = 1.0) -> tuple:
         """The trial of :meth:`internal_forces` as a batch for ``threads``: ``(batch, n,
         min_size, finish)``, with ``batch(lo, hi)`` the elements ``lo`` to ``hi - 1`` (their
         Gauss points updated from the committed states, their element vectors computed; it
         returns the count of return mappings that failed), ``n`` the elements and ``finish``
         to call with the batch's results once every range is done: it records the failures
-        and sums the element vectors into ``fint`` (and ``departure``)."""
+        and sums the element vectors into ``fint`` (and ``departure``, times ``scale``)."""
         nel = len(self.dN)
         f_e = np.empty((nel, 24))
         c_e = np.empty((nel, 24))
@@ -232,11 +241,9 @@ class Endo3dBlocks:
 
         def finish(failures: list[int]) -> None:
             self.failures = sum(failures)
-            fint[self.all_dofs] = 0.0
-            add_element_vectors(self.edofs, f_e, fint)
-            if departure is not None:
-                departure[self.all_dofs] = 0.0
-                add_element_vectors(self.edofs, c_e, departure)
+            gather_element_vectors(self.edofs, self.all_dofs, f_e, fint, c_e,
+                                   np.zeros_like(fint) if departure is None else departure,
+                                   scale)
 
         # a range of elements holds as many Gauss points as a range of points elsewhere
         return batch, nel, threads.MIN_POINTS // 8, finish

@@ -629,11 +629,10 @@ class MaterialCorrection:
         du = h * (th * v + (1.0 - th) * integ.v)
         c = np.zeros(self.ndof)  # a new array: the solver compares it with the last one
         kernel, n, min_size, done = integ.material.trial_batch(integ.u + du, self.f_trial,
-                                                               departure=c)
+                                                               departure=c, scale=h * th)
 
         def finish(results: list) -> tuple[np.ndarray, float]:
             done(results)
-            c[:] *= h * th  # in place: c is the closure's
             return c, h * th * float(np.linalg.norm(self.f_trial)) + 1e-300
 
         return kernel, n, min_size, finish

@@ -907,7 +907,10 @@ class NewtonSolver:
         pivoted = False
         while True:
             dx = self._linear_solve(-ev.F)
-            if not np.all(np.isfinite(dx)) and not pivoted:
+            # one product instead of isfinite and all (46 us cold in a run): NaN or inf in dx
+            # make it NaN or inf (so would entries of some 1e154: a direction as broken)
+            finite = math.isfinite(float(dx @ dx))
+            if not finite and not pivoted:
                 # an unstable factorisation (diagonal pivots): refresh, with pivoting if the
                 # matrix was fresh already
                 if self.on_slow is not None and not fresh:
@@ -917,7 +920,7 @@ class NewtonSolver:
                 self._factorise(residual.tangents(ev), pivoting=pivoted)
                 fresh = True
                 continue
-            if not np.all(np.isfinite(dx)):  # singular even with pivoting: no step
+            if not finite:  # singular even with pivoting: no step
                 dx = np.zeros_like(dx)
             x = np.concatenate([v[self.free], r_glue])
             if fresh:
