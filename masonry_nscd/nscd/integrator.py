@@ -503,8 +503,6 @@ class Integrator:
             v_free[d] = step_velocity(hist, self.t, t1, theta, self.v[d])
         for free, imposed, C in self._coupled:
             v_free[free] += C @ (v_free[imposed] - self.v[imposed])
-        U_free = np.empty((s.npt, 3))
-        kernels.local_velocities(s.side_dofs, s.side_coef, v_free, U_free)
         j = self.joints
         if self.newton is not None:
             corr = None if self.material is None else MaterialCorrection(self, fint, F1)
@@ -525,6 +523,8 @@ class Integrator:
             uc = np.empty_like(j.uc)
             beta = np.empty_like(j.beta)
             status = np.empty_like(j.status)
+            U_free = np.empty((s.npt, 3))  # the points' free relative velocities
+            kernels.local_velocities(s.side_dofs, s.side_coef, v_free, U_free)
             with timing.part("Gauss-Seidel sweeps"):
                 sweeps, residual, amb = kernels.nlgs(
                     U_free, j.u, j.U, s.kind, s.law, self.params, s.area, s.W, s.side_dofs,
