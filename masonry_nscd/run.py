@@ -403,7 +403,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     holds = scene.holds_at(integ.t)
 
     # the scene's objects, built once, out of the cyclic garbage collector's way: its full
-    # collections walked every one of them (0.17 s of a 0.3 MPa run, docs/performance.md)
+    # collections walked every one of them (docs/performance.md, session 24)
     gc.freeze()
     try:
         while True:

@@ -737,8 +737,8 @@ class NewtonSolver:
     def _bodies_values(self, pat: _Pattern, args) -> tuple[np.ndarray, int] | None:
         """The Newton matrix's values from the bodies' blocks alone (``bodies_values``), kept
         from the second matrix with the same blocks (``mhat_jac``) and pattern on: the elastic
-        blocks' never change, and their 0.29 M entries are half a fill of the study's wall.
-        None at the first matrix of new blocks (the ENDO3D blocks have a new tangent at every
+        blocks' never change, and they are about half of a fill's entries on a wall. None at
+        the first matrix of new blocks (the ENDO3D blocks have a new tangent at every
         refresh: their fills stay whole, with nothing kept)."""
         held = self._bodies_part  # keyed by the slots: SuperLU's first LU reorders them
         if held is None or held[0] is not self.mhat_jac or held[1] is not pat.slot:
@@ -907,8 +907,8 @@ class NewtonSolver:
         pivoted = False
         while True:
             dx = self._linear_solve(-ev.F)
-            # one product instead of isfinite and all (46 us cold in a run): NaN or inf in dx
-            # make it NaN or inf (so would entries of some 1e154: a direction as broken)
+            # one product instead of isfinite and all (docs/performance.md, session 24): NaN
+            # or inf in dx make it NaN or inf (so would entries of some 1e154: as broken)
             finite = math.isfinite(float(dx @ dx))
             if not finite and not pivoted:
                 # an unstable factorisation (diagonal pivots): refresh, with pivoting if the

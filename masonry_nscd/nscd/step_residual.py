@@ -129,10 +129,11 @@ _NO_VALUES = np.zeros(0)
 @njit(cache=True)
 def momentum_rows(R, free, blocks, mass, v, b, hth, f_trial, F, glue_scale):
     """The end of the residual: on the ENDO3D blocks' dofs ``blocks`` (none when empty)
-    ``R += M v + b + h theta f_trial`` (``mass`` and ``b`` per entry of ``blocks``), then
-    ``F[:nf] = R[free]``. Returns ``(sum F[:nf]^2, merit norm^2)``: the latter with the other
-    rows of ``F`` (the multipliers', already written) weighed by ``glue_scale`` (N s, N^2 s^2;
-    the caller adds the rigid contacts' rows where there are some)."""
+    ``R += M v + b + hth f_trial`` (``mass`` and ``b`` per entry of ``blocks``, ``hth`` = h
+    theta), then ``F[:nf] = R[free]``. Returns ``(sum of F[:nf]^2, that plus glue_scale^2 times
+    the sum of the other rows' squares)`` (N^2 s^2): the merit norm squared when every other row
+    is the glue's (already written, m/s; ``glue_scale`` in kg); with rigid contacts the caller
+    gives 0 and adds their rows and the glue's itself."""
     for i in range(blocks.shape[0]):
         d = blocks[i]
         R[d] += mass[i] * v[d] + b[i] + hth * f_trial[d]
