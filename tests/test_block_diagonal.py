@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from masonry_nscd.nscd.block_diagonal import BlockDiagonal, grouped_offsets
+from masonry_nscd.nscd.block_diagonal import BlockDiagonal, grouped_offsets, without
 
 
 def _blocks(sizes, present, rng):
@@ -65,3 +65,23 @@ def test_blocks_not_grouped_are_refused():
     dof0 = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
     with pytest.raises(ValueError, match="size 2"):
         BlockDiagonal(dof0, off, np.zeros(17))
+
+
+def test_without_some_bodies_the_product_is_zero_on_their_dofs():
+    rng = np.random.default_rng(5)
+    sizes = np.array([54, 6, 54, 150, 54])
+    present = np.ones(len(sizes), dtype=bool)
+    blocks = _blocks(sizes, present, rng)
+    off = grouped_offsets(sizes, present)
+    dof0 = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    flat = _flat(blocks, off)
+    x = rng.standard_normal(dof0[-1])
+    whole = BlockDiagonal(dof0, off, flat).matvec(x)
+    # every body of size 54 and the one of size 150 left out: a group each, whole
+    op = without(dof0, off, flat, [0, 2, 3, 4])
+    out = op.matvec(x)
+    assert np.array_equal(out[54:60], whole[54:60])  # the rows of the body of 6 dofs
+    assert not np.any(out[:54]) and not np.any(out[60:])
+    # a body of size 54 laid out between two others of its size cannot be left out alone
+    assert without(dof0, off, flat, [2]) is None
+    assert np.array_equal(off, grouped_offsets(sizes, present))  # the offsets untouched

@@ -196,8 +196,8 @@ class Recorder:
         self.curve: dict[str, list] = {c: [] for c in rf.CSV_COLUMNS}
         # the bookkeeping of the last output step not yet written (``_sync``): the number of
         # PVD entries and of curve rows then, the integrator's state and the run's scalars;
-        # ``_queued``, that of the output step whose VTU files are still being written, which
-        # becomes ``_unsynced`` once they are on disk (``_settle``)
+        # ``_queued``, that of the output step whose VTU files and HDF5 step are still being
+        # written, which becomes ``_unsynced`` once they are on disk (``_settle``)
         self._unsynced: tuple[int, int, dict[str, np.ndarray], dict[str, Any]] | None = None
         self._queued: tuple[int, int, dict[str, np.ndarray], dict[str, Any]] | None = None
         self._synced = monotonic()
@@ -347,9 +347,9 @@ class Recorder:
             self._sync()
 
     def _settle(self) -> None:
-        """Wait for the VTU files of the last output step: on disk, its bookkeeping is the one
-        to sync; a failed write drops it (the run stops, its checkpoint the one before) and
-        raises the RunOutputError naming the file."""
+        """Wait for the VTU files and the HDF5 step of the last output step: on disk, its
+        bookkeeping is the one to sync; a failed write drops it (the run stops, its checkpoint
+        the one before) and raises the RunOutputError naming the file."""
         queued, self._queued = self._queued, None
         if self._files is not None:
             self._files.wait()
@@ -359,7 +359,8 @@ class Recorder:
     def _sync(self) -> None:
         """Write the bookkeeping of the last output step (module docstring): the PVD
         collection, the curve of results.h5 up to that step, then its checkpoint (last, so
-        that what it points to is on disk before it; its VTU files are, ``_settle``)."""
+        that what it points to is on disk before it; its VTU files and HDF5 step are,
+        ``_settle``)."""
         from masonry_nscd.io.vtu import write_pvd
 
         entries, rows, state, scalars = self._unsynced
@@ -389,7 +390,7 @@ class Recorder:
             if self._csv is not None:
                 self.flush_rows()
         with contextlib.suppress(RunOutputError, OSError):
-            self._settle()  # a failed VTU write: the last output step whose files are whole
+            self._settle()  # a failed write: the last output step whose files are whole
         if self._files is not None:
             with contextlib.suppress(RunOutputError, OSError):
                 self._files.close()

@@ -65,3 +65,16 @@ class BlockDiagonal:
         for dofs, stack in self.groups:
             out[dofs] = np.matmul(stack, x[dofs][..., None])[..., 0]
         return out
+
+
+def without(body_dof0: np.ndarray, off: np.ndarray, flat: np.ndarray,
+            bodies) -> BlockDiagonal | None:
+    """The block-diagonal matrix of the blocks in ``flat`` at ``off`` of every body but
+    ``bodies`` (its product zero on their dofs); None when their blocks cannot be left out of
+    the groups (bodies of one size not all in ``bodies``, laid out between them)."""
+    off = off.copy()
+    off[list(bodies)] = -1
+    try:
+        return BlockDiagonal(body_dof0, off, flat)
+    except ValueError:
+        return None

@@ -44,7 +44,6 @@ state of the run throughout: the state a rung's step ends in is put back into it
 
 from __future__ import annotations
 
-import contextlib
 import math
 from dataclasses import dataclass, replace
 
@@ -55,7 +54,7 @@ from masonry_nscd.contact import laws
 from masonry_nscd.loading import Loads, step_velocity
 from masonry_nscd.model import DOF_IMPOSED, ContactPoint, RigidBody
 from masonry_nscd.nscd import kernels
-from masonry_nscd.nscd.block_diagonal import BlockDiagonal
+from masonry_nscd.nscd.block_diagonal import without
 from masonry_nscd.nscd.checkpoint import integrator_state, restore_integrator
 from masonry_nscd.nscd.step_size import StepSizeControl
 from masonry_nscd.nscd.system import build_system
@@ -221,14 +220,6 @@ class Integrator:
             if endo3d_params is not None else None
         if self.material is not None and not self.material:
             self.material = None
-        # the product by K of the linear blocks: the ENDO3D blocks' internal forces are the
-        # material's (``internal_forces`` writes them over whatever K u gave there)
-        self._k_linear = s.k_op
-        if self.material is not None:
-            off = s.k_off.copy()
-            off[self.material.index] = -1
-            with contextlib.suppress(ValueError):  # blocks of one size not all ENDO3D
-                self._k_linear = BlockDiagonal(s.body_dof0, off, s.k)
         self.tangent_updates = 0
         if self.material is not None and method != "newton":
             raise ValueError("ENDO3D blocks need the Newton solver (method 'newton'): the "
@@ -246,26 +237,37 @@ class Integrator:
                                        min(max_iterations, NEWTON_MAX_ITERATIONS), self.params,
                                        linear=linear, node_xyz=node_xyz)
             self.newton.on_slow = self._on_slow
-        # The ENDO3D blocks' rows of the step residual in the form M v + h theta F_int(u) + b
-        # (``MaterialCorrection``), which needs no free velocity on their dofs: the products
-        # of the free velocity by M_hat^-1 and K then skip them, and it is v_n there. Not when
-        # their blocks cannot be left out of M_hat's (``NewtonSolver.mhat_without``): the
-        # residual then keeps M_hat (v - v_free) + c(v).
-        self._minv_free, self._k_free = s.minv_op, s.k_op
-        self.blocks_apart = False
-        if self.material is not None and self.newton is not None \
-                and self.newton.mhat_without(self.material.index) is not None:
-            off = s.minv_off.copy()
-            off[self.material.index] = -1
-            with contextlib.suppress(ValueError):
-                self._minv_free = BlockDiagonal(s.body_dof0, off, s.minv)
-                self._k_free = self._k_linear
-                self.blocks_apart = True
+        self._products_without_blocks()
         # the energy balance (nscd/energy.py): its accumulated terms are part of the state
         from masonry_nscd.nscd.energy import ACCUMULATED, EnergyAccount
 
         self.energy = np.zeros(len(ACCUMULATED))
         self.energy_account = EnergyAccount(self) if energy else None
+
+    def _products_without_blocks(self) -> None:
+        """The block products that leave the ENDO3D blocks out (``block_diagonal.without``):
+
+        * ``_k_linear``, K of the linear blocks: the ENDO3D blocks' internal forces are the
+          material's (``internal_forces`` writes them over whatever K u gave there);
+        * ``_minv_free`` and ``_k_free``, those of the free velocity. The ENDO3D blocks' rows of
+          the step residual take the form M v + h theta F_int(u) + b (``MaterialCorrection``),
+          which needs no free velocity on their dofs, so they skip them and it is v_n there
+          (``blocks_apart``). Not when the blocks cannot be left out of M_hat's
+          (``NewtonSolver.mhat_without``): the residual then keeps M_hat (v - v_free) + c(v).
+        """
+        s, mat = self.sys, self.material
+        self._k_linear = s.k_op
+        self._minv_free, self._k_free = s.minv_op, s.k_op
+        self.blocks_apart = False
+        if mat is None:
+            return
+        k_rest = without(s.body_dof0, s.k_off, s.k, mat.index)
+        self._k_linear = s.k_op if k_rest is None else k_rest
+        if self.newton is not None and self.newton.mhat_without(mat.index) is not None:
+            minv_rest = without(s.body_dof0, s.minv_off, s.minv, mat.index)
+            if minv_rest is not None:
+                self._minv_free, self._k_free = minv_rest, self._k_linear
+                self.blocks_apart = True
 
     # --- one step -----------------------------------------------------------------------
     def internal_forces(self) -> np.ndarray:

@@ -85,8 +85,8 @@ from numba import njit
 
 from masonry_nscd import timing
 from masonry_nscd.contact import laws
+from masonry_nscd.nscd import block_diagonal, mpi
 from masonry_nscd.nscd import linear as linear_solvers
-from masonry_nscd.nscd import mpi
 from masonry_nscd.nscd import pardiso as pardiso_solver
 from masonry_nscd.nscd.block_diagonal import BlockDiagonal
 from masonry_nscd.nscd.step_residual import Evaluation, Scales, StepResidual
@@ -614,13 +614,8 @@ class NewtonSolver:
         groups of ``M_hat`` (bodies of one size not all in ``bodies``, laid out between them)."""
         key = tuple(bodies)
         if self._mhat_without[0] != key:
-            off = self.mhat_off.copy()
-            off[list(bodies)] = -1
-            try:
-                op = BlockDiagonal(self.sys.body_dof0, off, self.mhat)
-            except ValueError:
-                op = None
-            self._mhat_without = (key, op)
+            self._mhat_without = (key, block_diagonal.without(self.sys.body_dof0,
+                                                              self.mhat_off, self.mhat, key))
         return self._mhat_without[1]
 
     @property
