@@ -75,7 +75,8 @@ def test_endo3d_cube_in_compression_follows_the_point_driver():
 def test_the_residual_without_the_blocks_dense_product_is_the_same_function():
     # On the ENDO3D blocks' dofs the step residual M_hat (v - v_free) + c(v) is computed as
     # M v + h theta F_int(u) + b with b fixed over the step (integrator.MaterialCorrection):
-    # the same function of v, at any iterate, and at theta < 1 the (1 - theta) K0 v_n term too.
+    # the same function of v, at any iterate, and at theta < 1 the (1 - theta) F_int(u_n) term
+    # too.
     from masonry_nscd.nscd import newton as nw
     from masonry_nscd.nscd.checkpoint import integrator_state, restore_integrator
     from masonry_nscd.nscd.step_residual import StepResidual
