@@ -252,11 +252,12 @@ class _StepNotes:
     linear_fallbacks: int = 0
     spans: dict[int, int] = field(default_factory=dict)
 
-    def note(self, rep, integ, fallbacks_before: int) -> None:
-        """Count and log the step ``rep`` of ``integ`` (which had made ``fallbacks_before``
-        LU fallbacks before it); RunFailure when its residual is over :data:`LOST_RESIDUAL`."""
+    def note(self, rep, integ, before: dict[str, int]) -> None:
+        """Count and log the step ``rep`` of ``integ`` (whose ``solver_counts`` were ``before``
+        before it); RunFailure when its residual is over :data:`LOST_RESIDUAL`."""
         log, solver = self.log, self.scene.solver
-        if integ.solver_counts()["linear_fallbacks"] > fallbacks_before:
+        counts = integ.solver_counts()
+        if counts["linear_fallbacks"] > before["linear_fallbacks"]:
             self.linear_fallbacks += 1
             log(f"step {rep.step} (t = {rep.time:.4f} s): Krylov solve not converged, made "
                 f"by LU ({(integ.linear_notes() or ['no reason recorded'])[-1]})",
@@ -265,8 +266,11 @@ class _StepNotes:
         self.spans[rep.span] = self.spans.get(rep.span, 0) + 1
         if rep.substeps > 1:
             self.subdivided += 1
-            why = (f"not converged with h = {solver.h:g} s, made again" if rep.tried_h else
-                   "made at once")
+            cycled = ""
+            if counts["cycles"] > before["cycles"]:
+                cycled = " (Newton's iterations cycled: an iterate met three times)"
+            why = (f"not converged with h = {solver.h:g} s{cycled}, made again" if rep.tried_h
+                   else f"made at once{cycled}")
             log(f"step {rep.step} (t = {rep.time:.4f} s): {why} as {rep.substeps} smaller "
                 f"steps ({'converged' if rep.converged else 'still not converged'})",
                 show=self.subdivided <= 5)
@@ -418,9 +422,9 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
                 fields = StepFields(scene, mesh, integ)
                 log(f"from t = {integ.t:.6g} s: " + ", ".join(
                     f"{scene.bodies[hd.body].name} held in {DOF_NAMES[hd.dof]}" for hd in holds))
-            fallbacks = integ.solver_counts()["linear_fallbacks"]
+            counts = integ.solver_counts()
             rep = _advance(integ, scene, log)
-            notes.note(rep, integ, fallbacks)
+            notes.note(rep, integ, counts)
             f = integ.point_forces()
             top = weights["top"] @ f if "top" in weights else np.zeros(3)
             bot = weights["bottom"] @ f

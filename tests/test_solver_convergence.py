@@ -111,3 +111,40 @@ def test_creeping_newton_iterations_take_the_next_fresh_direction_whole():
         seen.append(stall.after(*breaker))
         seen.append(stall.after(True, 0.125, *creeping[2]))
         assert seen == [False, False, False, False]
+
+
+def test_newton_iterations_that_return_to_an_iterate_a_third_time_are_given_up():
+    """``newton._Cycle``: the merit norms and convergence measures of the 0.4 MPa wall's step
+    699 (t = 2.796 s), whose iterations went round a three-iterate cycle until the cap of 50
+    (docs/performance.md, session 25). Iterations 7, 10 and 13 are the cycle's lowest
+    iterate, the same within 5e-7 in both values: the cycle closes at the 13th iteration. (Its
+    far iterate differs by 6e-5 between its first and second pass, 5 and 8, and by 1e-8 and
+    less later.)"""
+    from masonry_nscd.nscd.newton import _Cycle
+
+    iterates = [(0.0839545625992824, 0.0014575232288773176),
+                (0.06293502829518499, 0.0001419379858866029),
+                (0.04713805375658577, 0.00010631029358505315),
+                (0.04639774232715163, 0.00010464064305722174),
+                (4.251685897148245, 0.009591185439883491),
+                (0.03466168303446786, 0.00596090360847822),
+                (0.0339899556791865, 7.665740692799681e-05),
+                (4.25193661514879, 0.00959175114363864),
+                (0.03466166620746764, 0.005961267410482703),
+                (0.03398993937631788, 7.665737016054628e-05),
+                (4.251936616464958, 0.009591751146608301),
+                (0.03466166626271677, 0.005961267412364138),
+                (0.03398993945217615, 7.66573703316269e-05),
+                (4.25193659481673, 0.009591751097761907)]
+    cycle = _Cycle()
+    closed = [cycle.closed_by(norm, measure) for norm, measure in iterates]
+    assert closed.index(True) == 12  # (the solver stops there)
+
+    # iterations that converge, even slowly, or that keep one of the two values only, never
+    # close a cycle
+    cycle = _Cycle()
+    assert not any(cycle.closed_by(0.05 * 0.9 ** k, 1e-3 * 0.7 ** k) for k in range(50))
+    cycle = _Cycle()
+    assert not any(cycle.closed_by(0.05, 1e-3 * 0.7 ** k) for k in range(50))
+    cycle = _Cycle()
+    assert not any(cycle.closed_by(0.05 * 0.9 ** k, 1e-3) for k in range(50))

@@ -352,9 +352,10 @@ class Integrator:
     def solver_counts(self) -> dict[str, int]:
         """Work of the Newton linear solves so far, summed over this integrator and the ones it
         made steps with (halves, adaptive rungs): ``factorisations`` (of the Newton matrix or
-        its preconditioner), ``linear_iterations`` (Krylov iterations; 0 for LU) and
-        ``linear_fallbacks`` (Krylov solves that did not converge and were made by LU)."""
-        out = {"factorisations": 0, "linear_iterations": 0, "linear_fallbacks": 0}
+        its preconditioner), ``linear_iterations`` (Krylov iterations; 0 for LU),
+        ``linear_fallbacks`` (Krylov solves that did not converge and were made by LU) and
+        ``cycles`` (steps given up because Newton's iterations cycled, ``newton._Cycle``)."""
+        out = {"factorisations": 0, "linear_iterations": 0, "linear_fallbacks": 0, "cycles": 0}
         if self.newton is not None:
             for key in out:
                 out[key] += int(getattr(self.newton, key))

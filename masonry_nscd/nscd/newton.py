@@ -277,6 +277,34 @@ class _Stall:
         return False
 
 
+class _Cycle:
+    """Whether Newton's iterations cycle: an iterate met for the ``visits``-th time in one
+    step, "the same" meaning the same merit norm and the same convergence measure within a
+    relative ``rtol``. Seen on the study's walls at a kink of the residual: a fresh matrix's
+    direction lowers the norm nowhere, the step is taken whole, far away, and the next
+    iterations lead back, until the iteration cap (docs/performance.md, session 25). The
+    iterates close in on a periodic orbit: the first pass through it differs from the second
+    by some 1e-4 (the matrix's age, the counters), the later passes from each other by 1e-8
+    and less. Such a step is given up at its third visit and made again as halves, as it
+    would be after the cap."""
+
+    def __init__(self, visits: int = 3, rtol: float = 1e-6):
+        self.visits, self.rtol = visits, rtol
+        self.seen: list[list[float]] = []  # [norm, measure, times met]
+
+    def closed_by(self, norm: float, measure: float) -> bool:
+        """Count the iterate of merit norm ``norm`` and convergence measure ``measure``;
+        whether it closes a cycle."""
+        r = self.rtol
+        for entry in self.seen:
+            if (abs(norm - entry[0]) <= r * abs(norm)
+                    and abs(measure - entry[1]) <= r * abs(measure)):
+                entry[2] += 1
+                return entry[2] >= self.visits
+        self.seen.append([norm, measure, 1.0])
+        return False
+
+
 _NO_SLOT = np.zeros(0, dtype=np.int64)
 _NO_INT = np.zeros(0, dtype=np.int64)
 _NO_FLOAT = np.zeros(0)
@@ -595,6 +623,8 @@ class NewtonSolver:
         # None when not given; body velocities, multipliers' impulses N s, step size s)
         self._solutions: list[tuple[float | None, np.ndarray, np.ndarray, float]] = []
         self._history: ChordHistory | None = None
+        # steps given up because their iterations cycled (``_Cycle``)
+        self.cycles = 0
 
     def _chord_history(self) -> ChordHistory:
         """The Anderson acceleration's memory for a new step, cleared: the last iterate and its
@@ -948,9 +978,13 @@ class NewtonSolver:
         history = self._chord_history()
         stall = _Stall()
         whole = False  # the next fresh direction taken whole (the iterations crept)
+        cycle = _Cycle()
         for it in range(1, self.max_iterations + 1):
             res, num, den = residual.convergence(ev, T_prev, c_prev)
             if it > 1 and res <= self.tolerance:
+                break
+            if cycle.closed_by(ev.norm, res):  # given up, to be made again as halves
+                self.cycles += 1
                 break
             # refactorise only when two iterations in a row converged slower than slow_rate: an
             # LU of the wall costs about fifteen iterations, and the accelerated iterations do
