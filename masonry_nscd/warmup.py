@@ -49,8 +49,7 @@ GROUPS: dict[str, tuple[str, ...]] = {
                "masonry_nscd.nscd.step_residual.traction_change",
                "masonry_nscd.nscd.step_residual.change_norm",
                "masonry_nscd.nscd.newton._jacobian_entries",
-               "masonry_nscd.nscd.newton.scatter_add",
-               "masonry_nscd.nscd.anderson.anderson_step"),
+               "masonry_nscd.nscd.newton.scatter_add"),
     # the ENDO3D blocks: the trial and its tangent share the material's update
     "endo3d": ("masonry_nscd.fe.hex8.forces_from_gradients",
                "masonry_nscd.materials.blocks.trial_forces",

@@ -30,10 +30,10 @@ Iterations:
 * predictor: the solution (body velocities, glue impulses) extrapolated linearly from the last
   two steps;
 * chord steps ``-J0^-1 F`` with the factorisation of an earlier iterate, accelerated by
-  Anderson mixing of the last few steps (``anderson.py``: GMRES preconditioned by J0 on a
-  linear residual), and a backtracking line search on the residual norm, which stops the
-  open/closed cycling of tiny loads; an accelerated step is tried whole, and where it does not
-  decrease the norm the plain step's line search follows;
+  Anderson mixing of the last few steps (``_anderson``: GMRES preconditioned by J0 on a linear
+  residual), and a backtracking line search on the residual norm, which stops the open/closed
+  cycling of tiny loads; an accelerated step is tried whole, and where it does not decrease the
+  norm the plain step's line search follows;
 * the matrix is factorised again (sparse LU, in a fixed pattern and order: ``_Pattern``) when
   the residual fell by less than ``slow_rate`` in two iterations in a row, or when a direction
   from an older matrix does not decrease the residual; where even the direction of a fresh
@@ -88,7 +88,6 @@ from masonry_nscd.contact import laws
 from masonry_nscd.nscd import block_diagonal, mpi
 from masonry_nscd.nscd import linear as linear_solvers
 from masonry_nscd.nscd import pardiso as pardiso_solver
-from masonry_nscd.nscd.anderson import ChordHistory
 from masonry_nscd.nscd.block_diagonal import BlockDiagonal
 from masonry_nscd.nscd.step_residual import Evaluation, Scales, StepResidual
 
@@ -534,6 +533,20 @@ class _Pattern:
         return _PermutedLU(lu, self.order)
 
 
+class _ChordHistory:
+    """The Anderson acceleration's memory (``NewtonSolver._anderson``): the last iterate and
+    its chord step ``last``, the differences ``d_x``, ``d_f`` of both over the last steps
+    with one matrix, and the weights of the unknowns in the least squares."""
+
+    def __init__(self, weight: np.ndarray):
+        self.weight = weight
+        self.clear()
+
+    def clear(self) -> None:
+        """Forget the steps (a new matrix, or a step that was not a full one)."""
+        self.last, self.d_x, self.d_f = None, [], []
+
+
 class NewtonSolver:
     """Semi-smooth Newton (chord) solver of one step; keeps its factorisation between steps."""
 
@@ -622,20 +635,8 @@ class NewtonSolver:
         # the solutions of the last two steps, for the predictor of the next one: (end time s,
         # None when not given; body velocities, multipliers' impulses N s, step size s)
         self._solutions: list[tuple[float | None, np.ndarray, np.ndarray, float]] = []
-        self._history: ChordHistory | None = None
         # steps given up because their iterations cycled (``_Cycle``)
         self.cycles = 0
-
-    def _chord_history(self) -> ChordHistory:
-        """The Anderson acceleration's memory for a new step, cleared: the last iterate and its
-        chord step, and the differences of both over the last full steps with one matrix,
-        weighted to velocity units (``Scales.weight``). One per solver, its arrays kept from
-        step to step."""
-        h = self._history
-        if h is None or h.depth != self.anderson or h.weight is not self.scales.weight:
-            h = self._history = ChordHistory(self.scales.weight, self.anderson)
-        h.clear()
-        return h
 
     def mhat_without(self, bodies) -> BlockDiagonal | None:
         """The product by ``M_hat`` of every body but ``bodies`` (zero on their dofs), kept for
@@ -866,6 +867,35 @@ class NewtonSolver:
                 first = (v_try, r_try)
             alpha *= 0.5
 
+    def _anderson(self, x, f, last, d_x, d_f, weight) -> np.ndarray:
+        """The chord step ``f`` at ``x``, accelerated (Anderson, type II) with the history of
+        the iterates ``x_i`` and their chord steps ``f_i = -J0^-1 F(x_i)`` (same matrix J0):
+
+            gamma = argmin || W (f - dF gamma) ||_2,   step = f - (dX + dF) gamma
+
+        with ``dX``, ``dF`` the differences of consecutive iterates and steps (the last
+        ``anderson`` of them; ``d_x``, ``d_f`` are updated in place) and ``W`` the weights of
+        the unknowns. For a linear residual this is GMRES preconditioned by J0; a stale
+        factorisation whose plain steps shrink the residual by 0.5 per iteration (the
+        reference wall) converges in about half the iterations.
+
+        The least squares by the normal equations, ``G = (W dF)^T (W dF)`` (at most
+        ``anderson`` x ``anderson``) diagonalised, its eigenvalues below 1e-14 of the largest
+        left out (differences that the history repeats to 1e-7, where the rounding of ``G``
+        would decide the mixture), instead of an SVD of the tall ``W dF`` (docs/choices.md).
+        """
+        d_x.append(x - last[0])
+        d_f.append(f - last[1])
+        if len(d_x) > self.anderson:
+            del d_x[0], d_f[0]
+        DF = np.column_stack(d_f)
+        A = DF * weight[:, None]
+        lam, Q = np.linalg.eigh(A.T @ A)
+        keep = lam > 1e-14 * lam[-1]
+        Q = Q[:, keep]
+        gamma = Q @ ((Q.T @ (A.T @ (f * weight))) / lam[keep])
+        return f - (np.column_stack(d_x) + DF) @ gamma
+
     def _predict(self, v_free, dv_guess, T, t_end):
         """The iterate Newton starts from: ``(v, r_glue)``, body velocities (m/s) and the
         multipliers' impulses (N s)."""
@@ -892,7 +922,7 @@ class NewtonSolver:
         return v, r_glue
 
     def _move(self, residual: StepResidual, v, r_glue, ev: Evaluation, fresh: bool,
-              history: ChordHistory, whole: bool = False):
+              history: _ChordHistory, whole: bool = False):
         """One iteration from ``(v, r_glue)`` with its evaluation ``ev``: the direction of the
         matrix in place (``fresh``: factorised at this iterate), accelerated, along which the
         line search steps (``whole``: a fresh direction taken whole, after the iterations
@@ -920,7 +950,10 @@ class NewtonSolver:
             x = np.concatenate([v[self.free], r_glue])
             if fresh:
                 history.clear()
-            step, accelerated = history.advance(x, dx)
+            accelerated = history.last is not None and self.anderson > 0
+            step = self._anderson(x, dx, history.last, history.d_x, history.d_f,
+                                  history.weight) if accelerated else dx
+            history.last = (x, dx)
             if whole and fresh:
                 # the iterations crept (``_Stall``): the fresh direction whole, whatever the norm
                 alpha, descent, v_try, r_try, ev_try = self._line_search(
@@ -975,7 +1008,9 @@ class NewtonSolver:
         res = math.inf
         prev = prev2 = math.inf
         it = 0
-        history = self._chord_history()
+        # Anderson history: the last iterate and its chord step, and the differences of both
+        # over the last full steps with this matrix, weighted to velocity units
+        history = _ChordHistory(self.scales.weight)
         stall = _Stall()
         whole = False  # the next fresh direction taken whole (the iterations crept)
         cycle = _Cycle()
