@@ -149,3 +149,38 @@ def test_the_stiffest_springs_of_the_stress_test_converge_by_halving(tmp_path):
     with open(tmp_path / "v" / "force_displacement.csv") as f:
         substeps = [int(row["substeps"]) for row in csv.DictReader(f)]
     assert max(substeps) >= 2  # the halving was needed (the deepest is h/4 here)
+
+
+def test_a_step_whose_newton_iterations_cycle_is_halved_and_the_log_says_why(tmp_path,
+                                                                            monkeypatch):
+    """``newton._Cycle``: a step whose iterations close a cycle is given up at once and made
+    again as halves; the count reaches ``solver_counts`` and the run log names the reason.
+    The cycle is forced at step 5's attempt at h (at its first iterate), as the wall of
+    docs/performance.md (session 25) met one."""
+    from masonry_nscd.nscd import integrator as integ_mod
+    from masonry_nscd.nscd import newton
+
+    forced = {"on": False}
+    step_orig = integ_mod.Integrator._step
+    closed_orig = newton._Cycle.closed_by
+
+    def step(self):
+        forced["on"] = self.sys.h > 1.5e-3 and self.step_index + 1 == 5
+        try:
+            return step_orig(self)
+        finally:
+            forced["on"] = False
+
+    def closed_by(self, norm, measure):
+        return True if forced["on"] else closed_orig(self, norm, measure)
+
+    monkeypatch.setattr(integ_mod.Integrator, "_step", step)
+    monkeypatch.setattr(newton._Cycle, "closed_by", closed_by)
+    res, rows, summary = _run(tmp_path, "cycled", ["loading.vertical_stress.value_Pa=1e5",
+                                                   "loading.horizontal.target_m=2e-4"])
+    assert [int(r["substeps"]) for r in rows[:6]] == [1, 1, 1, 1, 2, 1]
+    assert res.unconverged_steps == 0 and summary["steps_subdivided"] == 1
+    log = (tmp_path / "cycled" / "run.log").read_text()
+    assert ("step 5 (t = 0.0100 s): not converged with h = 0.002 s (Newton's iterations "
+            "cycled: an iterate met three times), made again as 2 smaller steps (converged)"
+            in log)

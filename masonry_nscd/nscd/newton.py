@@ -279,9 +279,10 @@ class _Stall:
 class _Cycle:
     """Whether Newton's iterations cycle: an iterate met for the ``visits``-th time in one
     step, "the same" meaning the same merit norm and the same convergence measure within a
-    relative ``rtol``. Seen on the study's walls at a kink of the residual: a fresh matrix's
-    direction lowers the norm nowhere, the step is taken whole, far away, and the next
-    iterations lead back, until the iteration cap (docs/performance.md, session 25). The
+    relative ``rtol``. Seen on the 0.4 MPa study wall (in a run with another round-off) at a
+    kink of the residual: a fresh matrix's direction lowers the norm nowhere, the step is
+    taken whole, far away, and the next iterations lead back, until the iteration cap
+    (docs/performance.md, session 25). The
     iterates close in on a periodic orbit: the first pass through it differs from the second
     by some 1e-4 (the matrix's age, the counters), the later passes from each other by 1e-8
     and less. Such a step is given up at its third visit and made again as halves, as it
