@@ -282,11 +282,10 @@ class _Cycle:
     relative ``rtol``. Seen on the 0.4 MPa study wall (in a run with another round-off) at a
     kink of the residual: a fresh matrix's direction lowers the norm nowhere, the step is
     taken whole, far away, and the next iterations lead back, until the iteration cap
-    (docs/performance.md, session 25). The
-    iterates close in on a periodic orbit: the first pass through it differs from the second
-    by some 1e-4 (the matrix's age, the counters), the later passes from each other by 1e-8
-    and less. Such a step is given up at its third visit and made again as halves, as it
-    would be after the cap."""
+    (docs/performance.md, session 25). The iterates close in on a periodic orbit: the first
+    pass through it differs from the second by some 1e-4 (the matrix's age, the counters), the
+    later passes from each other by 1e-8 and less. Such a step is given up at its third visit
+    and made again as halves, as it would be after the cap."""
 
     def __init__(self, visits: int = 3, rtol: float = 1e-6):
         self.visits, self.rtol = visits, rtol
