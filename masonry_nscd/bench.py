@@ -58,6 +58,15 @@ A run still going after ``time_limit_s`` is stopped (status ``timeout``); the re
 makes twice the steps of the default with a tighter tolerance and without which no error can be
 measured, gets ``REFERENCE_TIME_FACTOR`` times that limit.
 
+The reference's own error (``check_reference``): half the step need not be converged to the
+errors it measures. Where the curve has events (a crack, a crushing toe) whose position moves
+with the step, a force read near one can move by as much at every halving (docs/performance.md).
+For an error of first order in h, the reference's own error against a run of h/4 is a third of
+the setting's. A second reference with half the reference's step (:func:`reference_check_setting`)
+tells. Each setting's largest error against it is ``err_max_check``, and the reference's own is
+that of its row. When the reference's is half the default's ``err_max`` or more, the errors
+against the reference understate the default's, and :func:`verdict` says so.
+
 Scaling (:func:`bench_scaling`, ``masonry bench-scaling CASE.yaml``)
 --------------------------------------------------------------------
 Walls with about 1, 2, 4 and 8 times the units of the case (courses and units per course
@@ -149,15 +158,22 @@ def allowed_methods(case) -> tuple[str, ...]:
     return ("newton", "nlgs")
 
 
-def reference_setting(case) -> Setting:
-    """The refined run every setting is compared with (see the module docstring)."""
-    h = case.solver.time_step_s * REFERENCE_TIME_STEP_FACTOR
+def reference_setting(case, check: bool = False) -> Setting:
+    """The refined run every setting is compared with (see the module docstring); ``check``:
+    the reference's own reference, its time step halved again (the same tolerance)."""
+    f = REFERENCE_TIME_STEP_FACTOR ** (2 if check else 1)
+    h = case.solver.time_step_s * f
     tol = case.solver.tolerance * REFERENCE_TOLERANCE_FACTOR
-    return Setting("reference", "reference",
-                   f"time step x{REFERENCE_TIME_STEP_FACTOR:g} ({h:.3g} s), tolerance "
+    return Setting("reference_check" if check else "reference", "reference",
+                   f"time step x{f:g} ({h:.3g} s), tolerance "
                    f"x{REFERENCE_TOLERANCE_FACTOR:g} ({tol:.3g})",
                    (f"solver.time_step_s={h!r}", f"solver.tolerance={tol!r}",
                     "solver.max_time_step_s=null"))
+
+
+def reference_check_setting(case) -> Setting:
+    """The run that measures the reference's own error (module docstring)."""
+    return reference_setting(case, check=True)
 
 
 def _scaled(name: str, group: str, what: str, path: str, base: float, factor: float,
@@ -671,6 +687,7 @@ class BenchRow:
     err_envelope: float = math.nan  # cyclic cases
     err_energy: float = math.nan  # cyclic cases
     err_max: float = math.nan
+    err_max_check: float = math.nan  # against the reference's own reference (check_reference)
     pareto: int = 0
 
 
@@ -721,6 +738,21 @@ def fill_timing(row: BenchRow, runs: Sequence[Mapping[str, Any]]) -> None:
     row.peak_rss_MiB = max((v for v in rss if math.isfinite(v)), default=math.nan)
 
 
+def _cyclic(scene: Mapping[str, Any] | None) -> bool:
+    return scene is not None and (scene.get("history") or {}).get("kind") == "cyclic"
+
+
+def errors_against(curve: Mapping[str, Sequence[float]], ref: Mapping[str, Sequence[float]],
+                   target_mm: float, start_s: float, scene: Mapping[str, Any] | None = None,
+                   ref_scene: Mapping[str, Any] | None = None) -> dict[str, float]:
+    """The errors of ``curve`` against ``ref`` (relative), ``err_max`` among them: on the cycles
+    when ``scene`` says the case is cyclic (none without ``ref_scene``), else on the push up to
+    the target."""
+    if _cyclic(scene):
+        return {} if ref_scene is None else cyclic_errors(curve, scene, ref, ref_scene)
+    return curve_errors(curve, ref, target_mm, start_s)
+
+
 def fill_curve(row: BenchRow, curve: Mapping[str, Sequence[float]] | None,
                ref: Mapping[str, Sequence[float]] | None, target_mm: float,
                start_s: float, scene: Mapping[str, Any] | None = None,
@@ -733,20 +765,17 @@ def fill_curve(row: BenchRow, curve: Mapping[str, Sequence[float]] | None,
         return
     it = np.asarray(curve["iterations"], dtype=float)
     row.median_iterations, row.max_iterations = float(np.median(it)), float(it.max())
-    if scene is not None and (scene.get("history") or {}).get("kind") == "cyclic":
+    if _cyclic(scene):
         m = cyclic_metrics(curve, scene)
         row.peak_force_kN = _num(m["peak_pos_kN"])
         row.initial_stiffness_kN_mm = _num(m["initial_stiffness_kN_mm"])
-        if row.status == "ok" and ref is not None and ref_scene is not None:
-            for k, v in cyclic_errors(curve, scene, ref, ref_scene).items():
-                setattr(row, k, v)
-        return
-    m = curve_metrics(curve, target_mm, start_s)
-    row.peak_force_kN = _num(m["peak_force_kN"])
-    row.initial_stiffness_kN_mm = _num(m["initial_stiffness_kN_mm"])
-    row.force_at_target_kN = _num(m["force_at_target_kN"])
+    else:
+        m = curve_metrics(curve, target_mm, start_s)
+        row.peak_force_kN = _num(m["peak_force_kN"])
+        row.initial_stiffness_kN_mm = _num(m["initial_stiffness_kN_mm"])
+        row.force_at_target_kN = _num(m["force_at_target_kN"])
     if row.status == "ok" and ref is not None:
-        for k, v in curve_errors(curve, ref, target_mm, start_s).items():
+        for k, v in errors_against(curve, ref, target_mm, start_s, scene, ref_scene).items():
             setattr(row, k, v)
 
 
@@ -796,10 +825,12 @@ def warm_up_specs(case_path: Path, overrides: Sequence[str], case,
 
 def bench(case_path: Path | str, outdir: Path | str, *, overrides: Sequence[str] = (),
           quick: bool = False, repeats: int = 3, cheap_s: float = CHEAP_S,
-          time_limit_s: float = 600.0, echo: Callable[[str], None] = print) -> BenchResult:
+          time_limit_s: float = 600.0, check_reference: bool = False,
+          echo: Callable[[str], None] = print) -> BenchResult:
     """Run the ladder of ``case_path`` (with ``overrides``) and its reference into
     ``outdir/runs/<setting>/``; write ``outdir/bench.csv`` (after every setting) and
-    ``outdir/bench.png``. See the module docstring."""
+    ``outdir/bench.png``. ``check_reference``: also the reference's own reference, right after
+    it, and every row's ``err_max_check``. See the module docstring."""
     from masonry_nscd.case import load_case
     from masonry_nscd.report import read_curve_csv, read_scene_info
 
@@ -810,7 +841,8 @@ def bench(case_path: Path | str, outdir: Path | str, *, overrides: Sequence[str]
     target_mm, start_s = 1e3 * case.loading.horizontal.target_m, case.loading.horizontal.start_s
     ref_setting = reference_setting(case)
     ref_limit_s = REFERENCE_TIME_FACTOR * time_limit_s
-    settings = [ref_setting, *ladder(case, quick)]
+    check = reference_check_setting(case) if check_reference else None
+    settings = [ref_setting, *([check] if check else []), *ladder(case, quick)]
     t0 = time.perf_counter()
     for spec in warm_up_specs(case_path, overrides, case, settings):
         with tempfile.TemporaryDirectory(prefix="masonry-warm-") as tmp:
@@ -819,10 +851,13 @@ def bench(case_path: Path | str, outdir: Path | str, *, overrides: Sequence[str]
          f"{ref_setting.description}")
     rows: list[BenchRow] = []
     ref_curve = ref_scene = None
+    done: list[tuple[BenchRow, Any, Any]] = []  # (row, curve, scene) of the runs made so far
     for s in settings:
         all_overrides = [*overrides, *s.overrides]
         row = new_row(load_case(case_path, all_overrides), s)
-        limit_s = ref_limit_s if s is ref_setting else time_limit_s
+        # the check has half the reference's step: twice its time
+        limit_s = (ref_limit_s * (2.0 if s is check else 1.0) if s.group == "reference"
+                   else time_limit_s)
         spec = {"kind": "run", "case": str(case_path), "overrides": all_overrides,
                 "outdir": str(outdir / "runs" / s.name), "time_limit_s": limit_s}
         runs = [run_in_child(spec, timeout_s=limit_s + 600.0)]
@@ -838,6 +873,17 @@ def bench(case_path: Path | str, outdir: Path | str, *, overrides: Sequence[str]
             ref_curve, ref_scene = curve, scene
         fill_curve(row, curve, ref_curve, target_mm, start_s, scene, ref_scene)
         rows.append(row)
+        done.append((row, curve, scene))
+        if check is not None and row.status == "ok" and curve:
+            if s is check:  # the reference's own error, and the check's (0)
+                for r, c, sc in done:
+                    if r.status == "ok" and c:
+                        r.err_max_check = errors_against(c, curve, target_mm, start_s, sc,
+                                                         scene).get("err_max", math.nan)
+            elif s is not ref_setting and done[1][0].status == "ok":
+                _, check_curve, check_scene = done[1]
+                row.err_max_check = errors_against(curve, check_curve, target_mm, start_s,
+                                                   scene, check_scene).get("err_max", math.nan)
         write_rows(outdir / "bench.csv", rows, BENCH_COLUMNS)
         echo(progress_line(row))
     mark_pareto(rows)
@@ -872,6 +918,10 @@ def format_table(rows: Sequence[BenchRow]) -> str:
     columns = error_columns(rows)
     if columns is CYCLIC_ERROR_COLUMNS:
         head = head.replace(f"{'F@tgt %':>8s} {'RMS %':>8s}", f"{'env %':>8s} {'E %':>8s}")
+    if any(math.isfinite(r.err_max_check) for r in rows):  # against the reference's reference
+        columns = (*columns, "err_max_check")
+        head = head.replace(f"{'RMS %':>8s}", f"{'RMS %':>8s} {'check %':>8s}").replace(
+            f"{'E %':>8s}", f"{'E %':>8s} {'check %':>8s}")
     lines = [head]
     for r in rows:
         errs = " ".join(f"{100 * getattr(r, c):8.3g}" for c in columns)
@@ -894,6 +944,7 @@ def verdict(result: BenchResult) -> list[str]:
     lines = [(f"default settings: {d.run_s:.3g} s, {d.step_ms_median:.3g} ms per step "
               f"(solver), errors against the reference: {errs}; largest "
               f"{100 * d.err_max:.3g} % (under {100 * DEFAULT_ERROR_LIMIT:g} %: {under})")]
+    lines += _check_lines(result, d)
     if d.pareto:
         faster = [f"{r.setting} ({r.run_s:.3g} s, {100 * r.err_max:.3g} %)" for r in result.rows
                   if r.pareto and r is not d and r.run_s < d.run_s]
@@ -908,6 +959,23 @@ def verdict(result: BenchResult) -> list[str]:
             lines.append(f"mesh {r.elements_per_unit} per unit (the reference has the case's "
                          f"mesh, {d.elements_per_unit}): the curve moves by up to "
                          f"{100 * r.err_max:.3g} %")
+    return lines
+
+
+def _check_lines(result: BenchResult, d: BenchRow) -> list[str]:
+    """What the reference's own reference says (none without ``check_reference``)."""
+    c, ref = result.row("reference_check"), result.row("reference")
+    if c is None:
+        return []
+    if ref is None or not math.isfinite(ref.err_max_check):
+        return ["reference check: not measured (the check run did not finish)"]
+    lines = [(f"reference check ({c.description}): the reference is "
+              f"{100 * ref.err_max_check:.3g} % from it, the default settings "
+              f"{100 * d.err_max_check:.3g} %")]
+    if ref.err_max_check >= 0.5 * d.err_max:
+        lines.append("reference check: the reference's own error is half the default's or "
+                     "more, so the errors against it understate the default's: read "
+                     "err_max_check")
     return lines
 
 

@@ -619,6 +619,10 @@ def bench_cmd(
     ] = 3,
     time_limit: Annotated[float, typer.Option(
         "--time-limit", metavar="S", help="Wall-clock limit of one run, s.")] = 600.0,
+    check_reference: Annotated[bool, typer.Option(
+        "--check-reference", help="Also run the reference with its time step halved again, "
+        "and give every setting's largest error against that run (err_max_check): whether the "
+        "reference is converged enough to measure the errors.")] = False,
     overrides: SetOption = None,
     overwrite: OverwriteOption = False,
 ) -> None:
@@ -653,7 +657,8 @@ def bench_cmd(
         return
     try:
         result = bm.bench(case_file, outdir, overrides=list(overrides or ()), quick=quick,
-                          repeats=repeats, time_limit_s=time_limit, echo=typer.echo)
+                          repeats=repeats, time_limit_s=time_limit,
+                          check_reference=check_reference, echo=typer.echo)
     except KeyboardInterrupt:
         _fail(f"interrupted; the settings done so far are in {outdir / 'bench.csv'}", 130)
     typer.echo(bm.format_table(result.rows))

@@ -198,6 +198,29 @@ def test_quick_bench_writes_the_table_and_the_chart(quick_bench):
     assert "default settings:" in res.output and "Pareto front" in res.output
 
 
+def test_the_reference_check_measures_the_reference_s_own_error(tmp_path, monkeypatch):
+    """``--check-reference`` runs the reference again with half its step. The smoke wall is
+    pushed at 10 mm/s, where the step moves the curve at first order (implicit Euler): against
+    that run (h/4) the case (h) is off by about three times as much as the reference (h/2),
+    (h - h/4) / (h/2 - h/4) = 3."""
+    monkeypatch.setattr(bm, "ladder", lambda case, quick=False: [
+        bm.Setting("default", "default", "the case's own settings")])
+    res = CliRunner().invoke(app, ["bench", SMOKE, "--repeats", "1", "--check-reference",
+                                   "-o", str(tmp_path), "--overwrite", *NO_FIELDS])
+    assert res.exit_code == 0, res.output
+    header, rows = _read_csv(tmp_path / "bench.csv")
+    assert header == bm.BENCH_COLUMNS
+    assert [r["setting"] for r in rows] == ["reference", "reference_check", "default"]
+    ref, check, default = rows
+    assert float(check["time_step_s"]) == pytest.approx(0.5 * float(ref["time_step_s"]))
+    assert float(check["tolerance"]) == pytest.approx(float(ref["tolerance"]))
+    assert float(check["err_max_check"]) == 0.0 and check["pareto"] == "0"
+    e_ref, e_default = float(ref["err_max_check"]), float(default["err_max_check"])
+    assert 0.0 < e_ref < e_default
+    assert 2.0 < e_default / e_ref < 4.5, (e_default, e_ref)
+    assert "reference check (time step x0.25" in res.output and "check %" in res.output
+
+
 def test_bench_refuses_a_non_empty_folder_and_a_missing_case(tmp_path):
     (tmp_path / "full").mkdir()
     (tmp_path / "full" / "bench.csv").write_text("")
