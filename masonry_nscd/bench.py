@@ -851,7 +851,12 @@ def bench(case_path: Path | str, outdir: Path | str, *, overrides: Sequence[str]
          f"{ref_setting.description}")
     rows: list[BenchRow] = []
     ref_curve = ref_scene = None
-    done: list[tuple[BenchRow, Any, Any]] = []  # (row, curve, scene) of the runs made so far
+    check_run = None  # (curve, scene) of the reference's own reference, once it finished
+
+    def against_check(c, sc) -> float:
+        return errors_against(c, check_run[0], target_mm, start_s, sc,
+                              check_run[1]).get("err_max", math.nan)
+
     for s in settings:
         all_overrides = [*overrides, *s.overrides]
         row = new_row(load_case(case_path, all_overrides), s)
@@ -873,17 +878,12 @@ def bench(case_path: Path | str, outdir: Path | str, *, overrides: Sequence[str]
             ref_curve, ref_scene = curve, scene
         fill_curve(row, curve, ref_curve, target_mm, start_s, scene, ref_scene)
         rows.append(row)
-        done.append((row, curve, scene))
-        if check is not None and row.status == "ok" and curve:
-            if s is check:  # the reference's own error, and the check's (0)
-                for r, c, sc in done:
-                    if r.status == "ok" and c:
-                        r.err_max_check = errors_against(c, curve, target_mm, start_s, sc,
-                                                         scene).get("err_max", math.nan)
-            elif s is not ref_setting and done[1][0].status == "ok":
-                _, check_curve, check_scene = done[1]
-                row.err_max_check = errors_against(curve, check_curve, target_mm, start_s,
-                                                   scene, check_scene).get("err_max", math.nan)
+        if s is check and row.status == "ok" and curve:
+            check_run = (curve, scene)
+            if ref_curve is not None:  # the reference's own error (rows[0] is its row)
+                rows[0].err_max_check = against_check(ref_curve, ref_scene)
+        if check_run is not None and row.status == "ok" and curve:
+            row.err_max_check = against_check(curve, scene)
         write_rows(outdir / "bench.csv", rows, BENCH_COLUMNS)
         echo(progress_line(row))
     mark_pareto(rows)
