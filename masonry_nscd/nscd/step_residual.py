@@ -374,5 +374,5 @@ class StepResidual:
         contacts' rows), for the solver's trace."""
         d = den if den > 0 else math.inf
         h, F = self.sys.h, ev.F
-        return (math.sqrt(num / d), math.sqrt(np.sum(F[:self.nf] ** 2) / d) / h,
+        return (math.sqrt(num / d), math.sqrt(ev.momentum_sq / d) / h,
                 math.sqrt(self.scales.rigid_sq(F) / d) / h)
