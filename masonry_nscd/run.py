@@ -268,7 +268,9 @@ class _StepNotes:
             self.subdivided += 1
             cycled = ""
             if counts["cycles"] > before["cycles"]:
-                cycled = " (Newton's iterations cycled: an iterate met three times)"
+                from masonry_nscd.nscd.newton import CYCLE_VISITS
+                cycled = (" (Newton's iterations cycled: an iterate met "
+                          f"{CYCLE_VISITS} times)")
             why = (f"not converged with h = {solver.h:g} s{cycled}, made again" if rep.tried_h
                    else f"made at once{cycled}")
             log(f"step {rep.step} (t = {rep.time:.4f} s): {why} as {rep.substeps} smaller "

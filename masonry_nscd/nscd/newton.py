@@ -276,6 +276,9 @@ class _Stall:
         return False
 
 
+CYCLE_VISITS = 3  # an iterate met this many times in one step closes a cycle (count)
+
+
 class _Cycle:
     """Whether Newton's iterations cycle: an iterate met for the ``visits``-th time in one
     step, "the same" meaning the same merit norm and the same convergence measure within a
@@ -284,10 +287,10 @@ class _Cycle:
     taken whole, far away, and the next iterations lead back, until the iteration cap
     (docs/performance.md, session 25). The iterates close in on a periodic orbit: the first
     pass through it differs from the second by some 1e-4 (the matrix's age, the counters), the
-    later passes from each other by 1e-8 and less. Such a step is given up at its third visit
-    and made again as halves, as it would be after the cap."""
+    later passes from each other by 1e-8 and less. Such a step is given up at its
+    ``CYCLE_VISITS``-th visit and made again as halves, as it would be after the cap."""
 
-    def __init__(self, visits: int = 3, rtol: float = 1e-6):
+    def __init__(self, visits: int = CYCLE_VISITS, rtol: float = 1e-6):
         self.visits, self.rtol = visits, rtol
         self.seen: list[list[float]] = []  # [norm, measure, times met]
 
