@@ -135,7 +135,11 @@ def test_clamped_courses_meet_the_wall_through_mortar_joints():
 
 
 @pytest.mark.parametrize("case_file, target, extra", [
-    ("cases/brick_wall_pattern.yaml", 0.5e-3, []),
+    # past U_x = 0.93 mm, where the brick wall's joints give way one after another in a step
+    # that Newton solves only from the free velocities (Integrator._newton_solve): before
+    # that second start, two steps there were left at residuals of 2.3e-2 and 5.7e-2, and
+    # the force fell from 48.6 to 35.6 kN
+    ("cases/brick_wall_pattern.yaml", 1.2e-3, []),
     ("cases/wall_window.yaml", 0.3e-3, []),
 ])
 def test_the_new_cases_run_to_their_target(tmp_path, case_file, target, extra):
@@ -148,6 +152,11 @@ def test_the_new_cases_run_to_their_target(tmp_path, case_file, target, extra):
     assert s["target_reached"] and s["unconverged_steps"] == 0
     assert s["force_at_target_kN"] > 0.0
     scene = json.loads((out / "scene.json").read_text())
+    if "brick" in case_file:
+        # the top beam held: the wall cannot dilate, so past the joints' failure the force
+        # rises again (docs/validation.md) instead of dropping
+        c = read_curve_csv(out / "force_displacement.csv")
+        assert s["force_at_target_kN"] > c["fx_kN"][c["ux_mm"] <= 0.8].max()
     if "window" in case_file:
         names = [b["name"] for b in scene["structure"]]
         assert "lintel over opening 1" in names and len(names) == 63

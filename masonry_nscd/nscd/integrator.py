@@ -6,8 +6,10 @@
 2. free velocities of every body (``_free_velocity``), imposed velocities set;
 3. local free velocities of the contact points;
 4. the contact problem, by semi-smooth Newton on the whole step (``newton.NewtonSolver``, the
-   default; finished by Gauss-Seidel sweeps when it does not converge, elastic blocks only) or
-   by non-linear Gauss-Seidel (``kernels.nlgs``), warm-started from the previous step;
+   default; in a step that will not be subdivided, started again from the free velocities and
+   then finished by Gauss-Seidel sweeps when it does not converge, ``_newton_solve``, elastic
+   blocks only for the sweeps) or by non-linear Gauss-Seidel (``kernels.nlgs``), warm-started
+   from the previous step;
 5. velocities, displacements, local relative displacements, joint and ENDO3D states updated.
 
 ENDO3D blocks enter the Newton residual through their internal forces, and its matrix through
@@ -168,10 +170,10 @@ class Integrator:
         # ``step_limit(t)``: the latest time (s) a step starting at t may end at (the next
         # change of the supports, the end of the loading); None: no bound
         self.step_limit = step_limit
-        # finish a step that Newton did not converge with Gauss-Seidel sweeps (when it will not
-        # be subdivided and has no ENDO3D blocks); not in a rung, whose failed step is made
-        # again smaller
-        self.finish_by_sweeps = True
+        # a step that Newton did not converge and that will not be subdivided gets the last
+        # resorts: a second start (``_newton_solve``), then Gauss-Seidel sweeps (no ENDO3D
+        # blocks); not in a rung, whose failed step is made again smaller
+        self.last_resorts = True
         self.bodies = bodies
         self.points = points
         self.params = np.ascontiguousarray(np.atleast_2d(params), dtype=float)
@@ -396,7 +398,7 @@ class Integrator:
             rung = Integrator(self.bodies, self.points, self.params, self.loads,
                               h=self.sys.h * (1 << k), layout=self.sys,
                               **{**self._half_args, "max_halvings": 0})
-            rung.finish_by_sweeps = False
+            rung.last_resorts = False
             if rung.newton is not None:
                 rung.newton.max_iterations = min(rung.newton.max_iterations,
                                                  4 * self.control.easy_iterations)
@@ -508,14 +510,11 @@ class Integrator:
             v_free[free] += C @ (v_free[imposed] - self.v[imposed])
         j = self.joints
         if self.newton is not None:
-            corr = None if self.material is None else MaterialCorrection(self, fint, F1)
-            v1, T, uc, beta, status, sweeps, residual = self.newton.solve(
-                v_free, j.u, j.U, self.params, j.uc, j.beta, j.T, self._dv, correction=corr,
-                t_end=t1)
+            v1, T, uc, beta, status, sweeps, residual = self._newton_solve(v_free, fint, F1, t1)
             self._dv = v1 - v_free
             amb = int(np.sum(status == laws.ST_AMBIGUOUS))
         if self.newton is None or (residual > self.tolerance and self.material is None
-                                   and not self.max_halvings and self.finish_by_sweeps):
+                                   and not self.max_halvings and self.last_resorts):
             # Gauss-Seidel sweeps: the solver of the case, or the end of a step that Newton
             # did not finish and that will not be subdivided (warm-started from its last
             # tractions; not with ENDO3D blocks, whose material correction only the Newton
@@ -565,6 +564,39 @@ class Integrator:
         return StepReport(self.step_index, t1, int(sweeps), float(residual),
                           bool(residual <= self.tolerance and failures == 0), int(amb),
                           failures, failure_at, damage_growth=growth)
+
+    def _newton_solve(self, v_free: np.ndarray, fint: np.ndarray, F1: np.ndarray,
+                      t1: float) -> tuple:
+        """Newton's solve of the step ending at ``t1`` (``NewtonSolver.solve``'s tuple, the
+        iterations of both attempts counted).
+
+        Newton starts from the last two steps' solutions extrapolated to ``t1``. Where a step
+        is made for good (it will not be subdivided and is not an adaptive rung's attempt) and
+        Newton did not converge from there, it is solved again from ``v_free`` plus the last
+        step's impulses, and the attempt of the smaller residual is kept. At a sudden failure
+        (the brick wall's joints giving way one after the other at U_x = 0.93 mm) the
+        extrapolation of the steps before it points away from the solution, and without this
+        second start the step was left unconverged (docs/performance.md)."""
+        j = self.joints
+
+        def solve():
+            corr = None if self.material is None else MaterialCorrection(self, fint, F1)
+            return self.newton.solve(v_free, j.u, j.U, self.params, j.uc, j.beta, j.T,
+                                     self._dv, correction=corr, t_end=t1)
+
+        before = self.newton.remembered()
+        first = solve()
+        if (first[-1] <= self.tolerance or self.max_halvings or not self.last_resorts
+                or not self.newton.extrapolates(before)):
+            return first
+        after = self.newton.remembered()
+        self.newton.remember([])
+        second = solve()
+        its = first[5] + second[5]
+        if second[-1] < first[-1]:
+            return (*second[:5], its, second[-1])
+        self.newton.remember(after)
+        return (*first[:5], its, first[-1])
 
     def _damage_growth(self, beta0: np.ndarray, damages0: np.ndarray | None) -> float:
         """The largest loss of integrity of a joint point and growth of an ENDO3D damage of a

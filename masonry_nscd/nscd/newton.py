@@ -676,6 +676,12 @@ class NewtonSolver:
         :meth:`remember`)."""
         return list(self._solutions)
 
+    @staticmethod
+    def extrapolates(solutions: list) -> bool:
+        """Whether a step predicted from ``solutions`` (:meth:`remembered`) starts from their
+        extrapolation (:meth:`_predict`) rather than from the free velocities."""
+        return len(solutions) == 2
+
     def remember(self, solutions: list) -> None:
         """Predict the next step from ``solutions`` (:meth:`remembered` of a solver of the same
         scene, of any step size: the predictor extrapolates along the time); ``[]``: from the
@@ -905,7 +911,7 @@ class NewtonSolver:
         s = self.sys
         h = s.h
         g = self.mult
-        if len(self._solutions) == 2:
+        if self.extrapolates(self._solutions):
             # the solution of the step extrapolated linearly from the last two: in a slow,
             # smooth loading both change at a steady rate (measured on the reference wall: the
             # second iterate moves the tractions by 2e-5 instead of 1.3e-3, one iteration less);
