@@ -750,6 +750,51 @@ SchedulerOption = Annotated[str | None, typer.Option(
     "local processes; OUTDIR must be on a file system the workers share.")]
 
 
+@app.command("check-cases")
+def check_cases_cmd(
+    case_files: Annotated[list[Path] | None, typer.Argument(
+        metavar="[CASE.yaml]...", help="The cases (default: every cases/*.yaml).")] = None,
+    output: Annotated[Path | None, typer.Option(
+        "-o", "--output", metavar="OUTDIR",
+        help="Folder of check.csv and the runs (default results/check-cases/).")] = None,
+    rtol: Annotated[float, typer.Option(
+        "--rtol", metavar="R", help="Largest change of a curve's column against the record, "
+        "relative to the column's largest magnitude.")] = 1e-3,
+    write_record: Annotated[bool, typer.Option(
+        "--write-record", help="Write the records from these runs instead of checking them "
+        "(refused for a run with unconverged steps).")] = False,
+    record: Annotated[Path | None, typer.Option(
+        "--record", metavar="DIR", help="Folder of the records (default cases/record/).")
+    ] = None,
+    overrides: SetOption = None,
+    overwrite: OverwriteOption = False,
+) -> None:
+    """Run every shipped case to its end, each in a fresh process without field outputs, and
+    compare it with its record: every step converged, the curve within --rtol, the run time
+    beside the record's. Writes OUTDIR/check.csv; exit 1 if a case failed, did not converge,
+    changed or has no record."""
+    from masonry_nscd import case_check as cc
+
+    if not rtol > 0.0:
+        _fail(f"--rtol must be > 0, got {rtol}", 2)
+    cases = list(case_files) if case_files else cc.shipped_cases()
+    missing = [str(c) for c in cases if not c.is_file()]
+    if missing:
+        _fail("no such case file: " + ", ".join(missing), 2)
+    outdir = _study_outdir(output, Path("results") / "check-cases", overwrite)
+    try:
+        rows = cc.check_cases(cases, outdir, record_dir=record or cc.RECORD_DIR, rtol=rtol,
+                              write=write_record, overrides=list(overrides or ()),
+                              echo=typer.echo)
+    except KeyboardInterrupt:
+        _fail(f"interrupted; the cases done so far are in {outdir / 'check.csv'}", 130)
+    typer.echo(f"wrote {outdir / 'check.csv'}")
+    if not cc.passed(rows):
+        bad = [r for r in rows if r.status not in ("ok", "written")]
+        _fail(f"{len(bad)} of {len(rows)} cases did not pass: "
+              + ", ".join(f"{r.case} ({r.status})" for r in bad), 1)
+
+
 @app.command("sweep")
 def sweep_cmd(
     case_file: Annotated[Path, typer.Argument(metavar="CASE.yaml", help="The case file (YAML).")],
