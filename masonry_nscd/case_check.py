@@ -79,12 +79,13 @@ def reduce_curve(curve: dict[str, np.ndarray], rows: int = RECORD_ROWS) -> dict[
 def curve_deviation(record: dict[str, np.ndarray],
                     curve: dict[str, np.ndarray]) -> tuple[float, str]:
     """The largest ``|curve - record| / max|record|`` over :data:`CURVE_COLUMNS`, the curve
-    read at the record's times, and its column; ``(inf, "time_s")`` when the runs end at
-    different times (one stopped early, or went on)."""
+    read at the record's times, and its column (``""`` when every column is the same);
+    ``(inf, "time_s")`` when the runs end at different times (one stopped early, or went
+    on)."""
     t_rec, t = record["time_s"], curve["time_s"]
     if len(t) == 0 or not math.isclose(t[-1], t_rec[-1], rel_tol=1e-9, abs_tol=1e-12):
         return math.inf, "time_s"
-    worst, where = 0.0, CURVE_COLUMNS[0]
+    worst, where = 0.0, ""
     for c in CURVE_COLUMNS:
         scale = float(np.max(np.abs(record[c]), initial=0.0))
         if scale == 0.0:
@@ -198,13 +199,13 @@ def check_cases(cases: Sequence[Path], outdir: Path, *, record_dir: Path = RECOR
 def format_row(r: CaseCheck) -> str:
     """One case in a line: status, times, steps, deviation."""
     rec = f" (record {r.record_run_s:.1f} s)" if math.isfinite(r.record_run_s) else ""
-    dev = (f", largest change {r.deviation:.2g} ({r.column})"
-           if not math.isnan(r.deviation) else "")
+    dev = ("" if math.isnan(r.deviation) else ", the same curve" if r.deviation == 0.0
+           else f", largest change {r.deviation:.2g} ({r.column})")
     note = f": {r.note}" if r.note else ""
     return (f"{r.case}: {r.status}, {r.run_s:.1f} s{rec}, {r.steps} steps, "
             f"{r.unconverged_steps} not converged{dev}{note}")
 
 
-def passed(rows: Sequence[CaseCheck]) -> bool:
-    """Whether every case was ok (or recorded)."""
-    return all(r.status in ("ok", "written") for r in rows)
+def failing(rows: Sequence[CaseCheck]) -> list[CaseCheck]:
+    """The cases that were neither ok nor recorded."""
+    return [r for r in rows if r.status not in ("ok", "written")]

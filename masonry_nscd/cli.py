@@ -789,8 +789,8 @@ def check_cases_cmd(
     except KeyboardInterrupt:
         _fail(f"interrupted; the cases done so far are in {outdir / 'check.csv'}", 130)
     typer.echo(f"wrote {outdir / 'check.csv'}")
-    if not cc.passed(rows):
-        bad = [r for r in rows if r.status not in ("ok", "written")]
+    bad = cc.failing(rows)
+    if bad:
         _fail(f"{len(bad)} of {len(rows)} cases did not pass: "
               + ", ".join(f"{r.case} ({r.status})" for r in bad), 1)
 
