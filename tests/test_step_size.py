@@ -12,6 +12,7 @@ from masonry_nscd.io.recorder import read_resume_point
 from masonry_nscd.io.results_h5 import read_results
 from masonry_nscd.nscd.step_size import StepSizeControl
 from masonry_nscd.run import run_case
+from masonry_nscd.scenes import build_scene
 
 SMOKE = "cases/smoke.yaml"  # h = 2e-3 s, tolerance 1e-8, fields every 10 steps
 H = 2e-3
@@ -173,6 +174,35 @@ def test_adaptive_fields_are_written_at_the_times_asked_for(runs):
     assert np.allclose(t_adaptive[:-1], t_fixed[:len(t_adaptive) - 1], rtol=0, atol=1e-9)
     n = np.array(t_adaptive[:-1]) / (8 * H)
     assert np.allclose(n, np.round(n), rtol=0, atol=1e-6)
+
+
+def test_adaptive_steps_are_of_h_where_a_cyclic_path_turns(tmp_path):
+    """One cycle of +-0.5 then +-1 mm of the smoke wall with steps up to 8 h: every step that
+    ends inside a turn of the path (a tanh ramp of 20 ms around each corner) or crosses into
+    one is of h, so that the beam stops at the amplitudes as with every step of h (the path
+    turns exactly at them, loading/histories.py), and larger steps are taken between turns."""
+    sets = ["loading.horizontal.history=cyclic", "loading.horizontal.ramp_s=0.02",
+            "loading.horizontal.rate_m_s=0.005", "loading.horizontal.amplitudes_m=[0.5e-3,1e-3]",
+            "output.hdf5=false"]
+    res_h, fixed = _run(tmp_path, "fixed", sets)
+    res, b = _run(tmp_path, "adaptive", [*sets, "solver.max_time_step_s=1.6e-2"])
+    assert res.unconverged_steps == 0 and res.steps < res_h.steps
+    scene = build_scene(load_case(SMOKE, sets))
+    turns = scene.turns_s
+    assert len(turns) == 6  # from rest, four reversals, to rest
+    end, span = b["time_s"], b["time_step_s"]
+    start = end - span
+    crosses = np.array([any(s0 < t1 - 1e-12 and e0 > t0 + 1e-12 for t0, t1 in turns)
+                        for s0, e0 in zip(start, end, strict=True)])
+    assert crosses.sum() > 20 and np.allclose(span[crosses], H, rtol=1e-12)
+    assert span.max() >= 4 * H - 1e-12
+    for amp in (0.5, 1.0):  # mm
+        for sign in (1.0, -1.0):
+            near = np.abs(fixed["ux_mm"] - sign * amp) < 0.05 * amp
+            near_b = np.abs(b["ux_mm"] - sign * amp) < 0.05 * amp
+            extreme = (lambda u: u.max()) if sign > 0 else (lambda u: u.min())
+            assert extreme(b["ux_mm"][near_b]) == pytest.approx(
+                extreme(fixed["ux_mm"][near]), abs=1e-6 * amp)
 
 
 def test_a_failed_large_step_is_made_again_smaller(tmp_path):

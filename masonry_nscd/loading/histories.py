@@ -162,6 +162,14 @@ class DisplacementHistory:
     cycles: tuple[Cycle, ...] = ()
     path: SmoothPath | None = None
 
+    def turns_s(self) -> tuple[tuple[float, float], ...]:
+        """The windows ``(t_k - r/2, t_k + r/2)`` (s) in which the velocity changes, one per
+        corner of the path (none for the monotonic push, whose one ramp is at its start)."""
+        if self.path is None:
+            return ()
+        half = 0.5 * self.path.ramp_s
+        return tuple((float(t) - half, float(t) + half) for t in self.path.corners_s)
+
     def info(self) -> dict:
         """What the run folder keeps of the history (``scene.json``, SI units)."""
         return {"kind": self.kind, "end_s": self.end_s,

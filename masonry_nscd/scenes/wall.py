@@ -90,7 +90,7 @@ def build_wall(case) -> Scene:
         structure=list(range(n_units)), body_info=info, driven=push.driven,
         reactions=reactions, stages=push.stages, push_stage=push.name, target_m=push.target_m,
         expected_end_s=push.end_s, time_limit_s=push.limit_s, holds=holds,
-        history=push.history, measured=push.measured, meta=meta,
+        history=push.history, turns_s=push.turns_s, measured=push.measured, meta=meta,
     )
 
 
@@ -258,6 +258,7 @@ class _Push(NamedTuple):
     history: dict
     measured: tuple | None
     measured_what: str | None  # the scene's ``meta["measured"]`` (None: the driven beam)
+    turns_s: tuple = ()  # the scene's ``turns_s``
 
 
 def _push_stage(case, rig: _Rig, bodies: list, dof0: np.ndarray, top_course: list[int],
@@ -277,7 +278,7 @@ def _push_stage(case, rig: _Rig, bodies: list, dof0: np.ndarray, top_course: lis
             target, end, limit = None, history.end_s, history.end_s
         stages.append(Stage("horizontal", hz.start_s))
         return _Push(stages, "horizontal", i_up, target, end, limit, history.info(), None,
-                     None)
+                     None, history.turns_s())
     # run to the end of the record; drift relative to the base
     gm = ld.ground_motion
     stages.append(Stage("ground_motion", gm.start_s))
