@@ -24,7 +24,8 @@ Steps stay on the grid of ``h``: a step of level ``k`` starts at a multiple of `
 the number of steps of ``h`` from ``t = 0``, is a multiple of ``2^k``), so that a step never
 crosses a multiple of ``h 2^max_level``; outputs every ``m`` steps of ``h`` with ``m`` a multiple
 of ``2^max_level`` therefore fall on the end of a step. A step also never ends after a given
-limit (the next change of the supports, the end of the loading).
+limit (the next change of the supports, the end of the loading, the start of a turn of a cyclic
+or tabulated path, through which the steps are of ``h``: ``Scene.step_limit_s``).
 """
 
 from __future__ import annotations

@@ -190,9 +190,8 @@ class Scene:
     def _turn_limit_s(self, t: float) -> float:
         """The bound that ``turns_s`` puts on a step starting at ``t``: ``t + h`` inside a
         window, the window's start (on the grid of h) before it. A large step across a turn
-        would sample the turning velocity at its end only and cut the corner: on the cyclic
-        study wall, steps of 1.6e-2 s stopped short of the amplitudes by up to 0.006 mm
-        (0.3 %), against 0.0002 mm with every step of h (docs/performance.md)."""
+        ends where it ends, and the run's largest displacement in a cycle stops short of the
+        amplitude (docs/performance.md, session 27)."""
         h = self.solver.h
         i = bisect.bisect_right(self._turn_ends, t + 1e-9 * h)  # the first window not over
         if i == len(self.turns_s):
