@@ -115,16 +115,22 @@ def _git_commit() -> str:
     return out.stdout.strip() or "unknown"
 
 
+def log_path(run_dir: Path) -> Path:
+    """The log of the process that made ``run_dir``: ``run_dir`` + ``.log`` (not
+    ``with_suffix``, which would take ``wall_0.5MPa``'s ``.5MPa`` for a suffix)."""
+    return run_dir.with_name(run_dir.name + ".log")
+
+
 def run_case_process(case: Path, outdir: Path, overrides: Sequence[str]) -> tuple[int, float]:
     """``masonry run CASE -o OUTDIR`` without field outputs, in a fresh process: its exit code
-    and wall clock (s). Its log is ``OUTDIR.log``."""
+    and wall clock (s). Its log is :func:`log_path`."""
     from masonry_nscd.bench import masonry_command
 
     argv = [*masonry_command(), "run", str(case), "-o", str(outdir), "--overwrite"]
     for item in (*NO_FIELDS, *overrides):
         argv += ["--set", item]
     t0 = time.perf_counter()
-    with open(outdir.with_suffix(".log"), "w") as log:
+    with open(log_path(outdir), "w") as log:
         code = subprocess.run(argv, stdout=log, stderr=subprocess.STDOUT, check=False).returncode
     return code, time.perf_counter() - t0
 
@@ -139,7 +145,7 @@ def check_case(case: Path, outdir: Path, record_dir: Path, runs: dict, *, rtol: 
     out = CaseCheck(name, "ok", seconds, float(recorded.get("run_s", math.nan)), 0, 0,
                     math.nan, "", "")
     if code != 0 or not (run_dir / SUMMARY).exists():
-        out.status, out.note = "failed", f"masonry run exited {code}: {run_dir}.log"
+        out.status, out.note = "failed", f"masonry run exited {code}: {log_path(run_dir)}"
         return out
     summary = json.loads((run_dir / SUMMARY).read_text())
     out.steps, out.unconverged_steps = int(summary["steps"]), int(summary["unconverged_steps"])
@@ -147,7 +153,7 @@ def check_case(case: Path, outdir: Path, record_dir: Path, runs: dict, *, rtol: 
     if out.unconverged_steps:
         out.status = "unconverged"
         out.note = (f"{out.unconverged_steps} steps not converged (worst residual "
-                    f"{summary['worst_residual']:.3g}): {run_dir}.log")
+                    f"{summary['worst_residual']:.3g}): {log_path(run_dir)}")
     if write:
         if out.status == "ok":
             write_curve(record_dir / f"{name}.csv", reduce_curve(curve))

@@ -5,11 +5,12 @@ from __future__ import annotations
 import csv
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 from typer.testing import CliRunner
 
-from masonry_nscd.case_check import curve_deviation, reduce_curve
+from masonry_nscd.case_check import curve_deviation, log_path, reduce_curve
 from masonry_nscd.cli import app
 from masonry_nscd.io.runfolder import read_curve_csv
 
@@ -48,6 +49,14 @@ def test_the_reduced_curve_keeps_the_ends_and_the_largest_force():
     assert len(r["time_s"]) <= 22
     assert r["time_s"][0] == c["time_s"][0] and r["time_s"][-1] == c["time_s"][-1]
     assert 500.0 in r["fx_kN"]
+
+
+def test_each_case_has_its_own_log():
+    """The study's walls differ after their last dot (``wall_0.3MPa``, ``wall_0.5MPa``)."""
+    logs = {log_path(Path("out") / name) for name in ("wall_0.3MPa", "wall_0.5MPa",
+                                                       "wall_0.5MPa_cyclic")}
+    assert logs == {Path("out/wall_0.3MPa.log"), Path("out/wall_0.5MPa.log"),
+                    Path("out/wall_0.5MPa_cyclic.log")}
 
 
 def _check(tmp_path, *extra):
@@ -101,6 +110,7 @@ def test_unconverged_and_failed_runs_do_not_pass(tmp_path):
     res = _check(tmp_path, "--write-record", "--set", "solver.tolerance=1e-12", "--set",
                  "solver.max_step_halvings=0", "--set", "solver.max_iterations=20")
     assert res.exit_code == 1 and "smoke (unconverged)" in res.output
+    assert (tmp_path / "out" / "smoke.log").read_text().count("not converged") >= 2
     assert not (tmp_path / "record" / "smoke.csv").exists()
     # two iterations per step: the run stops with a solver failure
     res = _check(tmp_path, "--set", "solver.max_iterations=2", "--set", "solver.check_every=1")
