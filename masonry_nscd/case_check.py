@@ -186,7 +186,8 @@ def check_cases(cases: Sequence[Path], outdir: Path, *, record_dir: Path = RECOR
     from masonry_nscd.bench import write_rows
 
     outdir.mkdir(parents=True, exist_ok=True)
-    record_dir.mkdir(parents=True, exist_ok=True)
+    if write:
+        record_dir.mkdir(parents=True, exist_ok=True)
     runs_path = record_dir / RUNS
     runs = json.loads(runs_path.read_text()) if runs_path.exists() else {}
     rows: list[CaseCheck] = []
