@@ -6,7 +6,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 CASE   ?= cases/wall_0.5MPa.yaml
 
-.PHONY: run test venv lint clean-cache
+.PHONY: run test check-cases venv lint clean-cache
 
 $(BIN)/masonry: pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -21,6 +21,9 @@ run: venv
 
 test: venv
 	$(BIN)/python -m pytest -q
+
+check-cases: venv
+	$(BIN)/masonry check-cases --overwrite
 
 lint: venv
 	$(BIN)/ruff check masonry_nscd tests
