@@ -514,7 +514,7 @@ class Integrator:
             self._dv = v1 - v_free
             amb = int(np.sum(status == laws.ST_AMBIGUOUS))
         if self.newton is None or (residual > self.tolerance and self.material is None
-                                   and not self.max_halvings and self.last_resorts):
+                                   and self._for_good()):
             # Gauss-Seidel sweeps: the solver of the case, or the end of a step that Newton
             # did not finish and that will not be subdivided (warm-started from its last
             # tractions; not with ENDO3D blocks, whose material correction only the Newton
@@ -565,6 +565,11 @@ class Integrator:
                           bool(residual <= self.tolerance and failures == 0), int(amb),
                           failures, failure_at, damage_growth=growth)
 
+    def _for_good(self) -> bool:
+        """Whether a step of this integrator is made for good: it will not be subdivided
+        (no halvings left) and is not an adaptive rung's attempt (``last_resorts``)."""
+        return not self.max_halvings and self.last_resorts
+
     def _newton_solve(self, v_free: np.ndarray, fint: np.ndarray, F1: np.ndarray,
                       t1: float) -> tuple:
         """Newton's solve of the step ending at ``t1`` (``NewtonSolver.solve``'s tuple, the
@@ -586,7 +591,7 @@ class Integrator:
 
         before = self.newton.remembered()
         first = solve()
-        if (first[-1] <= self.tolerance or self.max_halvings or not self.last_resorts
+        if (first[-1] <= self.tolerance or not self._for_good()
                 or not self.newton.extrapolates(before)):
             return first
         after = self.newton.remembered()

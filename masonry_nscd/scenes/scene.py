@@ -178,8 +178,7 @@ class Scene:
         limit = self.expected_end_s if t < self.expected_end_s - 1e-9 * h else self.time_limit_s
         if self.target_m is not None and self.solver.max_growth:
             approach = self.expected_end_s - h * (1 << self.solver.max_growth)
-            limit = min(limit, t + h if t >= approach - 1e-9 * h
-                        else max(math.floor(approach / h + 1e-9) * h, t + h))
+            limit = min(limit, self._steps_of_h_from(approach, t))
         for hd in self.holds:
             if hd not in self.holds_at(t):
                 limit = min(limit, math.floor(hd.from_s / h + 1e-9) * h)
@@ -196,10 +195,16 @@ class Scene:
         i = bisect.bisect_right(self._turn_ends, t + 1e-9 * h)  # the first window not over
         if i == len(self.turns_s):
             return math.inf
-        start = self.turns_s[i][0]
-        if t >= start - 1e-9 * h:
+        return self._steps_of_h_from(self.turns_s[i][0], t)
+
+    def _steps_of_h_from(self, a: float, t: float) -> float:
+        """The bound on a step starting at ``t`` where every step from ``a`` (s) on is of
+        ``h``: ``t + h`` once there, before it the last time of the grid of ``h`` at or
+        before ``a`` (at least ``t + h``)."""
+        h = self.solver.h
+        if t >= a - 1e-9 * h:
             return t + h
-        return max(math.floor(start / h + 1e-9) * h, t + h)
+        return max(math.floor(a / h + 1e-9) * h, t + h)
 
     @functools.cached_property
     def _turn_ends(self) -> list[float]:
