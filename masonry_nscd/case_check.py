@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from masonry_nscd.io.atomic import atomic_write
 from masonry_nscd.io.runfolder import CSV, SUMMARY, read_curve_csv
 
 CASES_DIR = Path(__file__).resolve().parents[1] / "cases"
@@ -99,11 +100,13 @@ def curve_deviation(record: dict[str, np.ndarray],
 
 
 def write_curve(path: Path, curve: dict[str, np.ndarray]) -> None:
-    """A reduced curve as CSV, the columns of ``force_displacement.csv``'s names."""
+    """A reduced curve as CSV, the columns of ``force_displacement.csv``'s names (written
+    whole or not at all, as every file of the records)."""
     cols = ("time_s", *CURVE_COLUMNS)
     lines = [",".join(cols)]
     lines += [",".join(f"{curve[c][i]:.10g}" for c in cols) for i in range(len(curve["time_s"]))]
-    path.write_text("\n".join(lines) + "\n")
+    text = "\n".join(lines) + "\n"
+    atomic_write(path, lambda tmp: Path(tmp).write_text(text))
 
 
 def _git_commit() -> str:
@@ -199,7 +202,8 @@ def check_cases(cases: Sequence[Path], outdir: Path, *, record_dir: Path = RECOR
         echo("  " + format_row(row))
         write_rows(outdir / "check.csv", rows, [f.name for f in fields(CaseCheck)])
         if write:
-            runs_path.write_text(json.dumps(runs, indent=1, sort_keys=True) + "\n")
+            text = json.dumps(runs, indent=1, sort_keys=True) + "\n"
+            atomic_write(runs_path, lambda tmp, text=text: Path(tmp).write_text(text))
     return rows
 
 
