@@ -347,12 +347,17 @@ def _stepped_integrator(steps: int, sets=()):
     return integ
 
 
-def test_checkpoint_round_trip_and_next_step(tmp_path):
-    a = _stepped_integrator(12)
+@pytest.mark.parametrize("sets", [(), ("blocks.material=endo3d",)])
+def test_checkpoint_round_trip_and_next_step(tmp_path, sets):
+    # with ENDO3D blocks the state holds the Gauss points' ENDO3D stresses too, where the
+    # viscous relaxation of the next step starts from
+    a = _stepped_integrator(12, sets)
     save_checkpoint(tmp_path / "c.npz", a, {"note": np.array("hello"), "n": np.int64(3)})
     state, extra = load_checkpoint(tmp_path / "c.npz")
     assert str(extra["note"]) == "hello" and int(extra["n"]) == 3
-    b = _stepped_integrator(0)
+    if sets:
+        assert np.abs(state["material_sigma_endo3d"]).max() > 1e3  # under gravity (Pa)
+    b = _stepped_integrator(0, sets)
     restore_integrator(b, state)
     for k, v in integrator_state(a).items():
         assert np.array_equal(integrator_state(b)[k], v), k

@@ -23,15 +23,28 @@ elastic never call ENDO3D.
 Gauss point relaxes towards the ENDO3D stress (Duvaut-Lions),
 
     d sigma / dt = C0 d eps / dt - (sigma - sigma_endo3d) / tau,
-    sigma_n+1 = [ sigma_n + C0 (eps_n+1 - eps_n) + (h / tau) sigma_endo3d(eps_n+1) ] / (1 + h / tau),
 
-with the internal variables (damages, plastic strains, crack openings) those of ENDO3D. The
-tangent becomes ``(C0 + (h / tau) C_endo3d) / (1 + h / tau)``: positive when
-``tau > h S / E`` for a softening slope ``-S``. Where two Gauss points soften together (the two
+with the internal variables (damages, plastic strains, crack openings) those of ENDO3D. Over a
+step in which ``eps`` and ``sigma_endo3d`` go linearly from their values at the start (``_n``)
+to those at the end (``_n+1``), the overstress ``x = sigma - sigma_endo3d`` obeys
+``dx/dt = (C0 d eps - d sigma_endo3d) / h - x / tau``, whose exact solution gives, with
+``r = h / tau``,
+
+    sigma_n+1 = sigma_endo3d,n+1 + exp(-r) (sigma_n - sigma_endo3d,n)
+                + phi (C0 (eps_n+1 - eps_n) - (sigma_endo3d,n+1 - sigma_endo3d,n)),
+    phi = (1 - exp(-r)) / r.
+
+An overstress left by a crack that opens within a step decays as ``exp(-t / tau)`` whatever
+the step. The implicit Euler rule, ``[sigma_n + C0 d eps + r sigma_endo3d,n+1] / (1 + r)``,
+would decay it by ``1 / (1 + r)`` a step, as if ``tau`` were ``h / ln(1 + r)`` (2.5 tau at
+``h = 4 tau``), and so move the post-peak events with the step (docs/choices.md); the two
+agree on a steady strain rate (overstress ``E tau d eps / dt``).
+The tangent becomes ``phi C0 + (1 - phi) C_endo3d``: positive for a softening slope ``-S``
+when ``S / E < phi / (1 - phi)`` (``> 1 / r``). Where two Gauss points soften together (the two
 layers of a block one element thick, cracking in its plane), a negative tangent lets the
 iterations jump between the symmetric solution and the one where one layer cracks alone, and
 the step does not converge; the relaxation picks the symmetric one. As ``tau -> 0`` the
-rate-independent law returns; the stress lags it by about ``E tau d eps / dt``.
+rate-independent law returns.
 """
 
 from __future__ import annotations
@@ -47,11 +60,12 @@ from masonry_nscd.model import MAT_ENDO3D, Block
 
 @njit(cache=True, nogil=True)
 def trial_forces(dN, w, edofs, u, state_in, params, xe, relax, C0, sigma_c, eps_c,
-                 eps, state_out, sigma_endo, sigma, f_e, c_e):
+                 sigma_endo_c, eps, state_out, sigma_endo, sigma, f_e, c_e):
     """A trial of the elements of the batch (arrays sliced to them; Gauss point ``8 e + g``)
     at the displacements ``u`` (m, every dof): the strains ``eps = B u_e``; the ENDO3D update
     from ``state_in`` (``state_out``, ``sigma_endo``, Pa); the stress ``sigma``, relaxed
-    towards ``sigma_endo`` when ``relax = h / tau > 0`` (module docstring) or equal to it;
+    towards ``sigma_endo`` from ``sigma_c`` and the committed ENDO3D stress ``sigma_endo_c`` when
+    ``relax = h / tau > 0`` (module docstring) or equal to it;
     the element forces ``f_e = sum_g w B^T sigma`` (N) and their departure from the linear
     forces of the step's start, ``c_e = sum_g w B^T (sigma - sigma_c - C0 (eps - eps_c))``
     (N), both (nel, 24). Returns the number of points whose return mapping did not converge.
@@ -61,6 +75,8 @@ def trial_forces(dN, w, edofs, u, state_in, params, xe, relax, C0, sigma_c, eps_
     of its rows and columns, so that the sums are those of the dense product term for term.
     """
     nfail = 0
+    decay = np.exp(-relax)  # exp(-r) and phi of the module docstring
+    phi = -np.expm1(-relax) / relax if relax > 0.0 else 1.0
     wk = np.empty((endo3d.N_WORK, 3, 3))
     ue = np.empty(24)
     d = np.empty(6)
@@ -105,7 +121,8 @@ def trial_forces(dN, w, edofs, u, state_in, params, xe, relax, C0, sigma_c, eps_
                 for j in range(6):
                     lin += C0[p, i, j] * (eps[p, j] - eps_c[p, j])
                 if relax > 0.0:
-                    sigma[p, i] = (sigma_c[p, i] + relax * sigma_endo[p, i] + lin) / (1.0 + relax)
+                    sigma[p, i] = (sigma_endo[p, i] + decay * (sigma_c[p, i] - sigma_endo_c[p, i])
+                                   + phi * (lin - sigma_endo[p, i] + sigma_endo_c[p, i]))
                 else:
                     sigma[p, i] = sigma_endo[p, i]
                 d[i] = sigma[p, i] - sigma_c[p, i] - lin
@@ -177,6 +194,8 @@ class Endo3dBlocks:
         self.sigma_committed_all = self.sigma_all.copy()
         self._eps = np.zeros((8 * nel, 6))
         self._sigma_endo3d = np.zeros((8 * nel, 6))
+        # the ENDO3D stress at the end of the last step, where the relaxation starts from
+        self.sigma_endo3d_committed_all = np.zeros((8 * nel, 6))
         self.eps_committed_all = np.zeros((8 * nel, 6))
         ne_b = [len(b.conn) for b in self.blocks]
         # where each entry of the element stiffnesses (nel, 24, 24) goes in the blocks' dense
@@ -236,7 +255,8 @@ class Endo3dBlocks:
             return trial_forces(
                 self.dN[lo:hi], self.w[lo:hi], self.edofs[lo:hi], u, self.state_all[p0:p1],
                 self.params, self.xe[lo:hi], r, self.C0[p0:p1], self.sigma_committed_all[p0:p1],
-                self.eps_committed_all[p0:p1], self._eps[p0:p1], self.trial_all[p0:p1],
+                self.eps_committed_all[p0:p1], self.sigma_endo3d_committed_all[p0:p1],
+                self._eps[p0:p1], self.trial_all[p0:p1],
                 sig_endo[p0:p1], self.sigma_all[p0:p1], f_e[lo:hi], c_e[lo:hi])
 
         def finish(failures: list[int]) -> None:
@@ -274,6 +294,8 @@ class Endo3dBlocks:
         self.state_all[:] = self.trial_all
         self.sigma_committed_all[:] = self.sigma_all
         self.eps_committed_all[:] = self._eps
+        self.sigma_endo3d_committed_all[:] = self._sigma_endo3d if self.relax > 0.0 \
+            else self.sigma_all
 
     def tangent_stiffness(self, delta: float = 1e-8) -> list[np.ndarray]:
         """Consistent tangent stiffness (3n, 3n) of each block at the last trial strains, N/m.
@@ -302,7 +324,8 @@ class Endo3dBlocks:
 
         threads.run_ranges(tangent, len(eps))
         if self.relax > 0.0:
-            C = np.ascontiguousarray((self.C0 + self.relax * C) / (1.0 + self.relax))
+            phi = -np.expm1(-self.relax) / self.relax  # module docstring
+            C = np.ascontiguousarray(phi * self.C0 + (1.0 - phi) * C)
         Ke = hex8.stiffness_from_gradients(self.dN, self.w, C)
         # the element matrices summed into each block's (entries in element order, as a
         # scatter-add per block would sum them)

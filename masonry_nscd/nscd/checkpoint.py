@@ -16,9 +16,11 @@ What a checkpoint holds (SI units, as in the integrator):
   status code);
 * ``energy`` (J): the accumulated terms of the energy balance (``nscd/energy.py``,
   ``ACCUMULATED``); a checkpoint written before it was kept resumes with them at zero;
-* ``material_state``, ``material_sigma``, ``material_eps``: the committed ENDO3D Gauss-point
-  states, apparent stresses (Pa) and strains of the ENDO3D blocks, when the scene has any (the
-  strains are where the viscous regularisation relaxes from).
+* ``material_state``, ``material_sigma``, ``material_eps``, ``material_sigma_endo3d``: the
+  committed ENDO3D Gauss-point states, apparent stresses (Pa), strains and ENDO3D stresses (Pa)
+  of the ENDO3D blocks, when the scene has any (the strains and the two stresses are where the
+  viscous regularisation relaxes from; a checkpoint written before the ENDO3D stresses were
+  kept resumes with them equal to the apparent ones: no overstress).
 
 Not saved: what the solver keeps between steps to go faster. The sparse LU of the Newton
 matrix, its iteration matrix of the ENDO3D blocks (their tangent) and the last trial states
@@ -68,6 +70,7 @@ def integrator_state(integ) -> dict[str, NDArray]:
         out["material_state"] = mat.state_all
         out["material_sigma"] = mat.sigma_committed_all
         out["material_eps"] = mat.eps_committed_all
+        out["material_sigma_endo3d"] = mat.sigma_endo3d_committed_all
     return {k: np.array(v, copy=True) for k, v in out.items()}
 
 
@@ -106,6 +109,8 @@ def restore_integrator(integ, state: Mapping[str, ArrayLike]) -> None:
         _put("material_state", mat.state_all, arr["material_state"])
         _put("material_sigma", mat.sigma_committed_all, arr["material_sigma"])
         _put("material_eps", mat.eps_committed_all, arr["material_eps"])
+        _put("material_sigma_endo3d", mat.sigma_endo3d_committed_all,
+             np.asarray(state.get("material_sigma_endo3d", arr["material_sigma"])))
         # no trial pending: the trial states and stresses equal the committed ones
         mat.trial_all[...] = mat.state_all
         mat.sigma_all[...] = mat.sigma_committed_all
