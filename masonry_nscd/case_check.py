@@ -139,8 +139,9 @@ def run_case_process(case: Path, outdir: Path, overrides: Sequence[str]) -> tupl
 
 
 def check_case(case: Path, outdir: Path, record_dir: Path, runs: dict, *, rtol: float,
-               write: bool, overrides: Sequence[str]) -> CaseCheck:
-    """Run one case and judge it against its record (or write the record, ``write``)."""
+               write: bool, overrides: Sequence[str], commit: str = "unknown") -> CaseCheck:
+    """Run one case and judge it against its record (or write the record, ``write``, with
+    ``commit``, the code it was run with)."""
     name = case.stem
     run_dir = outdir / name
     code, seconds = run_case_process(case, run_dir, overrides)
@@ -161,7 +162,7 @@ def check_case(case: Path, outdir: Path, record_dir: Path, runs: dict, *, rtol: 
         if out.status == "ok":
             write_curve(record_dir / f"{name}.csv", reduce_curve(curve))
             runs[name] = {"steps": out.steps, "run_s": round(seconds, 1),
-                          "commit": _git_commit(), "date": time.strftime("%Y-%m-%d")}
+                          "commit": commit, "date": time.strftime("%Y-%m-%d")}
             out.status = "written"
         else:
             out.note += "; no record written"
@@ -193,11 +194,14 @@ def check_cases(cases: Sequence[Path], outdir: Path, *, record_dir: Path = RECOR
         record_dir.mkdir(parents=True, exist_ok=True)
     runs_path = record_dir / RUNS
     runs = json.loads(runs_path.read_text()) if runs_path.exists() else {}
+    # the code the runs are made with: read before the first record is written, which would
+    # make every later describe say "-dirty"
+    commit = _git_commit() if write else "unknown"
     rows: list[CaseCheck] = []
     for i, case in enumerate(cases, 1):
         echo(f"[{i}/{len(cases)}] {case.stem} ...")
         row = check_case(case, outdir, record_dir, runs, rtol=rtol, write=write,
-                         overrides=overrides)
+                         overrides=overrides, commit=commit)
         rows.append(row)
         echo("  " + format_row(row))
         write_rows(outdir / "check.csv", rows, [f.name for f in fields(CaseCheck)])

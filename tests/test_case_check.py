@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 from typer.testing import CliRunner
 
+from masonry_nscd import case_check
 from masonry_nscd.case_check import curve_deviation, log_path, reduce_curve
 from masonry_nscd.cli import app
 from masonry_nscd.io.runfolder import read_curve_csv
@@ -70,13 +71,21 @@ def _rows(tmp_path):
         return list(csv.DictReader(f))
 
 
-def test_a_case_is_recorded_then_checked_and_a_change_is_caught(tmp_path):
+def test_a_case_is_recorded_then_checked_and_a_change_is_caught(tmp_path, monkeypatch):
     res = _check(tmp_path)
     assert res.exit_code == 1 and "no record" in res.output
+
+    # git describe --dirty, as it answers where the records are part of the tree: once a record
+    # is written, the tree is dirty; the commit must be read before
+    def describe():
+        return "abc1234-dirty" if list((tmp_path / "record").glob("*.csv")) else "abc1234"
+
+    monkeypatch.setattr(case_check, "_git_commit", describe)
     res = _check(tmp_path, "--write-record")
     assert res.exit_code == 0, res.output
     runs = json.loads((tmp_path / "record" / "runs.json").read_text())
     assert runs["smoke"]["steps"] == 100
+    assert runs["smoke"]["commit"] == "abc1234"
     rec = read_curve_csv(tmp_path / "record" / "smoke.csv")
     full = read_curve_csv(tmp_path / "out" / "smoke" / "force_displacement.csv")
     assert rec["time_s"][-1] == full["time_s"][-1] and np.max(rec["fx_kN"]) == np.max(
