@@ -13,13 +13,16 @@ from typing import Annotated
 
 import typer
 
+# help texts are Markdown: paragraphs are wrapped to the terminal, a literal "<" is "\\<"
 app = typer.Typer(
     add_completion=False,
+    rich_markup_mode="markdown",
     no_args_is_help=True,
     help="masonry_nscd: masonry walls block by block with Non-Smooth Contact Dynamics.",
 )
 point_app = typer.Typer(
     no_args_is_help=True,
+    rich_markup_mode="markdown",
     help="Material-point drivers: one joint point or one block element along a loading path.",
 )
 app.add_typer(point_app, name="point")
@@ -162,7 +165,7 @@ def run(
     case_file: Annotated[Path | None, typer.Argument(
         metavar="[CASE.yaml]", help="The case file (YAML); none with --resume.")] = None,
     output: Annotated[Path | None, typer.Option("-o", "--output",
-                      help="Run folder (default results/<case name>/).")] = None,
+                      help="Run folder (default results/\\<case name>/).")] = None,
     overrides: SetOption = None,
     overwrite: Annotated[bool, typer.Option("--overwrite",
                          help="Write into a run folder that is not empty.")] = False,
@@ -455,7 +458,7 @@ def calibrate_cmd(
                     ] = 1e-3,
     output: Annotated[Path | None, typer.Option(
         "-o", "--output", metavar="OUTDIR",
-        help="Calibration folder (default results/<case name>_calibration/).")] = None,
+        help="Calibration folder (default results/\\<case name>_calibration/).")] = None,
     overrides: SetOption = None,
     overwrite: OverwriteOption = False,
 ) -> None:
@@ -519,13 +522,15 @@ def threshold_cmd(
     max_runs: Annotated[int, typer.Option("--max-runs", help="At most this many runs.")] = 30,
     output: Annotated[Path | None, typer.Option(
         "-o", "--output", metavar="OUTDIR",
-        help="Study folder (default results/<case name>_threshold/).")] = None,
+        help="Study folder (default results/\\<case name>_threshold/).")] = None,
     overrides: SetOption = None,
     overwrite: OverwriteOption = False,
 ) -> None:
-    """Find the value of one parameter between standing and collapse (minimum thickness,
-    critical multiplier) by bisection on runs of a limit-state case; writes threshold.csv and
-    threshold.json."""
+    """Find the value of a parameter between standing and collapse, by bisection on runs.
+
+    The parameter of a limit-state case (its minimum thickness, its critical multiplier) is
+    bisected between a value where the structure stands and one where it collapses; writes
+    threshold.csv and threshold.json."""
     case = _load_case_or_exit(case_file, overrides)
     from masonry_nscd import threshold as th
     from masonry_nscd.case import load_case
@@ -569,9 +574,11 @@ def stress_test_cmd(
         "--time-limit", metavar="S", help="Wall-clock limit per variant, s.")] = 600.0,
     overwrite: OverwriteOption = False,
 ) -> None:
-    """Run a matrix of variants of a small wall (time step, theta, stiffnesses, stress,
-    friction, joint damage, geometry, materials) and write OUTDIR/stress.csv. Exit 0 when every
-    variant finished in equilibrium or failed cleanly, 1 otherwise."""
+    """Run a matrix of variants of a small wall and write OUTDIR/stress.csv.
+
+    The variants change the time step, theta, the stiffnesses, the stress, the friction, the
+    joint damage, the geometry and the materials. Exit 0 when every variant finished in
+    equilibrium or failed cleanly, 1 otherwise."""
     from masonry_nscd import stress
 
     base_path = base or stress.DEFAULT_BASE
@@ -606,7 +613,7 @@ def bench_cmd(
     ] = None,
     output: Annotated[Path | None, typer.Option(
         "-o", "--output", metavar="OUTDIR",
-        help="Folder of bench.csv, bench.png and the runs (default results/bench/<case name>/)."
+        help="Folder of bench.csv, bench.png and the runs (default results/bench/\\<case name>/)."
     )] = None,
     quick: Annotated[bool, typer.Option(
         "--quick", help="A short ladder: time step x2, rate x2, tolerance x100, one mesh.")
@@ -626,10 +633,11 @@ def bench_cmd(
     overrides: SetOption = None,
     overwrite: OverwriteOption = False,
 ) -> None:
-    """Run time against error: a ladder of settings around the case's (time step, loading rate,
-    tolerance, mesh per unit, solver), each compared with a refined reference run (half the
-    time step, tolerance ten times tighter). Writes bench.csv and bench.png; exit 1 if the
-    reference run did not finish."""
+    """Run time against error of settings around the case's; writes bench.csv and bench.png.
+
+    A ladder of settings around the case's (time step, loading rate, tolerance, mesh per unit,
+    solver), each compared with a refined reference run (half the time step, tolerance ten
+    times tighter). Exit 1 if the reference run did not finish."""
     if case_file is None and not startup:
         _fail("missing CASE.yaml (or --startup alone for the start-up figures)", 2)
     if repeats < 1 or not time_limit > 0.0:
@@ -675,7 +683,7 @@ def bench_scaling_cmd(
     case_file: Annotated[Path, typer.Argument(metavar="CASE.yaml", help="The case file (YAML).")],
     output: Annotated[Path | None, typer.Option(
         "-o", "--output", metavar="OUTDIR",
-        help="Folder of scaling.csv and scaling.png (default results/bench-scaling/<case name>/)."
+        help="Folder of scaling.csv and scaling.png (default results/bench-scaling/\\<case name>/)."
     )] = None,
     steps: Annotated[int, typer.Option(
         "--steps", metavar="N",
@@ -700,9 +708,11 @@ def bench_scaling_cmd(
     overrides: SetOption = None,
     overwrite: OverwriteOption = False,
 ) -> None:
-    """Time per step, factorisations per step and peak memory of walls with 1, 2, 4, ... K
-    times the units of the case, against the number of contact points; each wall stepped N
-    times in a fresh process."""
+    """Time per step and peak memory of walls 1, 2, 4, ... K times the case's.
+
+    For walls with 1, 2, 4, ... K times the units of the case: the time per step, the
+    factorisations per step and the peak memory, against the number of contact points; each
+    wall stepped N times in a fresh process."""
     case = _load_case_or_exit(case_file, overrides)
     if steps < 2:
         _fail(f"--steps must be >= 2, got {steps}", 2)
@@ -769,10 +779,12 @@ def check_cases_cmd(
     overrides: SetOption = None,
     overwrite: OverwriteOption = False,
 ) -> None:
-    """Run every shipped case to its end, each in a fresh process without field outputs, and
-    compare it with its record: every step converged, the curve within --rtol, the run time
-    beside the record's. Writes OUTDIR/check.csv; exit 1 if a case failed, did not converge,
-    changed or has no record."""
+    """Run every shipped case to its end and compare it with its record.
+
+    Each case runs in a fresh process without field outputs; it passes when every step
+    converged and the curve is within --rtol of the record; the run time is shown beside the
+    record's. Writes OUTDIR/check.csv; exit 1 if a case failed, did not converge, changed or
+    has no record."""
     from masonry_nscd import case_check as cc
 
     if not rtol > 0.0:
@@ -804,12 +816,13 @@ def sweep_cmd(
         "product; a single value is a fixed override of every run).")],
     output: Annotated[Path | None, typer.Option(
         "-o", "--output", metavar="OUTDIR",
-        help="Sweep folder (default results/<case name>_sweep/).")] = None,
+        help="Sweep folder (default results/\\<case name>_sweep/).")] = None,
     workers: WorkersOption = None,
     scheduler: SchedulerOption = None,
 ) -> None:
-    """Run a case for every combination of the --set values, on local processes or a Dask
-    cluster; write OUTDIR/sweep.csv and OUTDIR/force_displacement.png.
+    """Run a case for every combination of the --set values, locally or on a Dask cluster.
+
+    Writes OUTDIR/sweep.csv and OUTDIR/force_displacement.png.
 
     Each run has its folder in OUTDIR/runs; running the same sweep again keeps the finished
     runs. Exit 0 when every run finished, 1 when some did not (status column of sweep.csv).
@@ -853,15 +866,16 @@ def sensitivity_cmd(
         "ux_at_peak_mm.")] = "peak_force_kN",
     outdir: Annotated[Path | None, typer.Option(
         "-o", "--outdir", metavar="OUTDIR",
-        help="Study folder (default results/<case name>_<method>/).")] = None,
+        help="Study folder (default results/\\<case name>_\\<method>/).")] = None,
     overrides: SetOption = None,
     seed: Annotated[int, typer.Option("--seed", help="Seed of the sampling and bootstrap.")
                     ] = 0,
     workers: WorkersOption = None,
     scheduler: SchedulerOption = None,
 ) -> None:
-    """Sensitivity indices of one output of the run to some parameters of the case (SALib):
-    write OUTDIR/samples.csv, OUTDIR/indices.csv and OUTDIR/indices.png.
+    """Sensitivity indices of one output of the run to some parameters of the case (SALib).
+
+    Writes OUTDIR/samples.csv, OUTDIR/indices.csv and OUTDIR/indices.png.
 
     Every sample is a run (folders in OUTDIR/runs, kept when the same command runs again).
     The analysis needs every run: if some failed or have no value, they are listed and the
