@@ -115,11 +115,14 @@ def test_an_endo3d_run_on_three_threads_is_the_run_on_one(monkeypatch):
             rep = integ.step()
             its += rep.sweeps
             T.append(integ.joints.T.copy())
-        out[k] = np.array(T), its, integ.material.state_all.copy(), integ.tangent_updates
-    (T1, it1, st1, tu1), (T3, it3, st3, tu3) = out[1], out[3]
-    assert tu1 > 0 and tu1 == tu3  # the tangent kernel ran, on both
+        # the tangent kernel on the threads, at the last trial (the run may not have needed it)
+        K = integ.material.tangent_stiffness()
+        out[k] = np.array(T), its, integ.material.state_all.copy(), integ.tangent_updates, K
+    (T1, it1, st1, tu1, K1), (T3, it3, st3, tu3, K3) = out[1], out[3]
+    assert tu1 == tu3
     assert it3 == it1
     assert np.array_equal(T3, T1) and np.array_equal(st3, st1)
+    assert all(np.array_equal(a, b) for a, b in zip(K1, K3)) and np.abs(K1[0]).max() > 0
     assert np.abs(T1).max() > 0
 
 
