@@ -182,6 +182,18 @@ def _scaled(name: str, group: str, what: str, path: str, base: float, factor: fl
     return Setting(name, group, f"{what} x{factor:g} ({value:.3g}{unit})", (f"{path}={value!r}",))
 
 
+def _time_step(h: float, factor: float, max_h: float | None) -> Setting:
+    """The time step times ``factor``; with an adaptive step size its largest step too, so
+    that the rung keeps the case's ratio of the two (``max_h`` None: every step of h)."""
+    rung = _scaled(f"time_step_x{factor:g}", "time_step", "time step", "solver.time_step_s", h,
+                   factor, " s")
+    if max_h is None:
+        return rung
+    return Setting(rung.name, rung.group,
+                   f"{rung.description}, adaptive up to {max_h * factor:.3g} s",
+                   (*rung.overrides, f"solver.max_time_step_s={max_h * factor!r}"))
+
+
 def _mesh(divisions: Sequence[int]) -> Setting:
     text = "x".join(str(d) for d in divisions)
     return Setting(f"mesh_{text}", "mesh", f"{text} hexahedra per unit",
@@ -211,8 +223,7 @@ def ladder(case, quick: bool = False) -> list[Setting]:
     h, tol, rate = s.time_step_s, s.tolerance, hz.rate_m_s
     out = [Setting("default", "default", "the case's own settings")]
     steps = (2.0,) if quick else (0.5, 2.0, 4.0)
-    out += [_scaled(f"time_step_x{f:g}", "time_step", "time step", "solver.time_step_s", h, f,
-                    " s") for f in steps]
+    out += [_time_step(h, f, s.max_time_step_s) for f in steps]
     if s.max_time_step_s is not None:  # the adaptive step size against every step at h
         out.append(Setting("fixed_step", "time_step", f"every step {h:.3g} s (not adaptive)",
                            ("solver.max_time_step_s=null",)))

@@ -128,6 +128,15 @@ def test_every_rung_of_the_ladder_is_a_valid_case(path):
         load_case(path, list(s.overrides))  # CaseError if a rung is invalid
     names = [s.name for s in bm.ladder(case)]
     assert names[0] == "default" and len(names) == len(set(names))
+    # with adaptive steps a time-step rung scales the largest step too (x4 of the 0.5 MPa
+    # wall's 2e-3 s would otherwise be above its 4e-3 s)
+    hmax = case.solver.max_time_step_s
+    for s in bm.ladder(case):
+        if s.name.startswith("time_step_x"):
+            rung = load_case(path, list(s.overrides)).solver
+            ratio = rung.time_step_s / case.solver.time_step_s
+            assert rung.max_time_step_s == (None if hmax is None else
+                                            pytest.approx(hmax * ratio, rel=1e-12))
     groups = {s.group for s in bm.ladder(case)}
     assert {"time_step", "rate", "tolerance", "mesh"} <= groups
     assert ("method" in groups) == (case.blocks.material != "endo3d")
