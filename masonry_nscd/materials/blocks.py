@@ -247,8 +247,7 @@ class Endo3dBlocks:
         f_e = np.empty((nel, 24))
         c_e = np.empty((nel, 24))
         r = self.relax
-        # without relaxation the stress is ENDO3D's: sigma_all holds it, as the tangent expects
-        sig_endo = self._sigma_endo3d if r > 0.0 else self.sigma_all
+        sig_endo = self._trial_endo3d_stress
 
         def batch(lo, hi):
             p0, p1 = 8 * lo, 8 * hi
@@ -267,6 +266,12 @@ class Endo3dBlocks:
 
         # a range of elements holds as many Gauss points as a range of points elsewhere
         return batch, nel, threads.MIN_POINTS // 8, finish
+
+    @property
+    def _trial_endo3d_stress(self) -> np.ndarray:
+        """Where a trial writes ENDO3D's stress (Pa, one row per Gauss point): its own array
+        with the relaxation, else ``sigma_all``, the stress being ENDO3D's."""
+        return self._sigma_endo3d if self.relax > 0.0 else self.sigma_all
 
     def failed_points(self) -> np.ndarray:
         """Gauss points (indices into the batch) whose return mapping did not converge at the
@@ -294,8 +299,7 @@ class Endo3dBlocks:
         self.state_all[:] = self.trial_all
         self.sigma_committed_all[:] = self.sigma_all
         self.eps_committed_all[:] = self._eps
-        self.sigma_endo3d_committed_all[:] = self._sigma_endo3d if self.relax > 0.0 \
-            else self.sigma_all
+        self.sigma_endo3d_committed_all[:] = self._trial_endo3d_stress
 
     def tangent_stiffness(self, delta: float = 1e-8) -> list[np.ndarray]:
         """Consistent tangent stiffness (3n, 3n) of each block at the last trial strains, N/m.
@@ -316,7 +320,7 @@ class Endo3dBlocks:
         # C[p, i, j] = d sigma_i / d eps_j, from the ENDO3D stresses of the last trial
         C = np.empty((len(self._eps), 6, 6))
         eps, state, of = self._eps, self.state_all, self.elem_of_point
-        sigma = self._sigma_endo3d if self.relax > 0.0 else self.sigma_all
+        sigma = self._trial_endo3d_stress
 
         def tangent(lo, hi):
             endo3d.endo3d_tangent_elements(eps[lo:hi], state[lo:hi], self.params, self.xe,
