@@ -137,6 +137,15 @@ def test_the_failure_mode_is_named_from_the_damage(smoke_fields):
     f.joint_beta[base] = 0.0  # the whole base bed joint loses its cohesion
     assert failure_mode(f, scene, f.joint_u_m)["mode"] == "base sliding"
     f.joint_beta[:] = beta
+    second = bed & (np.abs(y - np.unique(y[bed])[1]) < 1e-9)  # the bed joint above the base
+    f.joint_beta[second] = 0.0
+    fm = failure_mode(f, scene, f.joint_u_m)
+    assert fm["mode"] == "bed joint sliding"
+    assert fm["sliding_bed_joints_y_m"] == [pytest.approx(y[second][0], abs=1e-6)]
+    kept = second & (f.contact_points_m[:, 0] < 0.3)  # a third of it keeps its cohesion
+    f.joint_beta[kept] = beta[kept]
+    assert failure_mode(f, scene, f.joint_u_m)["mode"] == "none"  # 80 % of it or more, not less
+    f.joint_beta[:] = beta
     u = np.zeros_like(f.joint_u_m)
     u[base & (f.contact_points_m[:, 0] < 0.3), 0] = 1e-3  # the heel end opens
     assert failure_mode(f, scene, u)["mode"] == "rocking"

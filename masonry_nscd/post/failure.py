@@ -13,6 +13,9 @@ of the tributary area. The mechanisms, read from the scene's joint groups and th
 ``rocking``
     not base sliding, and the base bed joint is open (normal relative displacement above
     0.1 mm) over at least 20 % of its area: the wall turns about its toe;
+``bed joint sliding``
+    a bed joint above the base (the points of a bed group at one height) has lost its cohesion
+    over at least 80 % of its area: the wall slides along it;
 ``diagonal stair-step``
     in at least half of the courses between the bottom and the top ones a head joint has lost
     its cohesion over at least half of its area (a crack that steps through the courses);
@@ -55,6 +58,20 @@ def _base_points(fields, groups: list[str]) -> np.ndarray:
         return bed
     y = fields.contact_points_m[:, 1]
     return bed & (np.abs(y - y[bed].min()) < 1e-6)
+
+
+def _bed_levels_lost(fields, groups: list[str], lost: np.ndarray) -> list[tuple[float, float]]:
+    """(height y in m, fraction of its area with the cohesion lost) of every bed joint, a bed
+    joint being the points of the bed groups at one height, lowest first."""
+    bed = np.isin(fields.contact_group, [i for i, g in enumerate(groups) if g.startswith("bed")])
+    y = fields.contact_points_m[:, 1]
+    area = fields.contact_area_m2
+    out = []
+    level = np.round(y, 6)
+    for lv in np.unique(level[bed]):
+        sel = bed & (level == lv)
+        out.append((float(lv), float(area[sel & lost].sum() / area[sel].sum())))
+    return out
 
 
 def _head_joints(fields, groups: list[str]) -> list[tuple[int, int, np.ndarray]]:
@@ -144,6 +161,11 @@ def failure_mode(fields, scene: Mapping[str, Any], joint_u_m: np.ndarray | None)
         modes.append("base sliding")
     elif open_base >= BASE_OPEN_FRACTION:
         modes.append("rocking")
+    above_base = _bed_levels_lost(fields, groups, lost)[1:]  # the lowest is the base
+    sliding = [lv for lv, frac in above_base if frac >= BASE_LOST_FRACTION]
+    out["sliding_bed_joints_y_m"] = sliding
+    if sliding:
+        modes.append("bed joint sliding")
 
     # --- head joints through the courses ------------------------------------------------------
     body_course = {s["body"]: s["course"] for s in structure}
