@@ -58,7 +58,8 @@ Energy balance (``energy.csv``, :mod:`masonry_nscd.nscd.energy`)
 Failure mode
     Named from the joint and block damage at the output step nearest the peak
     (``failure_mode_at_peak``) and at the last one (``failure_mode``): base sliding, rocking,
-    bed joint sliding, diagonal stair-step, toe crushing, or their combinations (:mod:`masonry_nscd.post.failure`).
+    bed joint sliding, diagonal stair-step, toe crushing, or their combinations
+    (:mod:`masonry_nscd.post.failure`).
 Largest damages
     Read at the last output step of ``results.h5``: every damage is irreversible, so the last
     step holds the largest values. Blocks: ``d_c`` (post-peak compressive damage, crushing),
