@@ -11,7 +11,9 @@ Figures
     grey cross and does not set the scale), the peak of each run marked, and the study's
     initial slope (71 kN/mm) as a dashed line from the origin. A second panel zooms on the
     start, where the slopes are compared. Labels: case name, sigma_N, block material and the
-    initial stiffness of the run's summary (secant 10-40 % of the peak, :mod:`report`).
+    initial stiffness of the run's summary (secant 10-40 % of the peak, :mod:`report`); what
+    every run shares is said once, above the charts, and more than eight curves (a sweep) put
+    their legend below the charts, in columns.
 ``cycles_<run>.png`` (:func:`plot_cycles`, runs whose history has cycles)
     Three panels: the hysteresis loops ``F_x`` against ``U_x``, each cycle of the history in
     its colour (a colour scale over the cycle number), the envelope of each direction on top
@@ -151,12 +153,27 @@ def _stage(run: RunData) -> tuple[NDArray, NDArray, NDArray]:
     return c["ux_mm"][i0:], c["fx_kN"][i0:], ok
 
 
-def _curve_label(run: RunData) -> str:
-    s = run.summary
-    k = s["initial_stiffness_kN_mm"]
-    return (f"{run.label} ($\\sigma_N$ = {run.case.loading.vertical_stress.value_Pa / 1e6:g} MPa, "
-            f"{run.case.blocks.material} blocks"
-            + (f", k = {k:.3g} kN/mm)" if k is not None else ")"))
+def _label_parts(run: RunData) -> list[str]:
+    """What tells a curve apart: stress, block material and initial stiffness."""
+    k = run.summary["initial_stiffness_kN_mm"]
+    return [f"$\\sigma_N$ = {run.case.loading.vertical_stress.value_Pa / 1e6:g} MPa",
+            f"{run.case.blocks.material} blocks"] + ([f"k = {k:.3g} kN/mm"] if k is not None else [])
+
+
+def _curve_labels(runs: Sequence[RunData]) -> tuple[list[str], str]:
+    """Each curve's label, and the parts every curve shares (said once, in the title, when
+    there are several curves)."""
+    parts = [_label_parts(r) for r in runs]
+    shared = [p for p in parts[0] if len(runs) > 1 and all(p in q for q in parts)]
+    labels = []
+    for run, own in zip(runs, parts):
+        rest = [p for p in own if p not in shared]
+        labels.append(run.label + (f" ({', '.join(rest)})" if rest else ""))
+    return labels, ", ".join(shared)
+
+
+#: More curves than this and the legend goes below the charts, in columns.
+LEGEND_INSIDE_MAX = 8
 
 
 def plot_curves(runs: Sequence[RunData], path: Path,
@@ -164,14 +181,16 @@ def plot_curves(runs: Sequence[RunData], path: Path,
     """The force-displacement curves of ``runs`` on one chart (see the module docstring)."""
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(13, 5.5), layout="constrained")
+    legend_rows = -(-len(runs) // 5) if len(runs) > LEGEND_INSIDE_MAX else 0
+    fig = Figure(figsize=(13, 5.5 + 0.22 * legend_rows), layout="constrained")
     ax_all, ax_zoom = fig.subplots(1, 2, gridspec_kw={"width_ratios": [3, 2]})
     f_top, f_bottom, u_zoom, u_left = 1.0, 0.0, 0.0, 0.0
-    for n, run in enumerate(runs):
+    labels, shared = _curve_labels(runs)
+    for n, (run, label) in enumerate(zip(runs, labels)):
         ux, fx, ok = _stage(run)
         color = f"C{n % 10}"
         for ax in (ax_all, ax_zoom):
-            ax.plot(ux[ok], fx[ok], color=color, lw=1.6, label=_curve_label(run))
+            ax.plot(ux[ok], fx[ok], color=color, lw=1.6, label=label)
             if (~ok).any():
                 ax.plot(ux[~ok], fx[~ok], "x", color="0.5", ms=4)
             s = run.summary
@@ -195,7 +214,13 @@ def plot_curves(runs: Sequence[RunData], path: Path,
     ax_all.set_xlim(left=u_left * 1.05)
     ax_all.set_title("Force-displacement, horizontal stage (dots: peaks; x: steps not converged)")
     ax_zoom.set_title("Start of the horizontal stage: initial slopes")
-    ax_all.legend(fontsize=8, loc="best")
+    if shared:
+        fig.suptitle(f"{len(runs)} runs, all with {shared}")
+    if len(runs) > LEGEND_INSIDE_MAX:
+        fig.legend(*ax_all.get_legend_handles_labels(), loc="outside lower center", fontsize=8,
+                   ncol=5)
+    else:
+        ax_all.legend(fontsize=8, loc="best")
     return _save(fig, path)
 
 

@@ -56,3 +56,25 @@ def test_help_does_not_import_matplotlib_or_scipy():
             "print([m for m in ('matplotlib', 'scipy', 'numpy') if m in sys.modules])")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def _fake_run(label, stress_Pa, material, k):
+    from types import SimpleNamespace as NS
+    case = NS(loading=NS(vertical_stress=NS(value_Pa=stress_Pa)), blocks=NS(material=material))
+    return NS(label=label, case=case, summary={"initial_stiffness_kN_mm": k})
+
+
+def test_a_sweep_s_labels_say_what_the_runs_share_once():
+    from masonry_nscd.plots import _curve_labels
+
+    runs = [_fake_run(f"seed={i}", 0.3e6, "endo3d", 104.6) for i in (1, 2)]
+    labels, shared = _curve_labels(runs)
+    assert labels == ["seed=1", "seed=2"]
+    assert shared == "$\\sigma_N$ = 0.3 MPa, endo3d blocks, k = 105 kN/mm"
+    runs.append(_fake_run("elastic", 0.3e6, "elastic", 135.6))
+    labels, shared = _curve_labels(runs)
+    assert labels[2] == "elastic (elastic blocks, k = 136 kN/mm)"
+    assert shared == "$\\sigma_N$ = 0.3 MPa"
+    labels, shared = _curve_labels(runs[:1])  # one run: everything on its own label
+    assert labels == ["seed=1 ($\\sigma_N$ = 0.3 MPa, endo3d blocks, k = 105 kN/mm)"]
+    assert shared == ""
