@@ -161,7 +161,7 @@ def _label_parts(run: RunData) -> list[str]:
 
 
 def _curve_labels(runs: Sequence[RunData]) -> tuple[list[str], str]:
-    """Each curve's label, and the parts every curve shares (said once, in the title, when
+    """Each curve's label, and the parts every curve shares (said once, above the charts, when
     there are several curves)."""
     parts = [_label_parts(r) for r in runs]
     shared = [p for p in parts[0] if len(runs) > 1 and all(p in q for q in parts)]
@@ -172,8 +172,9 @@ def _curve_labels(runs: Sequence[RunData]) -> tuple[list[str], str]:
     return labels, ", ".join(shared)
 
 
-#: More curves than this and the legend goes below the charts, in columns.
+#: More curves than this and the legend goes below the charts, in this many columns.
 LEGEND_INSIDE_MAX = 8
+LEGEND_COLUMNS = 5
 
 
 def plot_curves(runs: Sequence[RunData], path: Path,
@@ -181,7 +182,8 @@ def plot_curves(runs: Sequence[RunData], path: Path,
     """The force-displacement curves of ``runs`` on one chart (see the module docstring)."""
     from matplotlib.figure import Figure
 
-    legend_rows = -(-len(runs) // 5) if len(runs) > LEGEND_INSIDE_MAX else 0
+    # the legend's rows below the charts: a line per run and the study's slope
+    legend_rows = -(-(len(runs) + 1) // LEGEND_COLUMNS) if len(runs) > LEGEND_INSIDE_MAX else 0
     fig = Figure(figsize=(13, 5.5 + 0.22 * legend_rows), layout="constrained")
     ax_all, ax_zoom = fig.subplots(1, 2, gridspec_kw={"width_ratios": [3, 2]})
     f_top, f_bottom, u_zoom, u_left = 1.0, 0.0, 0.0, 0.0
@@ -218,7 +220,7 @@ def plot_curves(runs: Sequence[RunData], path: Path,
         fig.suptitle(f"{len(runs)} runs, all with {shared}")
     if len(runs) > LEGEND_INSIDE_MAX:
         fig.legend(*ax_all.get_legend_handles_labels(), loc="outside lower center", fontsize=8,
-                   ncol=5)
+                   ncol=LEGEND_COLUMNS)
     else:
         ax_all.legend(fontsize=8, loc="best")
     return _save(fig, path)
