@@ -135,7 +135,14 @@ def test_the_failure_mode_is_named_from_the_damage(smoke_fields):
     base = bed & (np.abs(y - y[bed].min()) < 1e-9)
     beta = f.joint_beta.copy()
     f.joint_beta[base] = 0.0  # the whole base bed joint loses its cohesion
-    assert failure_mode(f, scene, f.joint_u_m)["mode"] == "base sliding"
+    fm = failure_mode(f, scene, f.joint_u_m)
+    assert fm["mode"] == "base sliding"
+    levels = np.unique(np.round(y[bed], 6))
+    assert [b["y_m"] for b in fm["bed_joints"]] == pytest.approx(levels, abs=1e-9)
+    assert [b["cohesion_lost"] for b in fm["bed_joints"]] == [1.0] + [0.0] * (len(levels) - 1)
+    u = np.zeros_like(f.joint_u_m)
+    u[base, 1], u[base, 2] = 3e-4, 4e-4  # the base slides by 0.5 mm
+    assert failure_mode(f, scene, u)["bed_joints"][0]["mean_slip_mm"] == pytest.approx(0.5)
     f.joint_beta[:] = beta
     second = bed & (np.abs(y - np.unique(y[bed])[1]) < 1e-9)  # the bed joint above the base
     f.joint_beta[second] = 0.0

@@ -24,7 +24,9 @@ of the tributary area. The mechanisms, read from the scene's joint groups and th
     ``d_c`` of 0.5 or more.
 
 The name is the mechanisms found, joined by `` + `` in that order, or ``none``; with it come
-the numbers that decide each, and the joints and units that make it. A scene without bed and
+the numbers that decide each, and the joints and units that make it, and every bed joint's
+height, cohesion lost, opening and mean slip (``bed_joints``: where a wall slides, and how the
+slip shares out between its bed joints). A scene without bed and
 head groups or without courses (not a wall) gives ``n/a``.
 
 The order of events (:func:`failure_sequence`), over the output steps: the displacement at which
@@ -60,17 +62,27 @@ def _base_points(fields, groups: list[str]) -> np.ndarray:
     return bed & (np.abs(y - y[bed].min()) < 1e-6)
 
 
-def _bed_levels_lost(fields, groups: list[str], lost: np.ndarray) -> list[tuple[float, float]]:
-    """(height y in m, fraction of its area with the cohesion lost) of every bed joint, a bed
-    joint being the points of the bed groups at one height, lowest first."""
+def _bed_joints(fields, groups: list[str], lost: np.ndarray, joint_u_m: np.ndarray | None
+                ) -> list[dict[str, float | None]]:
+    """Every bed joint (the points of the bed groups at one height), lowest first: its height
+    ``y_m``, the fractions of its area whose cohesion is lost (``cohesion_lost``) and that is
+    open by more than 0.1 mm (``open``), and its area-weighted mean slip ``mean_slip_mm``
+    (``|u_t|``; None, like ``open``, without the relative displacements)."""
     bed = np.isin(fields.contact_group, [i for i, g in enumerate(groups) if g.startswith("bed")])
-    y = fields.contact_points_m[:, 1]
     area = fields.contact_area_m2
+    level = np.round(fields.contact_points_m[:, 1], 6)
     out = []
-    level = np.round(y, 6)
     for lv in np.unique(level[bed]):
         sel = bed & (level == lv)
-        out.append((float(lv), float(area[sel & lost].sum() / area[sel].sum())))
+        a = area[sel].sum()
+        row: dict[str, float | None] = {"y_m": float(lv),
+                                        "cohesion_lost": float(area[sel & lost].sum() / a),
+                                        "open": None, "mean_slip_mm": None}
+        if joint_u_m is not None:
+            row["open"] = float(area[sel & (joint_u_m[:, 0] > OPEN_M)].sum() / a)
+            slip = np.hypot(joint_u_m[sel, 1], joint_u_m[sel, 2])
+            row["mean_slip_mm"] = float((area[sel] * slip).sum() / a * 1e3)
+        out.append(row)
     return out
 
 
@@ -147,25 +159,22 @@ def failure_mode(fields, scene: Mapping[str, Any], joint_u_m: np.ndarray | None)
     out: dict[str, Any] = {}
     modes = []
 
-    # --- the base bed joint -----------------------------------------------------------------
-    y = fields.contact_points_m[:, 1]
-    base = _base_points(fields, groups)
-    lost_base = float(area[base & lost].sum() / area[base].sum()) if base.any() else 0.0
-    open_base = 0.0
-    if joint_u_m is not None and base.any():
-        open_base = float(area[base & (joint_u_m[:, 0] > OPEN_M)].sum() / area[base].sum())
-    out["base_joint_y_m"] = float(y[base].min()) if base.any() else None
+    # --- the bed joints, the base (the lowest) first --------------------------------------------
+    beds = _bed_joints(fields, groups, lost, joint_u_m)
+    base = beds[0] if beds else {"y_m": None, "cohesion_lost": 0.0, "open": None}
+    lost_base, open_base = base["cohesion_lost"], base["open"] or 0.0
+    out["base_joint_y_m"] = base["y_m"]
     out["base_joint_cohesion_lost"] = lost_base
     out["base_joint_open"] = open_base
     if lost_base >= BASE_LOST_FRACTION:
         modes.append("base sliding")
     elif open_base >= BASE_OPEN_FRACTION:
         modes.append("rocking")
-    above_base = _bed_levels_lost(fields, groups, lost)[1:]  # the lowest is the base
-    sliding = [lv for lv, frac in above_base if frac >= BASE_LOST_FRACTION]
+    sliding = [b["y_m"] for b in beds[1:] if b["cohesion_lost"] >= BASE_LOST_FRACTION]
     out["sliding_bed_joints_y_m"] = sliding
     if sliding:
         modes.append("bed joint sliding")
+    out["bed_joints"] = beds
 
     # --- head joints through the courses ------------------------------------------------------
     body_course = {s["body"]: s["course"] for s in structure}
