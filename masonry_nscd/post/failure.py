@@ -26,8 +26,8 @@ of the tributary area. The mechanisms, read from the scene's joint groups and th
 The name is the mechanisms found, joined by `` + `` in that order, or ``none``; with it come
 the numbers that decide each, and the joints and units that make it, and every bed joint's
 height, cohesion lost, opening and mean slip (``bed_joints``: where a wall slides, and how the
-slip shares out between its bed joints). A scene without bed and
-head groups or without courses (not a wall) gives ``n/a``.
+slip shares out between its bed joints). A scene without bed and head groups or without
+courses (not a wall) gives ``n/a``.
 
 The order of events (:func:`failure_sequence`), over the output steps: the displacement at which
 the base bed joint has lost its cohesion over 80 % of its area, and the one at which a head
@@ -53,13 +53,17 @@ COURSES_FRACTION = 0.5
 CRUSHED_D_C = 0.5
 
 
+def _bed_levels(fields, groups: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """The points of the bed groups (mask), and every point's height y rounded to a micrometre,
+    which the points of one bed joint share (m)."""
+    bed = np.isin(fields.contact_group, [i for i, g in enumerate(groups) if g.startswith("bed")])
+    return bed, np.round(fields.contact_points_m[:, 1], 6)
+
+
 def _base_points(fields, groups: list[str]) -> np.ndarray:
     """The contact points of the base bed joint (the lowest joint of a bed group)."""
-    bed = np.isin(fields.contact_group, [i for i, g in enumerate(groups) if g.startswith("bed")])
-    if not bed.any():
-        return bed
-    y = fields.contact_points_m[:, 1]
-    return bed & (np.abs(y - y[bed].min()) < 1e-6)
+    bed, level = _bed_levels(fields, groups)
+    return bed & (level == level[bed].min()) if bed.any() else bed
 
 
 def _bed_joints(fields, groups: list[str], lost: np.ndarray, joint_u_m: np.ndarray | None
@@ -68,9 +72,8 @@ def _bed_joints(fields, groups: list[str], lost: np.ndarray, joint_u_m: np.ndarr
     ``y_m``, the fractions of its area whose cohesion is lost (``cohesion_lost``) and that is
     open by more than 0.1 mm (``open``), and its area-weighted mean slip ``mean_slip_mm``
     (``|u_t|``; None, like ``open``, without the relative displacements)."""
-    bed = np.isin(fields.contact_group, [i for i, g in enumerate(groups) if g.startswith("bed")])
+    bed, level = _bed_levels(fields, groups)
     area = fields.contact_area_m2
-    level = np.round(fields.contact_points_m[:, 1], 6)
     out = []
     for lv in np.unique(level[bed]):
         sel = bed & (level == lv)
