@@ -566,6 +566,56 @@ class JointScatter(_Section):
     )
 
 
+#: The numbers of the fczm law a joint region may set; the law itself, the spring convention in
+#: compression and the scatter are the case's.
+REGION_FIELDS = ("K_I_spring_Pa_m", "K_II_spring_Pa_m", "d_spring", "sigma_I_e_Pa",
+                 "K_I_coh_Pa_m", "G_fI_J_m2", "sigma_II_e_Pa", "K_II_coh_Pa_m", "G_fII_J_m2",
+                 "d_coh_initial", "mu", "p", "eta")
+
+
+class JointRegion(_Section):
+    """Joints of a wall with properties of their own (``joint.regions``): the bed joints on
+    top of the courses ``courses`` (``joints: bed``; course 1: the joint between the first and
+    the second course, the study's base joint) or the head joints within them (``joints:
+    head``). Courses count from 1 at the bottom, negative from the top (-1: the top course);
+    null: every course. Each field given replaces the case's value for those joints (bounds and
+    fracture-energy checks as in ``joint``); the others are the case's. Example, a base joint
+    with a third of the others' bond strength (the energies scaled by its square keep the
+    shape of the law)::
+
+        {joints: bed, courses: [1], sigma_I_e_Pa: 1.5e4, G_fI_J_m2: 0.27,
+         sigma_II_e_Pa: 8.1e4, G_fII_J_m2: 18.54}
+    """
+
+    #: Fields left out of the case written back when null (the case's value).
+    OMIT_NULL: ClassVar[tuple[str, ...]] = REGION_FIELDS
+
+    joints: Literal["bed", "head"] = Field(
+        description="bed: the bed joints on top of the courses; head: the head joints in them"
+    )
+    courses: list[Annotated[Whole, Field(ge=-200, le=200)]] | None = Field(
+        None, min_length=1, max_length=200,
+        description="courses, from 1 at the bottom (-1: the top); null: every course",
+    )
+    K_I_spring_Pa_m: Real | None = Field(None, description="as joint.K_I_spring_Pa_m (Pa/m)")
+    K_II_spring_Pa_m: Real | None = Field(None, description="as joint.K_II_spring_Pa_m (Pa/m)")
+    d_spring: Real | None = Field(None, description="as joint.d_spring (dimensionless)")
+    sigma_I_e_Pa: Real | None = Field(None, description="as joint.sigma_I_e_Pa (Pa)")
+    K_I_coh_Pa_m: Real | None = Field(None, description="as joint.K_I_coh_Pa_m (Pa/m)")
+    G_fI_J_m2: Real | None = Field(None, description="as joint.G_fI_J_m2 (J/m^2)")
+    sigma_II_e_Pa: Real | None = Field(None, description="as joint.sigma_II_e_Pa (Pa)")
+    K_II_coh_Pa_m: Real | None = Field(None, description="as joint.K_II_coh_Pa_m (Pa/m)")
+    G_fII_J_m2: Real | None = Field(None, description="as joint.G_fII_J_m2 (J/m^2)")
+    d_coh_initial: Real | None = Field(None, description="as joint.d_coh_initial (dimensionless)")
+    mu: Real | None = Field(None, description="as joint.mu (dimensionless)")
+    p: Real | None = Field(None, description="as joint.p (dimensionless)")
+    eta: Real | None = Field(None, description="as joint.eta (dimensionless)")
+
+    def values(self) -> dict[str, float]:
+        """The fields this region sets: ``{name: value}``."""
+        return {f: float(getattr(self, f)) for f in REGION_FIELDS if getattr(self, f) is not None}
+
+
 class Joint(_Section):
     """The joint law, per unit area of interface (docs/model.md section 2).
 
@@ -652,6 +702,17 @@ class Joint(_Section):
     scatter: JointScatter | None = Field(
         None, description="lognormal scatter of the joint strengths and energies (null: none)"
     )
+    regions: list[JointRegion] = Field(
+        default_factory=list, max_length=100,
+        description="wall joints with properties of their own (the last region naming a "
+        "joint wins; the scatter draws around each region's values)",
+    )
+
+    def with_values(self, values: dict[str, float]) -> Joint:
+        """This joint with ``values`` in place of its own, no regions (validated: ValueError
+        naming the first field the law refuses)."""
+        data = {**self.model_dump(), **values, "regions": []}
+        return type(self).model_validate(data)
 
     @model_validator(mode="after")
     def _check_dry(self) -> Joint:
@@ -661,6 +722,28 @@ class Joint(_Section):
         if self.law != "fczm" and self.scatter is not None:
             _problems([("scatter", (f"the {self.law} law has no cohesion to scatter: "
                                     "remove joint.scatter or use law fczm"))])
+        if self.law != "fczm" and self.regions:
+            _problems([("regions", (f"given with law {self.law}; the regions set numbers of "
+                                    "the fczm law: remove joint.regions or use law fczm"))])
+        return self
+
+    @model_validator(mode="after")
+    def _check_regions(self) -> Joint:
+        problems: list[tuple[str, str]] = []
+        for i, region in enumerate(self.regions):
+            values = region.values()
+            if not values:
+                problems.append((f"regions[{i}]", (
+                    "sets no field; give one or more of " + ", ".join(REGION_FIELDS))))
+                continue
+            try:
+                self.with_values(values)
+            except ValidationError as exc:
+                for message in _messages(exc, ("joint",)):  # "joint.<field>: <text>"
+                    where, _, text = message.partition(": ")
+                    field = where.removeprefix("joint").lstrip(".")
+                    problems.append((f"regions[{i}]" + (f".{field}" if field else ""), text))
+        _problems(problems)
         return self
 
     @model_validator(mode="after")
@@ -1087,7 +1170,8 @@ class Collapse(_Section):
 
 #: Sections of a case that belong to the wall builder and to the arch builder (the other's
 #: are refused when given, and left out of the case written back).
-WALL_ONLY = ("wall", "supports", "loading.vertical_stress", "loading.horizontal")
+WALL_ONLY = ("wall", "supports", "loading.vertical_stress", "loading.horizontal",
+             "joint.regions")
 ARCH_ONLY = ("arch", "vault", "assembly", "collapse", "loading.body_force", "loading.point_load",
              "loading.settlement")
 
@@ -1723,6 +1807,7 @@ class Case(_Section):
                         f"{free[0]:.6g} to {free[1]:.6g} m)")))
         problems += self._ground_motion_problems()
         problems += self._builder_problems()
+        problems += self._joint_region_problems()
         if self.supports.top_vertical == "fixed" and stress != 0.0:
             problems.append(
                 (
@@ -1737,6 +1822,29 @@ class Case(_Section):
         _problems(problems)
         return self
 
+
+    def _joint_region_problems(self) -> list[tuple[str, str]]:
+        """The courses of ``joint.regions`` against the wall's: each must have joints of the
+        joint law of that kind (a bed joint on top of it, head joints in it) between the
+        beams, not the glue and not inside a clamped course."""
+        if self.limit_state is not None:
+            return []  # an arch's case: the regions are refused as the wall's
+        n, k = self.wall.courses, self.supports.clamped_courses
+        spans = {"bed": (k - 1 if k else 0, n - 1 - k if k else n - 2), "head": (k, n - 1 - k)}
+        problems = []
+        for i, region in enumerate(self.joint.regions):
+            lo, hi = spans[region.joints]
+            for c in region.courses or []:
+                if not (1 <= c <= n or -n <= c <= -1):
+                    problems.append((f"joint.regions[{i}].courses", (
+                        f"got {c}; there are {n} courses: allowed 1 to {n} (or -1 to -{n} "
+                        "from the top)")))
+                elif not lo <= (c - 1 if c > 0 else n + c) <= hi:
+                    problems.append((f"joint.regions[{i}].courses", (
+                        f"got {c}; course {c if c > 0 else n + c + 1} has no "
+                        f"{region.joints} joint of the joint law (glued or clamped): allowed "
+                        f"courses {lo + 1} to {hi + 1}")))
+        return problems
 
     def _ground_motion_problems(self) -> list[tuple[str, str]]:
         """The ground motion against the push, the top beam and the supports."""
@@ -2371,8 +2479,10 @@ def _format_scalar(value: Any) -> str:
     if isinstance(value, (tuple, list)):
         return "[" + ", ".join(_format_scalar(v) for v in value) + "]"
     if isinstance(value, BaseModel):  # in a list (openings, pattern courses): a flow mapping
+        quiet = getattr(type(value), "OMIT_NULL", ())  # null there: "the case's", left out
         return "{" + ", ".join(f"{k}: {_format_scalar(getattr(value, k))}"
-                               for k in type(value).model_fields) + "}"
+                               for k in type(value).model_fields
+                               if not (k in quiet and getattr(value, k) is None)) + "}"
     text = yaml.dump(
         value, Dumper=_CaseDumper, width=float("inf"), allow_unicode=True, explicit_end=False
     )

@@ -21,8 +21,11 @@ thickness as the largest gap, and named: ``bed`` (horizontal) and ``head`` (vert
 between units; ``glue_bottom`` and ``glue_top`` between the wall and the beams (bilateral
 glue, the study's epoxy). With ``supports.clamped_courses`` = k the k outer courses at each end
 are part of their beam, and the wall meets the beams through mortar joints of the joint law,
-``bed_bottom`` and ``bed_top``. With ``joint.scatter`` the joint points take scattered
-parameter rows (:mod:`masonry_nscd.contact.scatter`).
+``bed_bottom`` and ``bed_top``. The points of the joints that ``joint.regions`` name take
+their region's parameter row, and with ``joint.scatter`` the joint points take scattered rows
+(:mod:`masonry_nscd.contact.scatter`). A bed joint lies on top of the lower of its two courses
+(``bed_bottom``: the top clamped course at the bottom; ``bed_top``: the highest free course),
+a head joint within its course; a lintel counts as the course it stands on.
 """
 
 from __future__ import annotations
@@ -72,7 +75,8 @@ def build_wall(case) -> Scene:
     bodies += rig.beams
     i_low = n_units
     i_up = n_units + 1 if len(rig.beams) == 2 else None
-    points, params, drawn = _joints(case, bodies, i_low, i_up)
+    points, params, drawn = _joints(case, bodies, i_low, i_up,
+                                    [place["course"] - 1 for place in info])
     dof0 = dof_offsets(bodies)
     loads, holds = _loads(case, bodies, n_units, dof0, i_up)
     length, height = wall_size(w)
@@ -179,10 +183,11 @@ def _rig(case, first: int, last: int) -> _Rig:
     return _Rig(beams, history, ground)
 
 
-def _joints(case, bodies: list, i_low: int, i_up: int | None):
+def _joints(case, bodies: list, i_low: int, i_up: int | None, course_of: list[int]):
     """The joint points between the bodies (contact detection up to the joint thickness),
-    named by group (module docstring), with their rows of parameters, scattered when
-    ``joint.scatter`` says so: ``(points, params, drawn)``."""
+    named by group (module docstring), with their rows of parameters, the regions' and
+    scattered ones as ``joint.regions`` and ``joint.scatter`` say: ``(points, params,
+    drawn)``. ``course_of``: the course of each unit (0-based)."""
     glued = case.supports.clamped_courses == 0
     beam_group = {i_low: "glue_bottom" if glued else "bed_bottom"}
     if i_up is not None:
@@ -203,10 +208,39 @@ def _joints(case, bodies: list, i_low: int, i_up: int | None):
     points = joint_points(bodies, detection.joints, classify, n_gauss=w.contact_points_per_face,
                           rule=case.contact_point_rule)
     params, rows, drawn = scatter_rows(
-        case.joint, points, np.array([p.kind == laws.KIND_JOINT for p in points], dtype=bool))
+        case.joint, points, np.array([p.kind == laws.KIND_JOINT for p in points], dtype=bool),
+        _regions(case, points, course_of))
     for p, row in zip(points, rows):
         p.law = int(row)
     return points, params, drawn
+
+
+def _regions(case, points: list, course_of: list[int]) -> np.ndarray | None:
+    """The index in ``joint.regions`` of each point's region, the last that names its joint
+    (-1: none; None without regions); ValueError for a region that names no joint (the case
+    checks the courses; an opening can still take every joint of a course away)."""
+    regions = case.joint.regions
+    if not regions:
+        return None
+    n, k = case.wall.courses, case.supports.clamped_courses
+    kind = {GROUPS.index(g): "bed" for g in ("bed", "bed_bottom", "bed_top")}
+    kind[GROUPS.index("head")] = "head"
+    lower = {GROUPS.index("bed_bottom"): k - 1, GROUPS.index("bed_top"): n - 1 - k}
+    place = []  # (kind, course) of each point; kind None: glue
+    for p in points:
+        units = [course_of[b] for b in p.bodies if b < len(course_of)]
+        place.append((kind.get(p.group), lower.get(p.group, min(units) if units else -1)))
+    out = np.full(len(points), -1, dtype=np.int64)
+    for r, region in enumerate(regions):
+        courses = None if region.courses is None else {c - 1 if c > 0 else n + c
+                                                       for c in region.courses}
+        hit = [a for a, (what, c) in enumerate(place)
+               if what == region.joints and (courses is None or c in courses)]
+        if not hit:
+            raise ValueError(f"joint.regions[{r}]: no {region.joints} joint of the joint law "
+                             "in those courses (an opening or the clamped courses take them)")
+        out[hit] = r
+    return out
 
 
 def _loads(case, bodies: list, n_units: int, dof0: np.ndarray,
