@@ -580,8 +580,8 @@ class JointRegion(_Section):
     head``). Courses count from 1 at the bottom, negative from the top (-1: the top course);
     null: every course. Each field given replaces the case's value for those joints (bounds and
     fracture-energy checks as in ``joint``); the others are the case's. Example, a base joint
-    with a third of the others' bond strength (the energies scaled by its square keep the
-    shape of the law)::
+    with 0.3 times the others' strengths (the energies times 0.3^2 keep the shape of the
+    law)::
 
         {joints: bed, courses: [1], sigma_I_e_Pa: 1.5e4, G_fI_J_m2: 0.27,
          sigma_II_e_Pa: 8.1e4, G_fII_J_m2: 18.54}
