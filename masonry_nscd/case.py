@@ -1829,21 +1829,24 @@ class Case(_Section):
         beams, not the glue and not inside a clamped course."""
         if self.limit_state is not None:
             return []  # an arch's case: the regions are refused as the wall's
+        from masonry_nscd.scenes.layout import LayoutError, count_index
+
         n, k = self.wall.courses, self.supports.clamped_courses
         spans = {"bed": (k - 1 if k else 0, n - 1 - k if k else n - 2), "head": (k, n - 1 - k)}
         problems = []
         for i, region in enumerate(self.joint.regions):
             lo, hi = spans[region.joints]
+            field = f"joint.regions[{i}].courses"
             for c in region.courses or []:
-                if not (1 <= c <= n or -n <= c <= -1):
-                    problems.append((f"joint.regions[{i}].courses", (
-                        f"got {c}; there are {n} courses: allowed 1 to {n} (or -1 to -{n} "
-                        "from the top)")))
-                elif not lo <= (c - 1 if c > 0 else n + c) <= hi:
-                    problems.append((f"joint.regions[{i}].courses", (
-                        f"got {c}; course {c if c > 0 else n + c + 1} has no "
-                        f"{region.joints} joint of the joint law (glued or clamped): allowed "
-                        f"courses {lo + 1} to {hi + 1}")))
+                try:
+                    course = count_index(c, n, "courses", field)
+                except LayoutError as exc:
+                    problems.append((exc.field, exc.message))
+                    continue
+                if not lo <= course <= hi:
+                    problems.append((field, (
+                        f"got {c}; course {course + 1} has no {region.joints} joint of the "
+                        f"joint law (glued or clamped): allowed courses {lo + 1} to {hi + 1}")))
         return problems
 
     def _ground_motion_problems(self) -> list[tuple[str, str]]:

@@ -228,7 +228,7 @@ def _cut(a: float, b: float, cuts: list[tuple[float, float, str]], joint: float,
     return pieces
 
 
-def _count_index(k: int, count: int, what: str, field: str) -> int:
+def count_index(k: int, count: int, what: str, field: str) -> int:
     """0-based index of a 1-based (negative: from the end) ``k`` among ``count`` items."""
     if not (1 <= k <= count or -count <= k <= -1):
         raise LayoutError(field, f"got {k}; there are {count} {what}: allowed 1 to {count} "
@@ -251,12 +251,12 @@ def unit_divisions(wall, boxes: list[UnitBox]) -> list[tuple[int, int, int]]:
     for b in boxes:
         count[b.course] = count.get(b.course, 0) + 1
     for r, region in enumerate(getattr(wall, "refine", None) or []):
-        courses = {_count_index(k, wall.courses, "courses", f"refine[{r}].courses")
+        courses = {count_index(k, wall.courses, "courses", f"refine[{r}].courses")
                    for k in region.courses}
         for c in sorted(courses):
             n = count.get(c, 0)
             units = None if region.units is None else {
-                _count_index(u, n, f"units in course {c + 1}", f"refine[{r}].units")
+                count_index(u, n, f"units in course {c + 1}", f"refine[{r}].units")
                 for u in region.units}
             for i, b in enumerate(boxes):
                 if b.course == c and (units is None or b.index in units):

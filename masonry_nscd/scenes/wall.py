@@ -41,7 +41,13 @@ from masonry_nscd.loading import Loads, Ramp, at_rest
 from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody, dof_offsets
 from masonry_nscd.model.bodies import body_mass
 from masonry_nscd.model.detection import find_joints, joint_points
-from masonry_nscd.scenes.layout import course_levels, unit_boxes, unit_divisions, wall_size
+from masonry_nscd.scenes.layout import (
+    count_index,
+    course_levels,
+    unit_boxes,
+    unit_divisions,
+    wall_size,
+)
 from masonry_nscd.scenes.scene import Hold, Scene, SolverSettings, Stage
 
 if TYPE_CHECKING:  # types of the annotations only: both load on use
@@ -232,8 +238,8 @@ def _regions(case, points: list, course_of: list[int]) -> np.ndarray | None:
         place.append((kind.get(p.group), lower.get(p.group, min(units) if units else -1)))
     out = np.full(len(points), -1, dtype=np.int64)
     for r, region in enumerate(regions):
-        courses = None if region.courses is None else {c - 1 if c > 0 else n + c
-                                                       for c in region.courses}
+        courses = None if region.courses is None else {
+            count_index(c, n, "courses", f"joint.regions[{r}].courses") for c in region.courses}
         hit = [a for a, (what, c) in enumerate(place)
                if what == region.joints and (courses is None or c in courses)]
         if not hit:
