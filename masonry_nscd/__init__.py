@@ -1,8 +1,9 @@
 """masonry_nscd: masonry walls block by block with Non-Smooth Contact Dynamics.
 
-On import, the numba on-disk cache is pointed at a folder keyed on a hash of the package's
-kernel modules, the sources that hold ``njit`` functions (unless ``NUMBA_CACHE_DIR`` is already
-set). numba checks a cached kernel against its own module only, so a kernel that calls a kernel
+On import, the BLAS that numpy will load is given the same kernels on every processor
+(``arithmetic.py``), and the numba on-disk cache is pointed at a folder keyed on a hash of the
+package's kernel modules, the sources that hold ``njit`` functions (unless ``NUMBA_CACHE_DIR``
+is already set). numba checks a cached kernel against its own module only, so a kernel that calls a kernel
 of another, edited module could otherwise be served stale from the cache; with the key, any edit
 of a kernel module starts a fresh cache, and edits elsewhere (the CLI, the run loop, the
 reports) keep the compiled kernels.
@@ -14,6 +15,11 @@ from __future__ import annotations
 import hashlib
 import os
 from pathlib import Path
+
+from masonry_nscd import arithmetic
+
+# before numpy loads its BLAS: the same kernels and one BLAS thread on every processor
+arithmetic.pin_environment()
 
 __version__ = "0.1.0"
 

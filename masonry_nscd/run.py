@@ -25,7 +25,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from masonry_nscd import threads, timing
+from masonry_nscd import arithmetic, threads, timing
 from masonry_nscd.errors import RunFailure, RunInputError, RunOutputError
 from masonry_nscd.io import runfolder as rf
 from masonry_nscd.io.atomic import writing
@@ -213,6 +213,17 @@ def _case_line(case, scene, integ) -> str:
         + f", kernels on {threads.count()} thread(s)")
 
 
+def _arithmetic_line() -> str:
+    """The second line of ``run.log``: the libraries' kernels and threads, and whether the run
+    gives the same bits on any x86-64 processor (``arithmetic.py``)."""
+    a = arithmetic.describe()
+    what = ("the same bits on any x86-64 processor and thread count"
+            if a["reproducible"] == "bitwise" else
+            "not the same bits everywhere, " + a["reproducible"].removeprefix("no: "))
+    return (f"arithmetic: {what} (OpenBLAS {a['openblas_kernels']} kernels on "
+            f"{a['openblas_threads']} thread(s), MKL {a['mkl']})")
+
+
 def _failure(scene, step: int, t: float, what: str) -> RunFailure:
     """A run failure at ``step`` (time ``t``, s), named with its load stage."""
     return RunFailure(f"step {step} ({scene.stage_at(t)} stage, t = {t:.6g} s): {what}")
@@ -372,6 +383,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
         log.close()
         raise RunInputError(f"invalid case {case.name}: {exc}") from exc
     log(_case_line(case, scene, integ))
+    log(_arithmetic_line())
     if case.step_growth_note:
         log(case.step_growth_note)
     if point is not None:

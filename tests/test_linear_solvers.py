@@ -418,8 +418,7 @@ def test_a_reproducible_pardiso_handle_gives_the_same_bits_on_two_threads():
     A.data = np.random.default_rng(3).normal(size=A.nnz)
     A = (A + 40.0 * sp.eye(A.shape[0])).tocsc()
     A.sort_indices()
-    handle = pardiso.Pardiso(A.indptr, A.indices, A.shape[0], order=2, n_threads=2,
-                             reproducible=True)
+    handle = pardiso.Pardiso(A.indptr, A.indices, A.shape[0], order=2, n_threads=2)
     assert handle.iparm[33] == 2
     b = np.linspace(-1.0, 1.0, A.shape[0])
     x = [handle.factorise(A.data).solve(b) for _ in range(4)]

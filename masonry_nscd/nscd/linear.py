@@ -58,12 +58,15 @@ solver then factorises the same matrix by LU and says so.
 ``lu``: the same solutions to round-off, two to three times faster factorisations.
 
 ``auto`` picks ``pardiso`` (``lu`` where MKL is not installed) below ``KRYLOV_MIN_UNKNOWNS``
-unknowns, ``krylov`` from there.
+unknowns, ``krylov`` from there. The environment variable ``MASONRY_DIRECT_SOLVER`` (``lu`` or
+``pardiso``) names the direct solver that ``auto`` picks instead: the way to run a whole test
+suite or study with the other one; a case that names its solver keeps it.
 """
 
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 import scipy.sparse as sp
@@ -77,6 +80,8 @@ LINEAR_SOLVERS = ("auto", "lu", "pardiso", "krylov")
 #: ``auto`` picks krylov from this many unknowns of the Newton matrix (free dofs and three per
 #: multiplier point); below, pardiso where MKL is installed, else lu (docs/scaling.md)
 KRYLOV_MIN_UNKNOWNS = 100_000
+#: the environment variable that names the direct solver ``auto`` picks (module docstring)
+DIRECT_SOLVER_VARIABLE = "MASONRY_DIRECT_SOLVER"
 #: ``KrylovSolver.block_tolerance`` by default
 BLOCK_TOLERANCE = 1e-3
 
@@ -85,7 +90,8 @@ def choose(linear: str, unknowns: int, processes: int = 1) -> str:
     """The linear solver ``linear`` (``auto``, ``lu``, ``pardiso``, ``krylov``) resolved for a
     Newton matrix of ``unknowns`` rows, on ``processes`` processes (``mpi.py``: only
     ``krylov`` uses more than one, and ``auto`` takes it there). ``pardiso`` where MKL is
-    missing, or a direct solver on several processes, is a ValueError."""
+    missing, a direct solver on several processes, or another value of
+    ``MASONRY_DIRECT_SOLVER`` than ``lu`` or ``pardiso``, is a ValueError."""
     if linear not in LINEAR_SOLVERS:
         raise ValueError(f"linear solver must be one of {', '.join(LINEAR_SOLVERS)}, got "
                          f"{linear!r}")
@@ -97,7 +103,10 @@ def choose(linear: str, unknowns: int, processes: int = 1) -> str:
     if linear == "auto":
         if unknowns >= KRYLOV_MIN_UNKNOWNS:
             return "krylov"
-        return "pardiso" if pardiso.available() else "lu"
+        direct = os.environ.get(DIRECT_SOLVER_VARIABLE, "").strip()
+        if direct not in ("", "lu", "pardiso"):
+            raise ValueError(f"{DIRECT_SOLVER_VARIABLE} must be lu or pardiso, got {direct!r}")
+        linear = direct or ("pardiso" if pardiso.available() else "lu")
     if linear == "pardiso" and not pardiso.available():
         raise ValueError(pardiso.MISSING)
     return linear
@@ -356,8 +365,7 @@ class KrylovSolver:
         as joints open and close, and an analysis costs several factorisations
         (docs/scaling.md). Ordered by nested dissection: the bodies' 6 x 6 blocks make a
         graph like the wall's, where it halves the fill of the minimum degree order. In MKL's
-        reproducible mode: on two threads without it, its factorisations differed from one
-        run to the next in the last bits, and so did the runs (docs/scaling.md)."""
+        reproducible mode, as every PARDISO handle (``nscd/pardiso.py``)."""
         if not pardiso.available():
             return spla.splu(S0)
         S0.sort_indices()
@@ -384,14 +392,14 @@ class KrylovSolver:
 
 class _CoarsePattern:
     """An analysed pattern of the coarse matrix: ``indptr``, ``indices`` (CSC, sorted), the
-    entries' ``keys`` (``_keys``) and PARDISO's handle, analysed by nested dissection and
-    factorising in MKL's reproducible mode (``KrylovSolver._coarse_lu``)."""
+    entries' ``keys`` (``_keys``) and PARDISO's handle, analysed by nested dissection
+    (``KrylovSolver._coarse_lu``)."""
 
     def __init__(self, pattern: sp.csc_matrix):
         self.indptr, self.indices = pattern.indptr.copy(), pattern.indices.copy()
         self.keys = _keys(pattern)
         self.handle = pardiso.Pardiso(pattern.indptr, pattern.indices, pattern.shape[0],
-                                      order=2, reproducible=True)
+                                      order=2)
         self._pairs = None
 
     def pairs(self, columns: np.ndarray, n_bodies: int) -> tuple[np.ndarray, np.ndarray]:

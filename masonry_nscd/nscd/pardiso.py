@@ -22,11 +22,16 @@ SuperLU's to round-off (the same Newton iterations; curves within 1e-12).
 Threads: a factorisation runs on ``MKL_NUM_THREADS`` OpenMP threads when it is set, else on as
 many as the per-point kernels (``threads.count()``: the cores, one in a sweep's worker,
 ``--threads``); two threads factorise the study's matrix in two thirds of the time of one, and
-a solve takes the same time on either (docs/performance.md, session 15). MKL may not change the
-number during a run (``MKL_Set_Dynamic(0)``), so a run on a given number of threads is
-reproducible; runs on one and on two threads differ by round-off. MKL's OpenMP threads sleep as
-soon as a factorisation ends (``KMP_BLOCKTIME=0`` unless the environment sets it): by default
-they spin for 200 ms on the cores that the kernels' threads need next (docs/choices.md).
+a solve takes the same time on either (docs/performance.md). MKL may not change the number
+during a run (``MKL_Set_Dynamic(0)``). MKL's OpenMP threads sleep as soon as a factorisation
+ends (``KMP_BLOCKTIME=0`` unless the environment sets it): by default they spin for 200 ms on
+the cores that the kernels' threads need next (docs/choices.md).
+
+Reproducibility (``arithmetic.py``): MKL is put in its conditional numerical reproducibility
+branch for every x86-64 processor as it loads, and every handle factorises in PARDISO's CNR
+mode (``iparm[33]``, the number of threads): the same bits on any processor and on one thread
+or two. Without the mode, factorisations on two threads differed from one run to the next and
+from those on one thread in the last bits.
 
 MKL ships as the ``mkl`` wheel (x86_64); where it is missing, :func:`available` is False and
 ``solver.linear: auto`` keeps SuperLU.
@@ -45,7 +50,7 @@ from pathlib import Path
 
 import numpy as np
 
-from masonry_nscd import threads
+from masonry_nscd import arithmetic, threads
 
 #: PARDISO's matrix type: real and nonsymmetric
 MTYPE_REAL_NONSYMMETRIC = 11
@@ -85,8 +90,9 @@ def _candidates() -> list[str]:
 @cache
 def library() -> ctypes.CDLL | None:
     """MKL's ``libmkl_rt`` with the PARDISO entry points typed, or None when it is not
-    installed (or cannot be loaded). MKL's dynamic threads are turned off on loading (module
-    docstring)."""
+    installed (or cannot be loaded). On loading, MKL's reproducible branch is set
+    (``arithmetic.pin_mkl``, before any other MKL call) and its dynamic threads are turned off
+    (module docstring)."""
     # read by Intel's OpenMP runtime when it starts, at the first factorisation (docstring)
     os.environ.setdefault("KMP_BLOCKTIME", "0")
     for path in _candidates():
@@ -105,6 +111,7 @@ def library() -> ctypes.CDLL | None:
         lib.pardiso.restype = None
         lib.MKL_Set_Num_Threads.argtypes = [ctypes.c_int]
         lib.MKL_Set_Dynamic.argtypes = [ctypes.c_int]
+        arithmetic.pin_mkl(lib)
         lib.MKL_Set_Dynamic(0)
         return lib
     return None
@@ -144,13 +151,12 @@ class Pardiso:
     ``order``: PARDISO's fill-reducing order, ``iparm[1]`` (0 minimum degree, the default:
     module docstring; 2 nested dissection by METIS). ``n_threads``: this handle's
     factorisations on that many threads whatever the environment (None: module docstring).
-    ``reproducible``: the factorisations on the threads this handle starts with in MKL's
-    conditional numerical reproducibility mode (``iparm[33]``), the same bits from one run to
-    the next; without it, nested dissection on two threads varies in the last bits.
+    The factorisations are in PARDISO's conditional numerical reproducibility mode
+    (``iparm[33]``, module docstring).
     """
 
     def __init__(self, indptr: np.ndarray, indices: np.ndarray, n: int, order: int = 0,
-                 n_threads: int | None = None, reproducible: bool = False):
+                 n_threads: int | None = None):
         lib = library()
         if lib is None:
             raise PardisoError(MISSING)
@@ -170,9 +176,8 @@ class Pardiso:
         self.iparm[7] = 0  # iterative refinement only after a perturbed pivot (two steps)
         self.iparm[11] = 2  # solve with the transposed matrix (the CSC arrays as CSR: J^T)
         self.iparm[34] = 1  # zero-based indices
-        if reproducible:
-            self.n_threads = thread_count(n_threads)
-            self.iparm[33] = self.n_threads  # the same bits on these many threads
+        if not arithmetic.native():  # CNR mode: the same bits on one thread or two
+            self.iparm[33] = thread_count(n_threads)
         self._data: np.ndarray | None = None
         self._analysed = False
         self.generation = 0  # counts the factorisations; a factor solves only if it is the last
