@@ -1283,8 +1283,8 @@ class HorizontalStage(_Section):
 
     ``monotonic`` (the default, the study): the velocity ramps from 0 to ``rate_m_s`` over
     ``ramp_s`` from ``start_s``, then stays at ``rate_m_s``; the displacement therefore lags the
-    ideal ``rate * (t - start)`` by about ``ramp_s / 2``. The run stops when U_x reaches
-    ``target_m``, at about ``start_s + ramp_s / 2 + target_m / rate_m_s``
+    ideal ``rate * (t - start)`` by ``rate_m_s * ramp_s / 2`` once the ramp is over. The run
+    stops when U_x reaches ``target_m``, at ``start_s + ramp_s / 2 + target_m / rate_m_s``
     (:attr:`Loading.end_time_s`).
 
     ``cyclic``: for each amplitude A of ``amplitudes_m`` in turn, ``cycles_per_amplitude``
@@ -1489,11 +1489,11 @@ class Loading(_Section):
     @property
     def end_time_s(self) -> float:
         """Expected end of the run (s). Monotonic: ``start + ramp / 2 + target / rate`` of the
-        horizontal stage. The velocity ramps to ``rate_m_s`` over ``ramp_s``, so the
-        displacement lags by about ``ramp_s / 2``; the solver itself stops when U_x reaches
-        ``target_m``, so this is an estimate (exact for a ramp symmetric about its middle, when
-        ``target_m`` is reached after the ramp). Cyclic and table: the end of the motion, when
-        the run stops. Ground motion: the end of the record."""
+        horizontal stage, when U_x reaches ``target_m`` (the velocity ramps to ``rate_m_s``
+        over ``ramp_s``, so the displacement lags the sharp path by ``rate ramp / 2``; exact
+        when ``target_m`` is reached after the ramp, ``loading.RampedVelocity``). Cyclic and
+        table: the end of the motion, when the run stops. Ground motion: the end of the
+        record."""
         if self.ground_motion is not None:
             return float(self.ground_motion.history().end_s)
         h = self.horizontal

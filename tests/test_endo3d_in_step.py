@@ -6,6 +6,8 @@ the stress is uniaxial and uniform. The plate force over the area against the sh
 the height must be the uniaxial curve of the material-point driver (same element size).
 """
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from masonry_nscd.contact.laws import fczm as jl
@@ -27,6 +29,19 @@ def _params():
                          REF=0.3e6, GFR=4.5)
 
 
+@dataclass(frozen=True)
+class _Steady:
+    """A motion at the constant velocity ``v`` (m/s) from t = 0."""
+
+    v: float
+
+    def __call__(self, t: float) -> float:
+        return self.v
+
+    def displacement(self, t: float) -> float:
+        return self.v * t
+
+
 def _cube_between_plates(elements=(1, 1, 1), mu=0.0, **solver):
     """The cube on a fixed plate, shortened by the upper plate at a strain rate of 2e-3 /s:
     ``(integrator, cube, points, dof offsets)``. The joints have springs 100 times stiffer than
@@ -41,8 +56,8 @@ def _cube_between_plates(elements=(1, 1, 1), mu=0.0, **solver):
     bottom = RigidBody.fixed(center=(H / 2, -0.05, H / 2), X=Xb, conn=cb)
     Xt, ct = box_mesh(np.array([0.0, H, 0.0]), plate, (1, 1, 1))
     top = RigidBody(center=(H / 2, H + 0.05, H / 2), mass=1.0, inertia=np.ones(3),
-                    imposed_velocity={0: at_rest, 1: lambda t: -rate, 2: at_rest, 3: at_rest, 4: at_rest,
-                                      5: at_rest}, X=Xt, conn=ct, support=True)
+                    imposed_velocity={0: at_rest, 1: _Steady(-rate), 2: at_rest, 3: at_rest,
+                                      4: at_rest, 5: at_rest}, X=Xt, conn=ct, support=True)
     bodies = [cube, bottom, top]
     pts = contact_points(bodies, lambda joint, ant: (0, jl.KIND_JOINT, 0), max_gap=0.0)
     P = jl.joint_params(mu=mu, d_spring=0.0, K_I_spring=100 * E / H, K_II_spring=100 * E / H)

@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 from masonry_nscd.case import load_case
 from masonry_nscd.cli import app
 from masonry_nscd.io.runfolder import read_curve_csv
-from masonry_nscd.loading import Ramp, at_rest
+from masonry_nscd.loading import RampedVelocity, at_rest
 from masonry_nscd.model import RigidBody
 from masonry_nscd.run import run_case
 from masonry_nscd.scenes import build_scene
@@ -114,7 +114,7 @@ def test_an_imposed_velocity_off_the_centre_of_mass_swings_the_body():
     m, L, Ic = 3.0, 0.4, 0.05
     body = RigidBody(center=(0.0, -L, 0.0), reference=(0.0, 0.0, 0.0), mass=m,
                      inertia=(1.0, 1.0, Ic),
-                     imposed_velocity={0: Ramp(0.2, 0.0, 0.05), 1: at_rest, 2: at_rest,
+                     imposed_velocity={0: RampedVelocity(0.2, 0.0, 0.05), 1: at_rest, 2: at_rest,
                                        3: at_rest, 4: at_rest})
     integ = Integrator([body], [], np.zeros((1, 16)), Loads(), h=1e-3)
     for _ in range(80):

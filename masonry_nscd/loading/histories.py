@@ -4,10 +4,12 @@ The horizontal displacement ``U(t)`` (m) of the top beam's load point is imposed
 velocity ``v(t) = dU/dt`` (m/s): the integrator takes a velocity history of the beam's x dof,
 whatever the history.
 
-Monotonic (today's push, :func:`monotonic`)
+Monotonic (the push, :func:`monotonic`)
     ``v(t) = rate * s((t - start) / ramp)``, the tanh ramp ``s`` of
     :func:`masonry_nscd.loading.smooth_step`: the velocity rises smoothly to ``rate`` over
-    ``ramp`` and stays there; the run stops on the displacement (``target_m``).
+    ``ramp`` and stays there, ``U(t) = rate ramp S((t - start) / ramp)``
+    (:class:`masonry_nscd.loading.RampedVelocity`); the run stops on the displacement
+    (``target_m``), at ``start + ramp / 2 + target / rate``.
 
 A path with rounded corners (:class:`SmoothPath`, the cyclic and tabulated histories)
     A sharp piecewise-linear path ``U*(t)`` with corners at times ``t_k`` (s), velocity
@@ -64,26 +66,10 @@ from pathlib import Path
 
 import numpy as np
 
-from masonry_nscd.loading import K_TANH, Ramp, smooth_step
+from masonry_nscd.loading import RampedVelocity, ramp_integral, smooth_step
 
 __all__ = ["REVERSAL_SHORTFALL", "Cycle", "DisplacementHistory", "SmoothPath", "cyclic",
            "monotonic", "ramp_integral", "read_displacement_table", "table"]
-
-
-def ramp_integral(x: float) -> float:
-    """``S(x) = int_0^x s(y) dy`` of the unit tanh ramp ``s`` (dimensionless, see the module
-    docstring): 0 for ``x <= 0``, ``x - 1/2`` for ``x >= 1``."""
-    if x <= 0.0:
-        return 0.0
-    if x >= 1.0:
-        return x - 0.5
-    k = K_TANH
-    return 0.5 * x + (_log_cosh(k * (2.0 * x - 1.0)) - _log_cosh(k)) / (4.0 * k * math.tanh(k))
-
-
-def _log_cosh(z: float) -> float:
-    z = abs(z)
-    return z + math.log1p(math.exp(-2.0 * z)) - math.log(2.0)
 
 
 #: How far short of a sharp corner a reversal from ``+w`` to ``-w`` turns, in units of
@@ -179,8 +165,8 @@ class DisplacementHistory:
 
 
 def monotonic(rate_m_s: float, start_s: float, ramp_s: float) -> DisplacementHistory:
-    """Today's push: the velocity ramps to ``rate_m_s`` and stays (module docstring)."""
-    return DisplacementHistory("monotonic", Ramp(rate_m_s, start_s, ramp_s), None)
+    """The push: the velocity ramps to ``rate_m_s`` and stays (module docstring)."""
+    return DisplacementHistory("monotonic", RampedVelocity(rate_m_s, start_s, ramp_s), None)
 
 
 def cyclic(amplitudes_m: Sequence[float], cycles_per_amplitude: int, rate_m_s: float,

@@ -7,7 +7,7 @@ grows at a constant rate (the pseudo-static seismic or tilting-table test)::
     lambda(t) = value s((t - start) / ramp) + rate ramp S((t - start) / ramp)
 
 with ``s`` the tanh ramp of :func:`masonry_nscd.loading.smooth_step` and ``S(x) = int_0^x s``
-(:func:`masonry_nscd.loading.histories.ramp_integral`): the constant part rises over ``ramp``
+(:func:`masonry_nscd.loading.ramp_integral`): the constant part rises over ``ramp``
 and the growth starts along the same ramp, so that ``d lambda / dt`` has no jump; after the
 ramp ``lambda = value + rate (t - start - ramp / 2)``. The multiplier is dimensionless for a body
 force (``lambda g m`` on each block) and a force (N) for a point load.
@@ -22,8 +22,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from masonry_nscd.loading import K_TANH, smooth_step
-from masonry_nscd.loading.histories import ramp_integral
+from masonry_nscd.loading import K_TANH, ramp_integral, smooth_step
 
 
 @dataclass(frozen=True)

@@ -146,9 +146,11 @@ class Scene:
 
     def finished(self, ux: float, t: float) -> bool:
         """The stop rule after a step ending at ``t`` (s) with the driven displacement ``ux``
-        (m): ``ux >= target_m`` when there is a target, or ``t >= time_limit_s`` (within a
-        millionth of a step, for the time summed step by step)."""
-        if self.target_m is not None and ux >= self.target_m:
+        (m): ``ux >= target_m`` when there is a target (within a billionth of it: the driven
+        point is on its path to round-off, and its path reaches the target at the expected
+        end), or ``t >= time_limit_s`` (within a millionth of a step, for the time summed step
+        by step)."""
+        if self.target_m is not None and ux >= self.target_m - 1e-9 * abs(self.target_m):
             return True
         return t >= self.time_limit_s - 1e-6 * self.solver.h
 
@@ -165,20 +167,12 @@ class Scene:
     def step_limit_s(self, t: float) -> float:
         """The latest time (s) a step starting at ``t`` may end at (the adaptive step size's
         bound): the start of the first step that holds a dof not held at ``t``, and the
-        expected end of the loading (the time limit once past it).
-
-        A push that stops on its displacement (``target_m``) takes steps of ``h`` over the
-        last largest step before its expected end: that end is exact for the path's integral,
-        but the driven velocity is sampled at the end of each step, so the path runs ahead of
-        it by up to half a largest step during the ramp, and a large last step would carry the
-        beam past the target by up to a largest step's travel (which then depended on the
-        steps the run happened to take, e.g. after a resume). So the run stops within one
-        ``h`` of the target, as a run with every step at ``h`` does."""
+        expected end of the loading (the time limit once past it). A push that stops on its
+        displacement (``target_m``) reaches it exactly at the expected end (the driven point
+        is on its path at the end of every step, ``loading.step_velocity``), so its last step
+        ends there, or within one ``h`` past it where that end is not on the grid of ``h``."""
         h = self.solver.h
         limit = self.expected_end_s if t < self.expected_end_s - 1e-9 * h else self.time_limit_s
-        if self.target_m is not None and self.solver.max_growth:
-            approach = self.expected_end_s - h * (1 << self.solver.max_growth)
-            limit = min(limit, self._steps_of_h_from(approach, t))
         for hd in self.holds:
             if hd not in self.holds_at(t):
                 limit = min(limit, math.floor(hd.from_s / h + 1e-9) * h)

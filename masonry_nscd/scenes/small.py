@@ -11,7 +11,7 @@ import numpy as np
 
 from masonry_nscd.contact.laws import KIND_GLUED, KIND_JOINT, fczm
 from masonry_nscd.fe import hex8
-from masonry_nscd.loading import Loads, Ramp, at_rest, smooth_step
+from masonry_nscd.loading import Loads, Ramp, RampedVelocity, at_rest, smooth_step
 from masonry_nscd.model import Block, RigidBody, dof_offsets
 from masonry_nscd.model.detection import contact_points
 from masonry_nscd.model.faces import boundary_quads, quad_frame
@@ -100,7 +100,7 @@ def block_on_support(*, law: str = "coulomb", mu: float = 0.6, normal_force: flo
     if rigid:
         imposed = {d: at_rest for d in (2, 3, 4, 5)}
         if shear_velocity is not None:
-            imposed[0] = Ramp(shear_velocity, shear_start, shear_ramp)
+            imposed[0] = RampedVelocity(shear_velocity, shear_start, shear_ramp)
         body = RigidBody.box((0, 0, 0), size, 2000.0, divisions, imposed_velocity=imposed,
                              name="block")
     else:
@@ -214,7 +214,7 @@ def slender_block_pushed(*, width=0.1, height=0.4, depth=0.15, normal_force=2e3,
     size = (width, height, depth)
     support = _fixed_plate((width / 2, -0.05, depth / 2), (3 * width, 0.1, depth))
     imposed = {d: at_rest for d in (2, 3, 4)}
-    imposed[0] = Ramp(push_velocity, push_start, push_ramp)
+    imposed[0] = RampedVelocity(push_velocity, push_start, push_ramp)
     top = np.array([width / 2, height, depth / 2])
     block = RigidBody.box((0, 0, 0), size, 2000.0, divisions, imposed_velocity=imposed,
                           reference=top, name="block")

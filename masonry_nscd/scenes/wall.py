@@ -161,7 +161,7 @@ def _rig(case, first: int, last: int) -> _Rig:
     if ground is None:
         lower = RigidBody.fixed(center=(length / 2, -BEAM_HEIGHT_M / 2, t / 2),
                                 name="lower beam", X=Xl, conn=cl)
-        history = ld.horizontal.displacement_history()  # monotonic: Ramp(rate, start, ramp)
+        history = ld.horizontal.displacement_history()
         imposed = {X: history.velocity, Z: at_rest, 3: at_rest, 4: at_rest, ROT_Z: at_rest}
     else:  # the base moves with the record; the top beam is free in x
         motion = dict.fromkeys(range(6), at_rest)
