@@ -41,7 +41,7 @@ def test_plot_defaults_to_the_peak_and_the_end_in_the_run_folder(smoke_run):
     res = CliRunner().invoke(app, ["plot", str(smoke_run)])
     assert res.exit_code == 0, res.output
     names = sorted(p.name for p in (smoke_run / "plots").iterdir())
-    assert names == ["damage_smoke_ux_0.51mm.png", "force_displacement.png"]  # peak = end
+    assert names == ["damage_smoke_ux_0.50mm.png", "force_displacement.png"]  # peak = end
 
 
 def test_plot_refuses_what_is_not_a_run_or_a_bad_option(smoke_run, tmp_path):

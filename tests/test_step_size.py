@@ -244,8 +244,10 @@ def test_a_rung_step_is_a_step_of_the_larger_size(tmp_path):
 
 def test_a_resumed_adaptive_run_reaches_the_same_curve(tmp_path, interrupt_before_step):
     """Interrupted and resumed: the step control's level is in the checkpoint; the solver's
-    factorisation is not, so the iterations (and with them the step sizes) may differ, but the
-    curve must be the same within the solver's tolerance (compared at the rows of both)."""
+    factorisation is not, so the iterations (and with them the step sizes) may differ. Up to
+    the resumed step the curves are the same; after it, each on its exact path, they differ by
+    the time step's error only: at most one step's change of the force (compared at the rows
+    of both)."""
     sets = ["output.vtu=false", "output.every_steps=8", "solver.max_time_step_s=1.6e-2"]
     ref = tmp_path / "ref"
     run_case(load_case(SMOKE, sets), ref, **quiet)
@@ -253,14 +255,17 @@ def test_a_resumed_adaptive_run_reaches_the_same_curve(tmp_path, interrupt_befor
     out = tmp_path / "run"
     with pytest.raises(KeyboardInterrupt):
         run_case(load_case(SMOKE, sets), out, **quiet)
-    assert read_resume_point(out).step < 60
+    resumed = read_resume_point(out).step
+    assert resumed < 60
     run_case(load_case(out / "case.yaml"), out, resume=True, **quiet)
     a, b = _rows(out), _rows(ref)
     assert a["converged"].all()
-    peak = np.abs(b["fx_kN"]).max()
+    before = a["step"] <= resumed
+    assert np.array_equal(a["fx_kN"][before], b["fx_kN"][:before.sum()])
     f_ref = np.interp(a["time_s"], b["time_s"], b["fx_kN"])
-    assert np.abs(a["fx_kN"] - f_ref).max() <= 1e-4 * peak
-    assert abs(a["ux_mm"][-1] - b["ux_mm"][-1]) < 1e-3 * b["ux_mm"][-1] + 1e-9
+    one_step = np.abs(np.diff(b["fx_kN"][before.sum() - 1:])).max()
+    assert np.abs(a["fx_kN"] - f_ref).max() <= one_step
+    assert abs(a["ux_mm"][-1] - b["ux_mm"][-1]) <= 1e-9 * b["ux_mm"][-1]
 
 
 def test_the_step_report_gives_the_largest_loss_of_integrity():
