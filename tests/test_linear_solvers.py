@@ -321,7 +321,8 @@ def test_a_krylov_step_is_the_lu_step_to_the_newton_tolerance():
 
 def test_auto_picks_a_direct_solver_at_the_studys_size(monkeypatch):
     """auto: PARDISO below KRYLOV_MIN_UNKNOWNS where MKL is installed, SuperLU where it is
-    not, Krylov from there."""
+    not, Krylov from there; the direct solver that MASONRY_DIRECT_SOLVER names instead."""
+    monkeypatch.delenv(linear.DIRECT_SOLVER_VARIABLE, raising=False)
     case = load_case(STUDY, QUIET)
     assert case.solver.linear == "auto"
     integ = build_scene(case).integrator()
@@ -338,10 +339,21 @@ def test_auto_picks_a_direct_solver_at_the_studys_size(monkeypatch):
     assert linear.choose("auto", linear.KRYLOV_MIN_UNKNOWNS) == "krylov"
     assert linear.choose("auto", linear.KRYLOV_MIN_UNKNOWNS - 1) == direct
     assert linear.choose("krylov", 10) == "krylov" and linear.choose("lu", 10**7) == "lu"
+    monkeypatch.setenv(linear.DIRECT_SOLVER_VARIABLE, "lu")
+    assert linear.choose("auto", 10) == "lu"
+    assert linear.choose("pardiso" if direct == "pardiso" else "krylov", 10) != "lu"
+    assert linear.choose("auto", linear.KRYLOV_MIN_UNKNOWNS) == "krylov"
+    monkeypatch.setenv(linear.DIRECT_SOLVER_VARIABLE, "cholesky")
+    with pytest.raises(ValueError, match="MASONRY_DIRECT_SOLVER must be lu or pardiso"):
+        linear.choose("auto", 10)
+    monkeypatch.delenv(linear.DIRECT_SOLVER_VARIABLE)
     monkeypatch.setattr(pardiso, "available", lambda: False)
     assert linear.choose("auto", 10) == "lu"
     with pytest.raises(ValueError, match="needs Intel MKL"):
         linear.choose("pardiso", 10)
+    monkeypatch.setenv(linear.DIRECT_SOLVER_VARIABLE, "pardiso")
+    with pytest.raises(ValueError, match="needs Intel MKL"):
+        linear.choose("auto", 10)
 
 
 def test_solver_linear_is_validated(monkeypatch):
