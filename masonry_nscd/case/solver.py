@@ -1,0 +1,128 @@
+"""The time step and the contact and linear solvers."""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from masonry_nscd.case.errors import raise_problems
+from masonry_nscd.case.fields import Real, Section, Whole
+
+
+class Solver(Section):
+    """Time integration (Moreau-Jean theta scheme) and the contact solver.
+
+    ``tolerance`` bounds the relative change of the contact impulses between two Newton
+    iterations (and Newton's momentum residual against the contact impulses), or between two
+    convergence checks of the non-linear Gauss-Seidel (NLGS), made every ``check_every``
+    sweeps. It matters for NLGS: a loose tolerance lowers the apparent initial stiffness of
+    the wall (docs/model.md section 4); Newton's curve is the same from 1e-5 to 1e-9 on the
+    elastic wall (docs/performance.md).
+
+    The defaults (h = 4e-3 s, 3e-5) are those of the study's ENDO3D cases, on the Pareto front
+    of ``masonry bench`` (docs/choices.md); the elastic case takes 1e-4 and the adaptive step
+    size (``cases/wall_0.5MPa_elastic.yaml``).
+    """
+
+    time_step_s: Real = Field(4e-3, ge=1e-6, le=1.0, description="time step h (s)")
+    theta: Real = Field(
+        1.0, ge=0.5, le=1.0, description="theta of the theta-method (dimensionless, 0.5..1)"
+    )
+    method: Literal["auto", "newton", "nlgs"] = Field(
+        "auto",
+        description="contact solver: newton (semi-smooth Newton, sparse LU), nlgs (non-linear "
+        "Gauss-Seidel), or auto: the faster for the case's blocks and joints (nlgs when every "
+        "block is rigid and every joint rigid Signorini-Coulomb, newton otherwise)",
+    )
+    linear: Literal["auto", "lu", "pardiso", "krylov"] = Field(
+        "auto",
+        description="solver of the Newton matrix: lu (sparse LU, SuperLU), pardiso (sparse LU, "
+        "Intel MKL's PARDISO: the same solutions, faster; needs the mkl package), krylov (GMRES "
+        "with a two-level preconditioner over the blocks: each block's own matrix and the blocks "
+        "as rigid bodies; docs/scaling.md), or auto: pardiso (lu without MKL) below 100,000 "
+        "unknowns, krylov from there",
+    )
+    tolerance: Real = Field(
+        3e-5,
+        ge=1e-14,
+        lt=1.0,
+        description="convergence: relative change of the contact forces, and for newton the "
+        "momentum residual against the contact impulses (dimensionless)",
+    )
+    max_iterations: Whole = Field(
+        20000, ge=1, le=1_000_000_000,
+        description="maximum iterations per step (count; Newton stops at 50, then the step is "
+        "halved, and NLGS sweeps finish it at the smallest step size)",
+    )
+    check_every: Whole = Field(
+        5, ge=1, le=1_000_000, description="NLGS sweeps between convergence checks (count)"
+    )
+    max_step_halvings: Whole = Field(
+        3, ge=0, le=10,
+        description="a step that does not converge is made again as two of h/2, nested at most "
+        "this many times (count; 0: never, the step is kept as it is)",
+    )
+    halved_steps_after_failure: Whole = Field(
+        0, ge=0, le=64,
+        description="after a step made again as halves, the next this many steps are made as "
+        "halves at once, without the attempt at h, twice as many each time the attempt after "
+        "them fails again (count; 0: every step tries h first)",
+    )
+    max_time_step_s: Real | None = Field(
+        None, gt=0.0, le=1.0,
+        description="adaptive step size: the largest step (s); steps are time_step_s times 1, "
+        "2, 4, ... up to it (at most 256), doubled after grow_after_steps easy steps and made "
+        "again smaller when they fail (null: every step is time_step_s; docs/choices.md)",
+    )
+    grow_after_steps: Whole = Field(
+        2, ge=1, le=1000,
+        description="adaptive step size: easy steps in a row before the step doubles (count)",
+    )
+    easy_iterations: Whole = Field(
+        4, ge=1, le=50,
+        description="adaptive step size: a step is easy when Newton converged within this many "
+        "iterations; one that needs more than twice as many halves the next (count)",
+    )
+    easy_damage: Real = Field(
+        0.02, gt=0.0, le=1.0,
+        description="adaptive step size: a step is easy only if no joint lost more than this of "
+        "its integrity and no ENDO3D Gauss point gained more than this of damage in it; twice "
+        "as much halves the next step (dimensionless)",
+    )
+
+    @property
+    def max_growth(self) -> int:
+        """``k`` of the largest step ``time_step_s 2^k`` not above ``max_time_step_s`` (0: no
+        adaptive step size)."""
+        if self.max_time_step_s is None:
+            return 0
+        return min(8, max(0, math.floor(math.log2(self.max_time_step_s / self.time_step_s)
+                                        + 1e-9)))
+
+    @model_validator(mode="after")
+    def _check_iterations(self) -> Solver:
+        problems: list[tuple[str, str]] = []
+        if self.max_time_step_s is not None and \
+                self.max_time_step_s < self.time_step_s * (1.0 - 1e-9):
+            problems.append(("max_time_step_s", (
+                f"got {self.max_time_step_s:g}; the largest step cannot be smaller than "
+                f"time_step_s = {self.time_step_s:g} s")))
+        if self.linear == "pardiso":
+            from masonry_nscd.nscd import pardiso
+
+            if not pardiso.available():
+                problems.append(("linear", f"got pardiso; {pardiso.MISSING}"))
+        if self.check_every > self.max_iterations:
+            problems.append(
+                (
+                    "check_every",
+                    (
+                        f"got {self.check_every}; convergence would never be checked: it must not "
+                        f"exceed max_iterations = {self.max_iterations}"
+                    ),
+                )
+            )
+        raise_problems(problems)
+        return self

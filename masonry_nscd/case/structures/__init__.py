@@ -1,0 +1,1 @@
+"""The structures a case can build, one module each: its section and what it owns of the case."""
