@@ -44,6 +44,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from masonry_nscd.case.structures.wall import vertical_force_N
+
 #: Parameter calibrated by default, and its default bounds (dimensionless).
 DEFAULT_PARAM = "joint.d_spring"
 DEFAULT_BOUNDS = {"joint.d_spring": (0.80, 0.99)}
@@ -98,11 +100,11 @@ class Calibration:
 
 def default_force_range_kN(case) -> tuple[float, float]:
     """10 % and 40 % of ``mu N`` (kN): see the module docstring."""
-    mu_n_kN = case.joint.mu * case.vertical_force_N / 1e3
+    mu_n_kN = case.joint.mu * vertical_force_N(case) / 1e3
     if not mu_n_kN > 0.0:
         raise CalibrationError(
             f"no default force range: mu N = {case.joint.mu:g} x "
-            f"{case.vertical_force_N / 1e3:g} kN = 0; give --force-range LOW:HIGH (kN)")
+            f"{vertical_force_N(case) / 1e3:g} kN = 0; give --force-range LOW:HIGH (kN)")
     lo, hi = FORCE_FRACTIONS_OF_MU_N
     return lo * mu_n_kN, hi * mu_n_kN
 

@@ -65,15 +65,17 @@ def _study_runs(param: str, runs: str, what: str):
 
 
 def _load_case_or_exit(path: Path | str, overrides: list[str] | None = None):  # -> Case
-    """Load and validate a case file with its ``--set`` overrides, or leave with code 2.
+    """Load and validate a case file with its ``--set`` overrides (the schema, then its
+    builder's checks), or leave with code 2.
 
     Every message of the :class:`~masonry_nscd.case.CaseError` goes to stderr, one per line.
     Returns the :class:`~masonry_nscd.case.Case`.
     """
     from masonry_nscd.case import CaseError, load_case
+    from masonry_nscd.scenes import check_case
 
     try:
-        return load_case(path, list(overrides or ()))
+        return check_case(load_case(path, list(overrides or ())))
     except CaseError as exc:
         count = len(exc.messages)
         lines = "\n".join(f"  - {m}" for m in exc.messages)
@@ -99,56 +101,18 @@ def validate(
     """Check a case file: exit 0 with a one-line summary, or exit 2 listing every problem."""
     case = _load_case_or_exit(case_file, overrides)
     from masonry_nscd.case import case_to_yaml
-    from masonry_nscd.scenes.layout import unit_boxes
+    from masonry_nscd.scenes import builder_of
 
-    w, loading = case.wall, case.loading
-    openings = f", {len(w.openings)} opening{'s' if len(w.openings) > 1 else ''}" \
-        if w.openings else ""
-    if case.arch is not None:
-        from masonry_nscd.scenes.arch import describe
-
-        summary = describe(case)
-    elif case.vault is not None:
-        from masonry_nscd.scenes.vault import describe as describe_vault
-
-        summary = describe_vault(case)
-    elif case.assembly is not None:
-        from masonry_nscd.scenes.assembly import describe as describe_assembly
-
-        try:
-            summary = describe_assembly(case)
-        except ValueError as exc:
-            _fail(f"invalid case {case_file}: {exc}", 2)
-    else:
-        summary = (
-            f"{case.name}: {len(unit_boxes(w))} units in {w.courses} courses "
-            f"({w.bond} bond{openings}, {w.wall_length_m:.3f} x {w.wall_height_m:.3f} m), "
-            f"blocks {case.blocks.material}, joints {case.joint.law}, "
-            f"sigma_N = {loading.vertical_stress.value_Pa / 1e6:g} MPa "
-            f"({case.vertical_force_N / 1e3:g} kN), {_history_text(loading.horizontal, loading.ground_motion)}, "
-            f"about {case.step_count} steps of {case.solver.time_step_s:g} s"
-            + (f" (fewer: adaptive up to {case.solver.time_step_s * (1 << case.step_growth):g} s)"
-               if case.step_growth else "")
-        )
+    try:
+        summary = builder_of(case).describe(case)
+    except ValueError as exc:
+        _fail(f"invalid case {case_file}: {exc}", 2)
     if case.step_growth_note:
         summary += f"; {case.step_growth_note}"
     if print_case:
         typer.echo(f"# {summary}\n{case_to_yaml(case)}", nl=False)
     else:
         typer.echo(f"ok {summary}")
-
-
-def _history_text(hz, gm=None) -> str:
-    """``U_x to 10 mm``, ``U_x cycles of +-1, 2 mm (2 per amplitude)``, ``U_x from FILE``,
-    ``base motion x from FILE (x 1.5)``."""
-    if gm is not None:
-        return f"base motion {gm.direction} from {gm.file} (x {gm.scale:g})"
-    if hz.history == "cyclic":
-        amps = ", ".join(f"{1e3 * a:g}" for a in hz.amplitudes_m)
-        return f"U_x cycles of +-{amps} mm ({hz.cycles_per_amplitude} per amplitude)"
-    if hz.history == "table":
-        return f"U_x from {hz.file}"
-    return f"U_x to {hz.target_m * 1e3:g} mm"
 
 
 SetOption = Annotated[

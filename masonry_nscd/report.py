@@ -235,6 +235,11 @@ def _peak_and_stiffness(stage: Mapping[str, FloatArray],
             "stiffness_ux_high_mm": _num(u_hi), "initial_stiffness_kN_mm": _num(k)}
 
 
+def _scaled(x: float | None, factor: float) -> float | None:
+    """``x`` times ``factor``, None for None (a value the scene did not declare)."""
+    return None if x is None else x * factor
+
+
 def _num(x: float | None) -> float | None:
     """A JSON-friendly float: ``None`` for None, NaN and infinities."""
     if x is None:
@@ -592,8 +597,8 @@ def summarize_run(outdir: Path | str,
                     reaction[1]: [last.get("fx_bottom_kN"), last.get("fy_bottom_kN")]},
                 **{k: summary[k] for k in keep if k in summary}}
     head = {"case_name": case.name, "block_material": case.blocks.material,
-            "vertical_stress_MPa": case.loading.vertical_stress.value_Pa / 1e6,
-            "vertical_force_kN": case.vertical_force_N / 1e3,
+            "vertical_stress_MPa": _scaled(scene.get("vertical_stress_Pa"), 1e-6),
+            "vertical_force_kN": _scaled(scene.get("vertical_force_N"), 1e-3),
             "horizontal_start_s": start, **read_energy(outdir), "stiffness_definition": (
                 "secant between the first crossings of 10 % and 40 % of the peak force in the "
                 "horizontal stage, displacements interpolated linearly"

@@ -197,8 +197,7 @@ def _case_line(case, scene, integ) -> str:
     return (
         f"case {case.name}: {len(scene.structure)} units, {s.npt} contact points, {s.ndof} "
         f"dofs, blocks {case.blocks.material}"
-        + (f", sigma_N {case.loading.vertical_stress.value_Pa:.4g} Pa" if scene.builder == "wall"
-           else f", {scene.builder}")
+        + f", {scene.label or scene.builder}"
         + f", contact solver {solver.method}"
         + (f", steps of {solver.h:g} s to {solver.h * (1 << solver.max_growth):g} "
            "s (adaptive)" if solver.max_growth else "")

@@ -20,6 +20,7 @@ from typer.testing import CliRunner
 from masonry_nscd.case import CaseError, case_from_dict, load_case, read_yaml
 from masonry_nscd.cli import app
 from masonry_nscd.io.mesh_file import BlockMesh, read_block_mesh, write_block_mesh
+from masonry_nscd.scenes import build_scene, check_case
 
 ROOT = Path(__file__).resolve().parents[1]
 CASE = ROOT / "cases" / "pier_arches.yaml"
@@ -165,15 +166,15 @@ def test_assembly_case_checks(tmp_path):
     mesh_path = ROOT / "cases" / "pier_arches.msh"
     base = {"assembly": {"mesh_file": str(mesh_path), "supports": [{"group": "ground"}]},
             "blocks": {"material": "rigid"}, "joint": DRY}
+    # the mesh is read and its groups checked by the builder
     with pytest.raises(CaseError, match=r"assembly.supports\[0\].group: got 'floor'"):
-        case_from_dict({**base, "assembly": {"mesh_file": str(mesh_path),
-                                             "supports": [{"group": "floor"}]}},
-                       check_files=True)
+        check_case(case_from_dict({**base, "assembly": {"mesh_file": str(mesh_path),
+                                                        "supports": [{"group": "floor"}]}}))
     with pytest.raises(CaseError, match="assembly.supports"):
         case_from_dict({**base, "assembly": {"mesh_file": str(mesh_path), "supports": []}})
     with pytest.raises(CaseError, match="assembly.mesh_file: .*not found"):
-        case_from_dict({**base, "assembly": {"mesh_file": str(tmp_path / "none.msh"),
-                                             "supports": [{"group": 1}]}}, check_files=True)
+        check_case(case_from_dict({**base, "assembly": {"mesh_file": str(tmp_path / "none.msh"),
+                                                        "supports": [{"group": 1}]}}))
     with pytest.raises(CaseError, match="assembly: given with arch"):
         case_from_dict({**base, "arch": {}})
     with pytest.raises(CaseError, match="loading.settlement: given with an assembly"):
@@ -184,9 +185,7 @@ def test_assembly_case_checks(tmp_path):
         "mesh_file": str(mesh_path), "supports": [{"group": 1, "kind": "glued"},
                                                   {"group": "left abutment"},
                                                   {"group": "right abutment"}],
-        "materials": [{"group": "pier 5", "density_kg_m3": 4000.0}]}}, check_files=True)
-    from masonry_nscd.scenes import build_scene
-
+        "materials": [{"group": "pier 5", "density_kg_m3": 4000.0}]}})
     scene = build_scene(case)
     by_name = {b.name: b for b in scene.bodies}
     assert by_name["pier 5"].mass == pytest.approx(4000.0 * 0.4 * 0.22 * 0.3, rel=1e-12)

@@ -8,7 +8,7 @@ import pytest
 
 from masonry_nscd.case import CaseError, case_to_yaml, load_case
 from masonry_nscd.contact import laws
-from masonry_nscd.scenes import build_scene
+from masonry_nscd.scenes import build_scene, check_case
 
 STUDY = "cases/wall_0.5MPa_elastic.yaml"
 COURSE_M = 0.11  # unit height 0.1 m + bed joint 0.01 m
@@ -98,7 +98,7 @@ def test_a_region_is_written_back_and_reads_back_equal(tmp_path):
 ])
 def test_a_region_the_wall_cannot_have_is_named(sets, message):
     with pytest.raises(CaseError, match=message):
-        load_case(STUDY, sets)
+        check_case(load_case(STUDY, sets))
 
 
 def test_a_region_an_opening_empties_is_a_clear_error():

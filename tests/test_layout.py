@@ -8,8 +8,10 @@ import pytest
 from typer.testing import CliRunner
 
 from masonry_nscd.case import CaseError, load_case
+from masonry_nscd.case.structures.wall import vertical_force_N
 from masonry_nscd.cli import app
-from masonry_nscd.scenes.layout import course_levels, unit_boxes, wall_size
+from masonry_nscd.scenes import check_case
+from masonry_nscd.scenes.layout import unit_boxes
 
 BRICK = "cases/brick_wall_pattern.yaml"
 WINDOW = "cases/wall_window.yaml"
@@ -32,14 +34,14 @@ def test_the_brick_pattern_alternates_its_two_courses():
             assert b.x0 - (a.x0 + a.length) == pytest.approx(0.010, abs=1e-12)
         assert row[-1].x0 + row[-1].length == pytest.approx(0.99, abs=1e-12)
         assert row[0].y0 == pytest.approx(k * 0.062, abs=1e-12)
-    assert wall_size(wall) == pytest.approx((0.99, 18 * 0.052 + 17 * 0.010), abs=1e-12)
-    assert load_case(BRICK).vertical_force_N == pytest.approx(0.30e6 * 0.99 * 0.10)
+    assert (wall.wall_length_m, wall.wall_height_m) == pytest.approx((0.99, 18 * 0.052 + 17 * 0.010), abs=1e-12)
+    assert vertical_force_N(load_case(BRICK)) == pytest.approx(0.30e6 * 0.99 * 0.10)
 
 
 def test_a_pattern_course_may_have_its_own_height():
     case = load_case(BRICK, ["wall.courses=3", ("wall.pattern=[[0.21, 0.21], "
                              "{units: [0.1, 0.1, 0.21], height_m: 0.2}]")])
-    levels = course_levels(case.wall)
+    levels = case.wall.course_levels()
     assert np.allclose(levels, [(0.0, 0.052), (0.062, 0.262), (0.272, 0.324)], atol=1e-12)
     rows = _rows(unit_boxes(case.wall))
     assert [len(r) for r in rows] == [2, 3, 2]
@@ -108,8 +110,8 @@ BAD_LAYOUTS = {
 @pytest.mark.parametrize("name", list(BAD_LAYOUTS))
 def test_a_bad_layout_exits_2_naming_the_field(name):
     path, sets, words = BAD_LAYOUTS[name]
-    with pytest.raises(CaseError) as info:
-        load_case(path, sets)
+    with pytest.raises(CaseError) as info:  # the wall builder's check of its layout
+        check_case(load_case(path, sets))
     text = str(info.value)
     for w in words:
         assert w in text, (name, text)

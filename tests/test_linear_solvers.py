@@ -30,7 +30,7 @@ from masonry_nscd.case import CaseError, load_case
 from masonry_nscd.cli import app
 from masonry_nscd.nscd import linear, pardiso
 from masonry_nscd.nscd.newton import jacobian_coo
-from masonry_nscd.scenes import build_scene
+from masonry_nscd.scenes import build_scene, check_case
 
 SMOKE = "cases/smoke.yaml"
 STUDY = "cases/wall_0.5MPa_elastic.yaml"
@@ -364,7 +364,7 @@ def test_solver_linear_is_validated(monkeypatch):
     # pardiso asked for where MKL is missing: exit 2, naming the field and what to do
     monkeypatch.setattr(pardiso, "available", lambda: False)
     with pytest.raises(CaseError, match=r"solver\.linear.*got pardiso.*needs Intel MKL"):
-        load_case(SMOKE, ["solver.linear=pardiso"])
+        check_case(load_case(SMOKE, ["solver.linear=pardiso"]))
     res = CliRunner().invoke(app, ["validate", SMOKE, "--set", "solver.linear=pardiso"])
     assert res.exit_code == 2 and "solver.linear" in res.output
 

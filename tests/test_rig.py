@@ -9,6 +9,7 @@ import pytest
 from typer.testing import CliRunner
 
 from masonry_nscd.case import load_case
+from masonry_nscd.case.structures.wall import vertical_force_N
 from masonry_nscd.cli import app
 from masonry_nscd.io.runfolder import read_curve_csv
 from masonry_nscd.loading import RampedVelocity, at_rest
@@ -30,7 +31,7 @@ def held(tmp_path_factory):
 
 def test_load_then_fixed_holds_the_beam_where_the_load_left_it(held):
     case, out, c = held
-    force_kN = case.vertical_force_N / 1e3
+    force_kN = vertical_force_N(case) / 1e3
     start = case.loading.horizontal.start_s
     h = case.solver.time_step_s
     loaded = (c["time_s"] > 0.09) & (c["time_s"] <= start)

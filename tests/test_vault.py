@@ -95,7 +95,7 @@ def test_vault_case_checks():
         case_from_dict({"vault": {}, "loading": {"point_load": {"block": "voussoir 3"}}})
     case = case_from_dict({"vault": {}, "loading": {"point_load": {"block":
                                                                    "ring 2 voussoir 25"}}})
-    assert case.arch_section is case.vault
+    assert case.structure.name == "vault" and case.limit_state is case.vault
     with pytest.raises(CaseError, match="wall: given with a vault case"):
         case_from_dict({"vault": {}, "wall": {"courses": 5}})
 

@@ -109,11 +109,6 @@ class Solver(Section):
             problems.append(("max_time_step_s", (
                 f"got {self.max_time_step_s:g}; the largest step cannot be smaller than "
                 f"time_step_s = {self.time_step_s:g} s")))
-        if self.linear == "pardiso":
-            from masonry_nscd.nscd import pardiso
-
-            if not pardiso.available():
-                problems.append(("linear", f"got pardiso; {pardiso.MISSING}"))
         if self.check_every > self.max_iterations:
             problems.append(
                 (
@@ -126,3 +121,65 @@ class Solver(Section):
             )
         raise_problems(problems)
         return self
+
+
+# The solver policy: what the run uses where the case leaves the choice to it (``auto``), and
+# how far the adaptive step grows. Functions of the whole case, read by ``Case``'s properties.
+
+
+def contact_solver(case) -> str:
+    """The contact solver the run uses: ``solver.method``, or for ``auto`` the faster one
+    measured for the case's blocks and joints (docs/performance.md, "Which solver"):
+    Gauss-Seidel (``nlgs``) when every block is rigid and every joint rigid Signorini-Coulomb
+    (``coulomb``), whose Delassus blocks are small and whose impulses are the unknowns of both
+    solvers; Newton otherwise (a spring in series, deformable blocks; ENDO3D blocks need
+    it)."""
+    if case.solver.method != "auto":
+        return case.solver.method
+    if case.blocks.material == "rigid" and case.joint.law == "coulomb":
+        return "nlgs"
+    return "newton"
+
+
+def contact_point_rule(case) -> str:
+    """Where the run puts the contact points: the structure's ``contact_point_rule``, or for
+    ``auto`` Gauss-Lobatto points when the joints are rigid contacts (``coulomb``) and a face
+    has 2 or more per direction, Gauss points otherwise. On deformable blocks Lobatto points,
+    made once where quads share them, are the face's nodes: one point per node, so the normal
+    impulses that hold a face are unique, where 2 x 2 Gauss points per quad outnumber the
+    nodes and let Newton's contact statuses cycle among equivalent impulses; on rigid blocks
+    they put the rocking on the corners (docs/choices.md). A limit-state structure (an arch, a
+    vault, an assembly) takes Lobatto points for every law: its joints hinge at their edges,
+    and Gauss points would make a voussoir of one element 0.577 of its thickness thick."""
+    w = case.structure_section
+    if w.contact_point_rule != "auto":
+        return w.contact_point_rule
+    if case.structure.limit_state:  # blocks hinge about the edges of their faces, any law
+        return "lobatto" if w.contact_points_per_face >= 2 else "gauss"
+    if case.joint.law == "coulomb" and w.contact_points_per_face >= 2:
+        return "lobatto"
+    return "gauss"
+
+
+def step_growth(case) -> int:
+    """``k`` of the largest adaptive step ``time_step_s 2^k``: ``solver.max_growth``, lowered
+    until ``2^k`` divides ``output.every_steps`` (the fields are written at the end of a step:
+    a step of ``2^k h`` starts on a multiple of ``2^k h`` and never crosses one)."""
+    k = case.solver.max_growth
+    while case.output.every_steps % (1 << k):
+        k -= 1
+    return k
+
+
+def step_growth_note(case) -> str | None:
+    """Why the adaptive step stops short of ``solver.max_time_step_s`` (:func:`step_growth`
+    below ``solver.max_growth``), for the run's log and ``masonry validate``; None when it
+    does not."""
+    k, asked = step_growth(case), case.solver.max_growth
+    if k == asked:
+        return None
+    h, every = case.solver.time_step_s, case.output.every_steps
+    grows = f"steps grow to {h * (1 << k):g} s only" if k else "every step is time_step_s"
+    return (f"solver.max_time_step_s = {case.solver.max_time_step_s:g} s: {grows}, "
+            f"because output.every_steps = {every} is not a multiple of {1 << (k + 1)} "
+            f"(a multiple of {1 << asked} lets the steps grow to {h * (1 << asked):g} s)")

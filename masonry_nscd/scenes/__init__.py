@@ -1,28 +1,76 @@
-"""Scene builders: a case section turned into a block assembly ready to step.
+"""Scene builders: a case's structure turned into a block assembly ready to step.
 
-``build_scene(case)`` picks the builder of the case (the arch of ``case.arch`` when it has one,
-the vault of ``case.vault``, the assembly of ``case.assembly``, the wall of ``case.wall`` otherwise); each
-builder returns a :class:`~masonry_nscd.scenes.scene.Scene`. A new geometry is a new builder
-module here and its section in ``case.py``.
+Every structure of the case schema (``case/structures/``) has a builder here, a module that
+defines ``BUILDER``, a :class:`Builder`: the structure it builds, ``build(case) -> Scene``,
+``describe(case)`` (the one line of ``masonry validate``) and ``check(case)``, the problems of
+a case that need the builder's own geometry (a wall's layout, an assembly's mesh file) and so
+are not the schema's. ``build_scene(case)`` and ``check_case(case)`` find the builder of the
+case's structure here; nothing else asks which structure a case has. A new structure is its
+section module in ``case/structures/`` and its builder module here.
 """
 
 from __future__ import annotations
 
+import importlib
+import pkgutil
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import cache
+from typing import Any
+
+from masonry_nscd.case import CaseError
+from masonry_nscd.nscd import linear
+
+
+@dataclass(frozen=True)
+class Builder:
+    """The builder of one structure (module docstring): ``structure`` is the name of its
+    section; ``check(case)`` gives ``(dotted path, text)`` problems."""
+
+    structure: str
+    build: Callable[[Any], Any]
+    describe: Callable[[Any], str]
+    check: Callable[[Any], list[tuple[str, str]]] = field(default=lambda case: [])
+
+
+@cache
+def builders() -> dict[str, Builder]:
+    """The builder of every structure, by the structure's name: the ``BUILDER`` of each module
+    of this package."""
+    found: dict[str, Builder] = {}
+    for info in pkgutil.iter_modules(__path__):
+        module = importlib.import_module(f"{__name__}.{info.name}")
+        builder = getattr(module, "BUILDER", None)
+        if builder is not None:
+            found[builder.structure] = builder
+    return found
+
+
+def builder_of(case) -> Builder:
+    """The builder of the case's structure."""
+    return builders()[case.structure.name]
+
+
+def problems(case) -> list[str]:
+    """What the schema does not see wrong with a valid case: its builder's checks, and a
+    linear solver this machine does not have. One message per problem, naming the field."""
+    found = builder_of(case).check(case)
+    if case.solver.linear == "pardiso":
+        try:
+            linear.choose("pardiso", 1)
+        except ValueError as exc:
+            found.append(("solver.linear", f"got pardiso; {exc}"))
+    return [f"{path}: {text}" for path, text in found]
+
+
+def check_case(case):
+    """``case``, if its builder finds no problem (:func:`problems`); CaseError otherwise."""
+    found = problems(case)
+    if found:
+        raise CaseError(found)
+    return case
+
 
 def build_scene(case):
-    """The scene of a validated case."""
-    if getattr(case, "arch", None) is not None:
-        from masonry_nscd.scenes.arch import build_arch
-
-        return build_arch(case)
-    if getattr(case, "vault", None) is not None:
-        from masonry_nscd.scenes.vault import build_vault
-
-        return build_vault(case)
-    if getattr(case, "assembly", None) is not None:
-        from masonry_nscd.scenes.assembly import build_assembly
-
-        return build_assembly(case)
-    from masonry_nscd.scenes.wall import build_wall
-
-    return build_wall(case)
+    """The scene of a validated case (CaseError when its builder refuses it)."""
+    return builder_of(check_case(case)).build(case)

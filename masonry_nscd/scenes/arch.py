@@ -60,6 +60,7 @@ from masonry_nscd.loading import at_rest
 from masonry_nscd.loading.multiplier import SmoothMotion
 from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody
 from masonry_nscd.model.detection import find_joints, joint_points
+from masonry_nscd.scenes import Builder
 from masonry_nscd.scenes.limit_loads import limit_loads, limit_settings
 from masonry_nscd.scenes.scene import Scene, Stage
 
@@ -339,3 +340,6 @@ def voussoir_scene(case, a, voussoirs: list[Voussoir], driven: int, builder: str
         meta={"contact_point_rule": case.contact_point_rule, "limit_state": True,
               builder: meta},
     )
+
+
+BUILDER = Builder("arch", build_arch, describe)

@@ -42,6 +42,7 @@ from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody
 from masonry_nscd.model.detection import find_joints, joint_points
 from masonry_nscd.model.faces import gauss_points, locate
 from masonry_nscd.model.mesh_checks import inverted_elements, overlapping_pairs, unheld_blocks
+from masonry_nscd.scenes import Builder
 from masonry_nscd.scenes.limit_loads import limit_loads, limit_settings
 from masonry_nscd.scenes.scene import Scene
 
@@ -273,3 +274,16 @@ def build_assembly(case) -> Scene:
                                               *bodies[k].X[:, :2].max(axis=0).tolist()]
                                              for k in supports]}},
     )
+
+
+def check(case) -> list[tuple[str, str]]:
+    """The mesh file read and checked (``read_assembly``; nothing kept): its problems with
+    their fields (``assembly.mesh_file``, ``assembly.supports[0].group``, ...)."""
+    try:
+        read_assembly(case.assembly)
+    except AssemblyError as exc:
+        return [(f"assembly.{field}", text) for field, text in exc.problems]
+    return []
+
+
+BUILDER = Builder("assembly", build_assembly, describe, check)

@@ -27,14 +27,17 @@ The mesh of each unit (:func:`unit_divisions`): ``elements_per_unit`` hexahedra,
 many per metre as a whole unit, and the regions of ``wall.refine`` over that (the last region
 that names a unit wins).
 
-Everything here is plain Python, so that the case schema can check a layout without loading
-the solver. Problems raise :class:`LayoutError` naming the field (relative to ``wall``).
+The courses' rows and levels are the wall section's own (``case/structures/wall.py``); the
+wall builder checks a layout with :func:`unit_boxes` and :func:`unit_divisions` before it
+builds it. Problems raise :class:`LayoutError` naming the field (relative to ``wall``).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+
+from masonry_nscd.case.structures.wall import row_length
 
 #: Geometric tolerance of the layout (m): lengths that agree to this are equal.
 TOL_M = 1e-9
@@ -63,28 +66,6 @@ class UnitBox:
     opening: int = -1  # the opening a lintel spans
 
 
-def course_rows(wall) -> list[tuple[float, list[float]]]:
-    """``(unit height, [unit lengths])`` of every course, bottom first (m)."""
-    L, half, n = wall.unit_length_m, wall.half_unit_length_m, wall.units_per_course
-    rows = []
-    for k in range(wall.courses):
-        if wall.bond == "pattern":
-            entry = wall.pattern[k % len(wall.pattern)]
-            units = list(entry.units) if hasattr(entry, "units") else list(entry)
-            height = getattr(entry, "height_m", None) or wall.unit_height_m
-            rows.append((height, units))
-        elif wall.bond == "running" and k % 2 == 1:
-            rows.append((wall.unit_height_m, [half] + [L] * (n - 1) + [half]))
-        else:
-            rows.append((wall.unit_height_m, [L] * n))
-    return rows
-
-
-def row_length(units: list[float], joint: float) -> float:
-    """Length of a course of ``units`` (m): the units and the head joints between them."""
-    return sum(units) + (len(units) - 1) * joint
-
-
 def check_pattern(wall) -> None:
     """Every course of a pattern as long as the first (LayoutError naming the course)."""
     j = wall.joint_thickness_m
@@ -99,21 +80,6 @@ def check_pattern(wall) -> None:
                 f"pattern[{i}]", f"the course is {length:.6g} m long, {abs(diff):.6g} m "
                 f"{'longer' if diff > 0 else 'shorter'} than course pattern[0] ({lengths[0]:.6g} "
                 f"m; with joints of {j:g} m): every course must be as long as the first")
-
-
-def course_levels(wall) -> list[tuple[float, float]]:
-    """``(bottom, top)`` of every course (m)."""
-    out, y = [], 0.0
-    for height, _ in course_rows(wall):
-        out.append((y, y + height))
-        y += height + wall.joint_thickness_m
-    return out
-
-
-def wall_size(wall) -> tuple[float, float]:
-    """Length and height of the wall (m)."""
-    rows = course_rows(wall)
-    return row_length(rows[0][1], wall.joint_thickness_m), course_levels(wall)[-1][1]
 
 
 def _course_span(levels, y0: float, y1: float, where: str, wall_height: float) -> range:
@@ -142,9 +108,9 @@ def unit_boxes(wall) -> list[UnitBox]:
     if wall.bond == "pattern":
         check_pattern(wall)
     j = wall.joint_thickness_m
-    rows = course_rows(wall)
-    levels = course_levels(wall)
-    length, height = wall_size(wall)
+    rows = wall.course_rows()
+    levels = wall.course_levels()
+    length, height = wall.wall_length_m, wall.wall_height_m
     cuts: list[list[tuple[float, float, str]]] = [[] for _ in rows]  # per course
     lintels: list[UnitBox] = []
     boxes_xy: list[tuple[float, float, float, float, str]] = []  # for the overlap check

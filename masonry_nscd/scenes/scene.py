@@ -129,6 +129,9 @@ class Scene:
     # path's corners): adaptive steps are of h there (``step_limit_s``)
     turns_s: tuple[tuple[float, float], ...] = ()
     builder: str = ""
+    # what the run log's first line says of the scene after its blocks' material (the wall:
+    # its vertical stress; "": the builder's name)
+    label: str = ""
     point_fields: dict[str, np.ndarray] = field(default_factory=dict)  # per point, written out
     meta: dict[str, Any] = field(default_factory=dict)  # builder's values for the summary
     # (dofs, weights) of U_x and of U_y, global dofs (None: the driven body's reference point)

@@ -34,6 +34,7 @@ voussoir of ring 1.
 
 from __future__ import annotations
 
+from masonry_nscd.scenes import Builder
 from masonry_nscd.scenes.arch import Voussoir, arch_geometry, voussoir_scene
 from masonry_nscd.scenes.scene import Scene
 
@@ -43,17 +44,6 @@ def _ring_halves(n: int, staggered: bool) -> list[tuple[int, int]]:
     if not staggered:
         return [(2 * k, 2 * k + 1) for k in range(n)]
     return [(0, 0), *[(2 * k - 1, 2 * k) for k in range(1, n)], (2 * n - 1, 2 * n - 1)]
-
-
-def _staggered(v, ring: int) -> bool:
-    return bool(v.stagger) and ring % 2 == 0
-
-
-def voussoir_names(v, ring: int | None = None) -> list[str]:
-    """The names of the voussoirs of ring ``ring`` (from 1), or of every ring."""
-    rings = range(1, v.rings + 1) if ring is None else [ring]
-    return [f"ring {i} voussoir {k + 1}" for i in rings
-            for k in range(len(_ring_halves(v.voussoirs, _staggered(v, i))))]
 
 
 def vault_voussoirs(v) -> tuple[list[Voussoir], int]:
@@ -67,7 +57,7 @@ def vault_voussoirs(v) -> tuple[list[Voussoir], int]:
     depth = v.depth_m / v.rings
     out: list[Voussoir] = []
     for i in range(1, v.rings + 1):
-        pieces = _ring_halves(n, _staggered(v, i))
+        pieces = _ring_halves(n, v.staggered(i))
         for k, (lo, hi) in enumerate(pieces):
             role = "left springer" if k == 0 else "right springer" if k == len(pieces) - 1 \
                 else ""
@@ -79,7 +69,7 @@ def vault_voussoirs(v) -> tuple[list[Voussoir], int]:
 def describe(case) -> str:
     """One line on a vault case (``masonry validate``)."""
     v = case.vault
-    blocks = len(voussoir_names(v))
+    blocks = len(v.voussoir_names())
     return (f"{case.name}: {v.shape} barrel vault of {v.rings} rings x {v.voussoirs} voussoirs"
             f"{' (staggered)' if v.stagger and v.rings > 1 else ''}, {blocks} blocks, radius "
             f"{v.centreline_radius_m:.4g} m, span {v.centreline_span_m:.4g} m, thickness "
@@ -98,3 +88,6 @@ def build_vault(case) -> Scene:
             "depth_m": v.depth_m, "voussoirs": v.voussoirs, "rings": v.rings,
             "stagger": bool(v.stagger), "abutments": v.abutments, "blocks": len(voussoirs)}
     return voussoir_scene(case, v, voussoirs, driven, "vault", meta)
+
+
+BUILDER = Builder("vault", build_vault, describe)

@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
+from masonry_nscd.case.structures.wall import vertical_force_N
 from masonry_nscd.contact import laws
 from masonry_nscd.contact.scatter import scatter_rows
 from masonry_nscd.fe import hex8
@@ -41,13 +42,8 @@ from masonry_nscd.loading import Loads, Ramp, at_rest
 from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody, dof_offsets
 from masonry_nscd.model.bodies import body_mass
 from masonry_nscd.model.detection import find_joints, joint_points
-from masonry_nscd.scenes.layout import (
-    count_index,
-    course_levels,
-    unit_boxes,
-    unit_divisions,
-    wall_size,
-)
+from masonry_nscd.scenes import Builder
+from masonry_nscd.scenes.layout import LayoutError, count_index, unit_boxes, unit_divisions
 from masonry_nscd.scenes.scene import Hold, Scene, SolverSettings, Stage
 
 if TYPE_CHECKING:  # types of the annotations only: both load on use
@@ -85,16 +81,20 @@ def build_wall(case) -> Scene:
                                     [place["course"] - 1 for place in info])
     dof0 = dof_offsets(bodies)
     loads, holds = _loads(case, bodies, n_units, dof0, i_up)
-    length, height = wall_size(w)
+    length, height = w.wall_length_m, w.wall_height_m
     meta = {"joint_thickness_m": w.joint_thickness_m, "wall_length_m": length,
-            "wall_height_m": height, "contact_point_rule": case.contact_point_rule}
+            "wall_height_m": height, "vertical_stress_Pa": case.loading.vertical_stress.value_Pa,
+            "vertical_force_N": vertical_force_N(case),
+            "contact_point_rule": case.contact_point_rule}
     push = _push_stage(case, rig, bodies, dof0, top_course, i_low, i_up)
     if push.measured_what is not None:
         meta["measured"] = push.measured_what
     solver = SolverSettings.from_case(case, _endo3d_params(case))
     reactions = {"top": i_up, "bottom": i_low} if i_up is not None else {"bottom": i_low}
     return Scene(
-        name=case.name, builder="wall", bodies=bodies, points=points, groups=GROUPS,
+        name=case.name, builder="wall",
+        label=f"sigma_N {case.loading.vertical_stress.value_Pa:.4g} Pa", bodies=bodies,
+        points=points, groups=GROUPS,
         params=params, loads=loads, solver=solver,
         point_fields={f"joint_{k}": v for k, v in drawn.items()},
         structure=list(range(n_units)), body_info=info, driven=push.driven,
@@ -149,9 +149,9 @@ def _rig(case, first: int, last: int) -> _Rig:
     ground motion, the upper one driven in x by the horizontal stage's history, with the
     supports' holds."""
     w, sup, ld = case.wall, case.supports, case.loading
-    length, height = wall_size(w)
+    length, height = w.wall_length_m, w.wall_height_m
     t = w.thickness_m
-    levels = course_levels(w)
+    levels = w.course_levels()
     y_low = levels[first - 1][1] if first else 0.0  # top of the lower beam
     y_up = levels[last + 1][0] if last + 1 < w.courses else height  # bottom of the upper one
     Xl, cl = hex8.box_mesh(np.array([0.0, -BEAM_HEIGHT_M, 0.0]),
@@ -266,7 +266,7 @@ def _loads(case, bodies: list, n_units: int, dof0: np.ndarray,
     loads.add(G, Ramp(g.value_m_s2, g.start_s, g.ramp_s))
     holds = []
     if i_up is not None and sup.top_vertical in ("load", "load_then_fixed"):
-        length, _ = wall_size(case.wall)
+        length = case.wall.wall_length_m
         vs = ld.vertical_stress
         Fv = np.zeros(int(dof0[-1]))
         Fv[dof0[i_up] + Y] = -vs.value_Pa * length * case.wall.thickness_m
@@ -367,3 +367,83 @@ def _centre_of_mass_dofs(bodies: list, dof0: np.ndarray, which: list[int]):
             xs += [(d0 + k, float(lm[k]) / total) for k in range(X, b.ndof, 3)]
             ys += [(d0 + k, float(lm[k]) / total) for k in range(Y, b.ndof, 3)]
     return xs, ys
+
+
+def check(case) -> list[tuple[str, str]]:
+    """The problems of a wall case that need its layout: a layout that cannot be built
+    (``scenes/layout.py``: a pattern's courses, openings, refined units), an opening that
+    reaches into a clamped course, and ``joint.regions`` naming courses without joints of the
+    joint law."""
+    w = case.wall
+    try:
+        unit_divisions(w, unit_boxes(w))
+    except LayoutError as exc:
+        return [(f"wall.{exc.field}", exc.message)]
+    problems = []
+    clamped = case.supports.clamped_courses
+    if clamped and 2 * clamped < w.courses:
+        levels = w.course_levels()
+        free = (levels[clamped - 1][1], levels[-clamped][0])
+        for i, op in enumerate(w.openings):
+            if op.y_m < free[0] - 1e-9 or op.y_m + op.height_m > free[1] + 1e-9:
+                problems.append((f"wall.openings[{i}]", (
+                    f"reaches into a clamped course (the wall between the beams spans y = "
+                    f"{free[0]:.6g} to {free[1]:.6g} m)")))
+    return problems + _region_problems(case)
+
+
+def _region_problems(case) -> list[tuple[str, str]]:
+    """The courses of ``joint.regions`` against the wall's: each must have joints of the joint
+    law of that kind (a bed joint on top of it, head joints in it) between the beams, not the
+    glue and not inside a clamped course."""
+    n, k = case.wall.courses, case.supports.clamped_courses
+    spans = {"bed": (k - 1 if k else 0, n - 1 - k if k else n - 2), "head": (k, n - 1 - k)}
+    problems = []
+    for i, region in enumerate(case.joint.regions):
+        lo, hi = spans[region.joints]
+        field = f"joint.regions[{i}].courses"
+        for c in region.courses or []:
+            try:
+                course = count_index(c, n, "courses", field)
+            except LayoutError as exc:
+                problems.append((exc.field, exc.message))
+                continue
+            if not lo <= course <= hi:
+                problems.append((field, (
+                    f"got {c}; course {course + 1} has no {region.joints} joint of the "
+                    f"joint law (glued or clamped): allowed courses {lo + 1} to {hi + 1}")))
+    return problems
+
+
+def describe(case) -> str:
+    """One line on a wall case (``masonry validate``)."""
+    w, loading = case.wall, case.loading
+    openings = f", {len(w.openings)} opening{'s' if len(w.openings) > 1 else ''}" \
+        if w.openings else ""
+    return (
+        f"{case.name}: {len(unit_boxes(w))} units in {w.courses} courses "
+        f"({w.bond} bond{openings}, {w.wall_length_m:.3f} x {w.wall_height_m:.3f} m), "
+        f"blocks {case.blocks.material}, joints {case.joint.law}, "
+        f"sigma_N = {loading.vertical_stress.value_Pa / 1e6:g} MPa "
+        f"({vertical_force_N(case) / 1e3:g} kN), "
+        f"{history_text(loading.horizontal, loading.ground_motion)}, "
+        f"about {case.step_count} steps of {case.solver.time_step_s:g} s"
+        + (f" (fewer: adaptive up to {case.solver.time_step_s * (1 << case.step_growth):g} s)"
+           if case.step_growth else "")
+    )
+
+
+def history_text(hz, gm=None) -> str:
+    """``U_x to 10 mm``, ``U_x cycles of +-1, 2 mm (2 per amplitude)``, ``U_x from FILE``,
+    ``base motion x from FILE (x 1.5)``."""
+    if gm is not None:
+        return f"base motion {gm.direction} from {gm.file} (x {gm.scale:g})"
+    if hz.history == "cyclic":
+        amps = ", ".join(f"{1e3 * a:g}" for a in hz.amplitudes_m)
+        return f"U_x cycles of +-{amps} mm ({hz.cycles_per_amplitude} per amplitude)"
+    if hz.history == "table":
+        return f"U_x from {hz.file}"
+    return f"U_x to {hz.target_m * 1e3:g} mm"
+
+
+BUILDER = Builder("wall", build_wall, describe, check)

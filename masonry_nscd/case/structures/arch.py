@@ -8,6 +8,7 @@ from pydantic import Field, model_validator
 
 from masonry_nscd.case.errors import raise_problems
 from masonry_nscd.case.fields import ElementCount, Real, Section, Whole
+from masonry_nscd.case.structures import Structure
 
 
 class Arch(Section):
@@ -126,3 +127,37 @@ class Arch(Section):
                     f"springing joint, the thickness {t:.6g} m")))
         raise_problems(problems)
         return self
+
+
+def _point_load_problems(case) -> list[tuple[str, str]]:
+    """A point load on a block the arch does not have (its voussoirs, from the left
+    springing, and its block abutments)."""
+    a, load = case.arch, case.loading.point_load
+    if load is None:
+        return []
+    names = [f"voussoir {k}" for k in range(1, a.voussoirs + 1)]
+    return point_load_problems(a, load, names, f"voussoir 1 to voussoir {a.voussoirs}")
+
+
+def point_load_problems(a: Arch, load, names: list[str], where: str) -> list[tuple[str, str]]:
+    """``loading.point_load.block`` against the voussoirs ``names`` of the arch or vault ``a``
+    (``where``: how a message names their range) and its abutments when they are blocks."""
+    extra = a.abutments == "blocks"
+    if extra:
+        names = [*names, "left abutment", "right abutment"]
+    if load.block in names:
+        return []
+    return [("loading.point_load.block", (
+        f"got {load.block!r}; the blocks are {where} (from the left springing)"
+        + (", left abutment, right abutment" if extra else "")))]
+
+
+#: The parts of a case that only a limit-state structure reads: its collapse rule and its
+#: growing loads
+LIMIT_STATE_OWNS = ("collapse", "loading.body_force", "loading.point_load",
+                    "loading.settlement")
+
+STRUCTURE = Structure(
+    name="arch", model=Arch, article="an arch", order=10, limit_state=True,
+    description="an arch of voussoirs instead of the wall (null: the wall)",
+    owns=("arch", *LIMIT_STATE_OWNS), checks=_point_load_problems)

@@ -9,6 +9,8 @@ from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from masonry_nscd.case.errors import raise_problems
 from masonry_nscd.case.fields import Real, Section, Whole
+from masonry_nscd.case.structures import Structure
+from masonry_nscd.case.structures.arch import LIMIT_STATE_OWNS
 
 GroupRef = Annotated[Whole | str, Field(union_mode="left_to_right")]
 
@@ -49,7 +51,8 @@ class Assembly(Section):
     ``supports`` name the blocks that are fixed supports (at least one); ``materials`` give a
     block's material by its name or tag, the others take ``blocks``. Joints are found by the
     generic contact detection between facing faces at most ``joint_thickness_m`` apart (groups
-    ``joint``, ``support``, ``glue``) and follow ``joint``. y is up (gravity along -y).
+    ``joint``, ``support``, ``glue``) and follow ``joint``. y is up (gravity along -y). The
+    mesh file is read and its groups checked by the builder (``scenes/assembly.py``).
     """
 
     mesh_file: str = Field(
@@ -93,7 +96,7 @@ class Assembly(Section):
         return str((Path(base) / value).resolve())
 
     @model_validator(mode="after")
-    def _check_mesh(self, info: ValidationInfo) -> Assembly:
+    def _check_groups(self) -> Assembly:
         problems: list[tuple[str, str]] = []
         seen: dict[str, str] = {}
         for table in ("supports", "materials"):
@@ -104,12 +107,20 @@ class Assembly(Section):
                         f"got {entry.group!r} again; a block is named once in {table}"
                         + (" and once in materials" if table == "supports" else ""))))
                 seen.setdefault(key, table)
-        if not problems and (info.context or {}).get("check_files"):
-            from masonry_nscd.scenes.assembly import AssemblyError, read_assembly
-
-            try:  # read and checked only: nothing is kept in the case
-                read_assembly(self)
-            except AssemblyError as exc:
-                problems += exc.problems
         raise_problems(problems)
         return self
+
+
+def _settlement_problems(case) -> list[tuple[str, str]]:
+    """A settlement is the arch's and the vault's: an assembly's supports are fixed."""
+    if case.loading.settlement is None:
+        return []
+    return [("loading.settlement", (
+        "given with an assembly case; the settlement of a support is the arch's and the "
+        "vault's (an assembly's supports are fixed)"))]
+
+
+STRUCTURE = Structure(
+    name="assembly", model=Assembly, article="an assembly", order=30, limit_state=True,
+    description="blocks from a mesh file instead of the wall (null: the wall)",
+    owns=("assembly", *LIMIT_STATE_OWNS), checks=_settlement_problems)

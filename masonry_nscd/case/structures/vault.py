@@ -6,7 +6,8 @@ from pydantic import Field, model_validator
 
 from masonry_nscd.case.errors import raise_problems
 from masonry_nscd.case.fields import Real, Whole
-from masonry_nscd.case.structures.arch import Arch
+from masonry_nscd.case.structures import Structure
+from masonry_nscd.case.structures.arch import LIMIT_STATE_OWNS, Arch, point_load_problems
 
 
 class Vault(Arch):
@@ -37,3 +38,34 @@ class Vault(Arch):
                 "corners of a staggered ring would fall into a gap of its neighbour)")))
         raise_problems(problems)
         return self
+
+    def staggered(self, ring: int) -> bool:
+        """Whether ring ``ring`` (from 1) is staggered: every second one, with ``stagger``."""
+        return bool(self.stagger) and ring % 2 == 0
+
+    def ring_voussoirs(self, ring: int) -> int:
+        """How many voussoirs ring ``ring`` (from 1) has: ``voussoirs``, one more in a staggered
+        ring (a half voussoir at each springing)."""
+        return self.voussoirs + (1 if self.staggered(ring) else 0)
+
+    def voussoir_names(self, ring: int | None = None) -> list[str]:
+        """The names of the voussoirs of ring ``ring`` (from 1), or of every ring."""
+        rings = range(1, self.rings + 1) if ring is None else [ring]
+        return [f"ring {i} voussoir {k + 1}" for i in rings
+                for k in range(self.ring_voussoirs(i))]
+
+
+def _point_load_problems(case) -> list[tuple[str, str]]:
+    """A point load on a block the vault does not have."""
+    v, load = case.vault, case.loading.point_load
+    if load is None:
+        return []
+    where = (f"ring 1 voussoir 1 to ring {v.rings} voussoir "
+             f"{len(v.voussoir_names(v.rings))}")
+    return point_load_problems(v, load, v.voussoir_names(), where)
+
+
+STRUCTURE = Structure(
+    name="vault", model=Vault, article="a vault", order=20, limit_state=True,
+    description="a barrel vault instead of the wall (null: the wall or the arch)",
+    owns=("vault", *LIMIT_STATE_OWNS), checks=_point_load_problems)

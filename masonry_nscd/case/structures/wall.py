@@ -8,6 +8,13 @@ from pydantic import Field, model_validator
 
 from masonry_nscd.case.errors import raise_problems
 from masonry_nscd.case.fields import ElementCount, Real, Section, Whole
+from masonry_nscd.case.structures import Structure
+
+
+def row_length(units: list[float], joint: float) -> float:
+    """Length of a course of ``units`` (m): the units and the head joints between them."""
+    return sum(units) + (len(units) - 1) * joint
+
 
 #: Tolerance of the running-bond length identity (m).
 BOND_TOLERANCE_M = 1e-9
@@ -162,23 +169,39 @@ class Wall(Section):
         "gauss otherwise",
     )
 
+    def course_rows(self) -> list[tuple[float, list[float]]]:
+        """``(unit height, [unit lengths])`` of every course, bottom first (m), by ``bond``."""
+        L, half, n = self.unit_length_m, self.half_unit_length_m, self.units_per_course
+        rows = []
+        for k in range(self.courses):
+            if self.bond == "pattern":
+                entry = self.pattern[k % len(self.pattern)]
+                units = list(entry.units) if hasattr(entry, "units") else list(entry)
+                rows.append((getattr(entry, "height_m", None) or self.unit_height_m, units))
+            elif self.bond == "running" and k % 2 == 1:
+                rows.append((self.unit_height_m, [half] + [L] * (n - 1) + [half]))
+            else:
+                rows.append((self.unit_height_m, [L] * n))
+        return rows
+
+    def course_levels(self) -> list[tuple[float, float]]:
+        """``(bottom, top)`` of every course (m)."""
+        out, y = [], 0.0
+        for height, _ in self.course_rows():
+            out.append((y, y + height))
+            y += height + self.joint_thickness_m
+        return out
+
     @property
     def wall_length_m(self) -> float:
-        """Length of the wall along x (m): ``n * unit_length + (n - 1) * joint`` (running,
-        stack), the length of the first course (pattern)."""
-        if self.bond == "pattern":
-            from masonry_nscd.scenes.layout import wall_size
-
-            return wall_size(self)[0]
-        n = self.units_per_course
-        return n * self.unit_length_m + (n - 1) * self.joint_thickness_m
+        """Length of the wall along x (m): its first course's units and head joints,
+        ``n * unit_length + (n - 1) * joint`` in running and stack bond."""
+        return row_length(self.course_rows()[0][1], self.joint_thickness_m)
 
     @property
     def wall_height_m(self) -> float:
         """Height of the wall, without the steel beams (m)."""
-        from masonry_nscd.scenes.layout import wall_size
-
-        return wall_size(self)[1]
+        return self.course_levels()[-1][1]
 
     @model_validator(mode="after")
     def _check_bond(self) -> Wall:
@@ -219,13 +242,6 @@ class Wall(Section):
         if self.bond != "pattern" and self.pattern is not None:
             problems.append(("pattern", (f"given with bond {self.bond!r}; set bond: pattern to "
                              "use it, or remove it")))
-        if not problems:
-            from masonry_nscd.scenes.layout import LayoutError, unit_boxes, unit_divisions
-
-            try:
-                unit_divisions(self, unit_boxes(self))
-            except LayoutError as exc:
-                problems.append((exc.field, exc.message))
         raise_problems(problems)
         return self
 
@@ -286,3 +302,15 @@ class Supports(Section):
         "present", description="the top steel beam: present (the rig), or absent (a "
         "free-standing wall under loading.ground_motion)"
     )
+
+
+def vertical_force_N(case) -> float:
+    """The vertical force on the top beam (N): sigma_N times the wall's length and thickness."""
+    w = case.wall
+    return case.loading.vertical_stress.value_Pa * w.wall_length_m * w.thickness_m
+
+
+STRUCTURE = Structure(
+    name="wall", model=Wall, article="a wall", order=0, limit_state=False,
+    description="geometry, bond and mesh",
+    owns=("wall", "supports", "loading.vertical_stress", "loading.horizontal", "joint.regions"))
