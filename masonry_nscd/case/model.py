@@ -170,9 +170,10 @@ class CaseBase(Section):
         the sections of two structures, and the problems of the case's own structure."""
         own = self.structure
         others = [s for s in structures() if s is not own]
+        chosen = {s.name for s in structures()[1:]}  # given, they name the structure: below
         problems = []
         for path in dict.fromkeys(p for s in others for p in s.owns if p not in own.owns):
-            if not given(self, path):
+            if path in chosen or not given(self, path):
                 continue
             owner = next(s for s in others if path in s.owns)
             problems.append((path, (
