@@ -27,12 +27,14 @@ PKG = Path(__file__).resolve().parents[1] / "masonry_nscd"
 #: prefix that matches a module's dotted name (without ``masonry_nscd.``) gives its layer.
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("base", ("__init__", "errors", "timing", "threads", "arithmetic")),
-    ("physics", ("loading", "fe", "contact", "materials")),
-    ("schema", ("case",)),
+    ("physics", ("loading", "fe", "contact")),
     ("model", ("model",)),
+    ("materials", ("materials",)),
+    ("schema", ("case",)),
     ("step", ("nscd",)),
+    ("files", ("io",)),
     ("builders", ("scenes",)),
-    ("run folder", ("io", "post")),
+    ("post", ("post",)),
     ("run", ("report", "collapse", "plots", "plots_limit", "run")),
     ("studies", ("studies", "bench", "sweep", "sensitivity", "stress", "calibrate",
                  "threshold", "case_check", "warmup")),
@@ -211,3 +213,26 @@ def test_every_module_has_a_layer():
 
 if __name__ == "__main__":
     print(table(read_package()))
+
+
+def test_every_structure_has_its_builder_and_every_builder_its_structure():
+    """A structure is its section module in ``case/structures/`` and its builder module in
+    ``scenes/``, each found by discovery: the two registries name the same structures, the
+    default one (the wall) first, and the case model has a field for each."""
+    from masonry_nscd.case import Case
+    from masonry_nscd.case.structures import structures
+    from masonry_nscd.scenes import builders
+
+    names = [s.name for s in structures()]
+    assert names[0] == "wall" and structures()[0].default
+    assert set(names) == set(builders())
+    assert all(name in Case.model_fields for name in names)
+
+
+def test_the_schema_imports_nothing_above_it():
+    """The case schema reads no builder, solver, run folder or study: its imports of the
+    package stay within the layers below it (the arrows back up of :func:`back_up`)."""
+    modules = read_package()
+    schema = [m for m in modules if layer_of(m) == layer_of("case")]
+    up = [a for a in back_up(modules) if a.split(" -> ")[0] in schema]
+    assert not up, up
