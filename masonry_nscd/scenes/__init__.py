@@ -1,7 +1,7 @@
 """Scene builders: a case's structure turned into a block assembly ready to step.
 
-Every structure of the case schema (``case/structures/``) has a builder here, a module that
-defines ``BUILDER``, a :class:`Builder`: the structure it builds, ``build(case) -> Scene``,
+Every structure of the case schema (``case/structures/``) has a builder here, the module of
+its name (``scenes/wall.py`` for ``wall``), which defines ``BUILDER``, a :class:`Builder`: the structure it builds, ``build(case) -> Scene``,
 ``describe(case)`` (the one line of ``masonry validate``) and ``check(case)``, the problems of
 a case that need the builder's own geometry (a wall's layout, an assembly's mesh file) and so
 are not the schema's. ``build_scene(case)`` and ``check_case(case)`` find the builder of the
@@ -12,13 +12,13 @@ section module in ``case/structures/`` and its builder module here.
 from __future__ import annotations
 
 import importlib
-import pkgutil
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cache
 from typing import Any
 
 from masonry_nscd.case import CaseError
+from masonry_nscd.case.structures import structures
 from masonry_nscd.nscd import linear
 
 
@@ -33,22 +33,23 @@ class Builder:
     check: Callable[[Any], list[tuple[str, str]]] = field(default=lambda case: [])
 
 
-@cache
 def builders() -> dict[str, Builder]:
-    """The builder of every structure, by the structure's name: the ``BUILDER`` of each module
-    of this package."""
-    found: dict[str, Builder] = {}
-    for info in pkgutil.iter_modules(__path__):
-        module = importlib.import_module(f"{__name__}.{info.name}")
-        builder = getattr(module, "BUILDER", None)
-        if builder is not None:
-            found[builder.structure] = builder
-    return found
+    """The builder of every structure of the schema, by the structure's name."""
+    return {s.name: _builder(s.name) for s in structures()}
 
 
 def builder_of(case) -> Builder:
     """The builder of the case's structure."""
-    return builders()[case.structure.name]
+    return _builder(case.structure.name)
+
+
+@cache
+def _builder(name: str) -> Builder:
+    """The ``BUILDER`` of module ``scenes/<name>.py``, imported only when asked for."""
+    builder = importlib.import_module(f"{__name__}.{name}").BUILDER
+    if builder.structure != name:
+        raise RuntimeError(f"scenes/{name}.py builds {builder.structure!r}, not {name!r}")
+    return builder
 
 
 def problems(case) -> list[str]:
