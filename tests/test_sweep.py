@@ -10,7 +10,7 @@ import pytest
 from typer.testing import CliRunner
 
 from masonry_nscd.cli import app
-from masonry_nscd.sweep import SweepError, parse_set, point_names, split_values
+from masonry_nscd.studies.sweep import SweepError, parse_set, point_names, split_values
 
 pytest.importorskip("distributed")
 

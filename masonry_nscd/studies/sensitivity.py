@@ -2,7 +2,7 @@
 
 Each parameter is a numeric field of the case, ``PATH=LOW:HIGH`` (SI units of the field),
 uniform over ``[LOW, HIGH]``. SALib draws the samples, every sample is a run of
-:mod:`masonry_nscd.sweep` (local worker processes or a Dask cluster, resumable, folders
+:mod:`~masonry_nscd.studies.sweep` (local worker processes or a Dask cluster, resumable, folders
 ``OUTDIR/runs/sample_NNNN``), and SALib computes the indices of the chosen output of the run
 summary (:data:`OUTPUTS`, definitions in :mod:`masonry_nscd.report`).
 
@@ -34,7 +34,7 @@ analysis is refused: the runs are listed, ``samples.csv`` holds all of them with
 and message, and the command exits with code 1. Narrow the ranges, or fix the cause, and run
 the same command again: the finished runs are kept.
 
-Files in OUTDIR: ``samples.csv`` (the table of :mod:`masonry_nscd.sweep`: the parameter values,
+Files in OUTDIR: ``samples.csv`` (the table of :mod:`~masonry_nscd.studies.sweep`: the parameter values,
 the outputs, run time, status, message, run folder), ``indices.csv`` (one row per parameter,
 columns above), ``indices.png`` (bar chart of the indices), ``sensitivity.json`` (the problem,
 method, samples, seed and output).
@@ -50,7 +50,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from masonry_nscd.sweep import (
+from masonry_nscd.studies.sweep import (
     RUNS_DIR,
     Point,
     RunRecord,
@@ -88,7 +88,8 @@ class Param:
 
 
 def parse_param(text: str) -> Param:
-    """``"joint.mu=0.5:0.9"`` -> :class:`Param`, or :class:`~masonry_nscd.sweep.SweepError`."""
+    """``"joint.mu=0.5:0.9"`` -> :class:`Param`, or
+    :class:`~masonry_nscd.studies.sweep.SweepError`."""
     path, sep, bounds = text.partition("=")
     parts = bounds.split(":")
     try:
@@ -134,7 +135,8 @@ def draw(prob: dict[str, Any], method: str, samples: int, seed: int):  # -> NDAr
 
 def sample_points(case_file: Path, params: Sequence[Param], rows, fixed: Sequence[str]
                   ) -> list[Point]:
-    """A validated :class:`~masonry_nscd.sweep.Point` per sample row (``sample_NNNN``)."""
+    """A validated :class:`~masonry_nscd.studies.sweep.Point` per sample row
+    (``sample_NNNN``)."""
     from masonry_nscd.case import CaseError
 
     width = max(4, len(str(len(rows) - 1)))
@@ -295,7 +297,7 @@ def run_sensitivity(case_file: Path, param_texts: Sequence[str], method: str, sa
                     echo: Callable[[str], None] = print) -> SensitivityResult:
     """Sample, validate every sample, run them, analyse (see the module docstring).
 
-    Raises :class:`~masonry_nscd.sweep.SweepError` before any run for a bad option.
+    Raises :class:`~masonry_nscd.studies.sweep.SweepError` before any run for a bad option.
     """
     check_design(method, samples, output)
     params = [parse_param(t) for t in param_texts]

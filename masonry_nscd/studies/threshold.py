@@ -1,4 +1,4 @@
-"""The value of one case parameter between standing and collapse, by bisection (issue 18).
+"""The value of one case parameter between standing and collapse, by bisection.
 
 ``masonry threshold CASE --param PATH --bounds LOW:HIGH`` runs the limit-state case (an arch:
 it has a collapse rule, :mod:`masonry_nscd.collapse`) with ``PATH`` at each bound; their
@@ -16,9 +16,9 @@ threshold a mechanism starts slowly (with rigid voussoirs the acceleration of th
 grows with the distance to the threshold), so the end time bounds how close to the threshold
 a collapse can be seen (docs/choices.md).
 
-This reuses the machinery of :mod:`masonry_nscd.calibrate`: the parameter read and checked
-(:func:`~masonry_nscd.calibrate.parameter_value`), the bounds (``parse_range``), the case
-loaded again with the parameter set for each run, its errors (exit code 2), one folder per run.
+This reuses the machinery of :mod:`~masonry_nscd.studies.calibrate`: the parameter read and
+checked (:func:`~masonry_nscd.studies.calibrate.parameter_value`), the bounds (``parse_range``),
+the case loaded again with the parameter set for each run, its errors (exit code 2), one folder per run.
 
 Outputs (in the study folder): ``runs/NN_<param>_<value>/`` (each run, without VTU),
 ``threshold.csv`` (one row per run: ``run, value, status, side``, the loads at the onset of a
@@ -37,7 +37,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from masonry_nscd.calibrate import CalibrationError, parameter_value, parse_range
+from masonry_nscd.studies.calibrate import CalibrationError, parameter_value, parse_range
 
 __all__ = ["THRESHOLD_COLUMNS", "Threshold", "ThresholdError", "ThresholdRun", "check_case",
            "find_threshold", "format_table", "parameter_value", "parse_range", "write_outputs"]

@@ -2,9 +2,9 @@
 its convergence or moved its curve, to run before a change lands.
 
 The unit tests run the cases shortened (``tests/test_rig.py``, ``tests/test_regression.py``),
-so a regression that shows only past the point where they stop goes unseen: the brick wall's
-two steps at U_x = 0.93 mm were left unconverged from session 12 to session 27
-(docs/performance.md). This check runs each case as shipped, in a fresh process, without field
+so a regression that shows only past the point where they stop goes unseen (the brick wall
+once kept two unconverged steps at U_x = 0.93 mm through many changes: docs/performance.md).
+This check runs each case as shipped, in a fresh process, without field
 outputs (``output.vtu=false``, ``output.hdf5=false``: the curve does not depend on them), and
 judges three things:
 
@@ -39,7 +39,7 @@ import numpy as np
 from masonry_nscd.io.atomic import atomic_write
 from masonry_nscd.io.runfolder import CSV, SUMMARY, read_curve_csv
 
-CASES_DIR = Path(__file__).resolve().parents[1] / "cases"
+CASES_DIR = Path(__file__).resolve().parents[2] / "cases"
 RECORD_DIR = CASES_DIR / "record"
 RUNS = "runs.json"
 RECORD_ROWS = 200  # rows of a curve kept in its record (count)
@@ -127,7 +127,7 @@ def log_path(run_dir: Path) -> Path:
 def run_case_process(case: Path, outdir: Path, overrides: Sequence[str]) -> tuple[int, float]:
     """``masonry run CASE -o OUTDIR`` without field outputs, in a fresh process: its exit code
     and wall clock (s). Its log is :func:`log_path`."""
-    from masonry_nscd.bench import masonry_command
+    from masonry_nscd.studies.bench import masonry_command
 
     argv = [*masonry_command(), "run", str(case), "-o", str(outdir), "--overwrite"]
     for item in (*NO_FIELDS, *overrides):
@@ -187,7 +187,7 @@ def check_cases(cases: Sequence[Path], outdir: Path, *, record_dir: Path = RECOR
                 echo: Callable[[str], None] = print) -> list[CaseCheck]:
     """Check (or record, ``write``) each case in turn; ``OUTDIR/check.csv`` is written again
     after each, so that an interrupted check keeps the cases done."""
-    from masonry_nscd.bench import write_rows
+    from masonry_nscd.studies.bench import write_rows
 
     outdir.mkdir(parents=True, exist_ok=True)
     if write:

@@ -43,9 +43,9 @@ The reference has the case's mesh: the errors measure the time integration and t
 the mesh. The mesh rungs show how far a coarser or finer mesh per unit moves the curve (the mesh
 is part of the model: the study prescribes 2 x 2 x 1 hexahedra per unit).
 
-Timing. Every run is made in a fresh subprocess (``python -m masonry_nscd.bench SPEC.json``),
-so that its time and memory are its own; the numba cache is warmed first by tiny runs of the
-same solvers and materials. Per run: ``run_s``, the wall-clock time of
+Timing. Every run is made in a fresh subprocess (``python -m masonry_nscd.studies.bench
+SPEC.json``), so that its time and memory are its own; the numba cache is warmed first by tiny
+runs of the same solvers and materials. Per run: ``run_s``, the wall-clock time of
 :func:`masonry_nscd.run.run_case` (scene build, steps, outputs of the case, summary; not the
 interpreter's start-up); ``process_s``, the whole subprocess including start-up;
 ``step_ms_median``, the median wall-clock time of one ``Integrator.step`` (the solver alone,
@@ -115,7 +115,8 @@ FloatArray = NDArray[np.float64]
 REFERENCE_TIME_STEP_FACTOR = 0.5
 #: ... and the solver tolerance times this one (same mesh, loading rate and solver).
 REFERENCE_TOLERANCE_FACTOR = 0.1
-#: NLGS tolerance of the reference NSCD code in the anchor of issue 6 (dimensionless).
+#: NLGS tolerance of the anchor, the reference NSCD code the project is compared with
+#: (dimensionless).
 ANCHOR_NLGS_TOLERANCE = 1e-5
 #: Points of the uniform U grid on which the RMS difference of two curves is taken.
 RMS_GRID_POINTS = 401
@@ -125,14 +126,14 @@ CHEAP_S = 30.0
 REFERENCE_TIME_FACTOR = 4.0
 #: Errors below this are drawn at this value on the log scale of the chart.
 ERROR_FLOOR = 1e-7
-#: The issue's limit on the errors of the default settings (relative).
+#: The limit on the errors of the default settings (relative).
 DEFAULT_ERROR_LIMIT = 0.02
 #: A log-log slope of memory increments against contact points up to this counts as linear.
 LINEAR_SLOPE_LIMIT = 1.1
-#: Start-up targets of issue 6 (s).
+#: Start-up targets: ``masonry --help`` and a run of the smoke case (s).
 HELP_TARGET_S = 0.5
 SMOKE_TARGET_S = 10.0
-SMOKE_CASE = Path(__file__).resolve().parents[1] / "cases" / "smoke.yaml"
+SMOKE_CASE = Path(__file__).resolve().parents[2] / "cases" / "smoke.yaml"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -640,8 +641,8 @@ def run_in_child(spec: Mapping[str, Any], timeout_s: float | None = None) -> dic
         spec_path.write_text(json.dumps({**spec, "result": str(result)}))
         t0 = time.perf_counter()
         try:
-            proc = subprocess.run([sys.executable, "-m", "masonry_nscd.bench", str(spec_path)],
-                                  check=False, capture_output=True, text=True, timeout=timeout_s)
+            proc = subprocess.run([sys.executable, "-m", "masonry_nscd.studies.bench",
+                                   str(spec_path)], check=False, capture_output=True, text=True, timeout=timeout_s)
         except subprocess.TimeoutExpired:
             # a step that never ended: what the child wrote before it (``_write_partial``)
             return {**_partial_result({"result": str(result)}), "status": "timeout",
@@ -1426,5 +1427,5 @@ def format_startup(rows: Sequence[StartupRow]) -> list[str]:
             f"{'met' if r.median_s < r.target_s else 'MISSED'})" for r in rows]
 
 
-if __name__ == "__main__":  # a child process of the benchmark: python -m masonry_nscd.bench SPEC
+if __name__ == "__main__":  # a child of the benchmark: python -m masonry_nscd.studies.bench SPEC
     sys.exit(_child_main(sys.argv[1]))

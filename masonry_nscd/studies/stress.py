@@ -56,7 +56,7 @@ import numpy as np
 
 EQUILIBRIUM_TOLERANCE = 1e-2
 ACCEPTABLE = ("ok", "failed")
-DEFAULT_BASE = Path(__file__).resolve().parents[1] / "cases" / "smoke.yaml"
+DEFAULT_BASE = Path(__file__).resolve().parents[2] / "cases" / "smoke.yaml"
 
 
 @dataclass(frozen=True)
