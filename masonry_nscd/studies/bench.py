@@ -88,7 +88,6 @@ untimed run that warms the caches), each timed as a subprocess from launch to ex
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import io
 import itertools
@@ -485,52 +484,27 @@ def peak_rss_mib() -> float:
     return rss / 2**20 if sys.platform == "darwin" else rss / 1024.0  # bytes / KiB
 
 
-@contextlib.contextmanager
-def timed_steps(durations: list[float], info: dict[str, Any]):
-    """Inside the block, every ``Integrator.step`` appends its wall-clock time (s) to
-    ``durations``; ``info`` gets the number of contact points and dofs of the first scene.
-    Used in the benchmark's child processes only."""
-    from masonry_nscd.nscd.integrator import Integrator
-
-    original = Integrator.step
-
-    def step(self):
-        info.setdefault("contact_points", int(self.sys.npt))
-        info.setdefault("dofs", int(self.sys.ndof))
-        t0 = time.perf_counter()
-        try:
-            return original(self)
-        finally:
-            durations.append(time.perf_counter() - t0)
-
-    Integrator.step = step
-    try:
-        yield
-    finally:
-        Integrator.step = original
-
-
 def _child_run(spec: Mapping[str, Any]) -> dict[str, Any]:
-    """One run of a case to its target (``kind: run``); see :func:`run_in_child`."""
+    """One run of a case to its target (``kind: run``), every step timed, as a point of the
+    study (:func:`~masonry_nscd.studies.point.run_point`); see :func:`run_in_child`."""
     from masonry_nscd.case import load_case
-    from masonry_nscd.run import RunFailure, run_case
+    from masonry_nscd.studies.point import ERROR, FAILED, as_error, run_point
 
     case = load_case(spec["case"], spec["overrides"])
-    deadline = time.perf_counter() + float(spec["time_limit_s"])
-    durations: list[float] = []
-    out: dict[str, Any] = {"status": "ok", "message": ""}
-    t0 = time.perf_counter()
-    try:
-        with timed_steps(durations, out):
-            res = run_case(case, Path(spec["outdir"]), overwrite=True, echo=lambda m: None,
-                           stop_when=lambda curve: time.perf_counter() > deadline)
-        out.update(steps=res.steps, unconverged_steps=res.unconverged_steps)
-        if res.stopped:
-            out.update(status="timeout", message=f"stopped after {spec['time_limit_s']:g} s "
-                       f"at step {res.steps}")
-    except RunFailure as exc:
-        out.update(status="failed", message=str(exc), steps=len(durations))
-    out["run_s"] = time.perf_counter() - t0
+    rec = run_point(case, Path(spec["outdir"]), overwrite=True,
+                    time_limit_s=float(spec["time_limit_s"]), time_steps=True)
+    status, message = as_error(rec)
+    if status == ERROR:  # the child's outcome, as for an exception outside the run
+        return {"status": status, "message": message}
+    out: dict[str, Any] = {"status": status, "message": message}
+    if rec.contact_points is not None:
+        out.update(contact_points=rec.contact_points, dofs=rec.dofs)
+    durations = rec.step_seconds or []
+    if status == FAILED:
+        out["steps"] = len(durations)  # the one that failed included
+    else:
+        out.update(steps=rec.steps, unconverged_steps=rec.unconverged_steps)
+    out["run_s"] = rec.seconds
     out["solver_s"] = float(sum(durations))
     out["step_ms_median"] = 1e3 * statistics.median(durations) if durations else math.nan
     return out
@@ -631,7 +605,7 @@ def _partial_result(spec: Mapping[str, Any]) -> dict[str, Any]:
 def run_in_child(spec: Mapping[str, Any], timeout_s: float | None = None) -> dict[str, Any]:
     """Run ``spec`` in a fresh Python process and return its result, plus ``process_s``.
 
-    ``spec``: ``kind`` (``run``: :func:`masonry_nscd.run.run_case` of ``case`` with
+    ``spec``: ``kind`` (``run``: :func:`masonry_nscd.studies.point.run_point` of ``case`` with
     ``overrides`` into ``outdir``, stopped after ``time_limit_s``; ``steps``: build the wall and
     make ``steps`` steps, no outputs). The result always has ``status`` (``ok``, ``timeout``,
     ``failed``, ``error``), ``message`` and, unless the process died, ``peak_rss_MiB``.

@@ -28,8 +28,8 @@ Numba
     starts, and once per worker process and kind of case (block material, joint law, solver),
     where they are then read from the cache.
 Failures
-    A run that fails is recorded with its status and message and the others go on:
-    ``ok`` finished; ``failed`` the computation failed (:class:`~masonry_nscd.run.RunFailure`:
+    A run that fails is recorded with its status and message and the others go on (the
+    statuses of every study, :mod:`masonry_nscd.studies.point`): ``ok`` finished; ``failed`` the computation failed (:class:`~masonry_nscd.run.RunFailure`:
     divergence, a non-finite value...); ``invalid`` the scene refused the case
     (:class:`~masonry_nscd.run.RunInputError`); ``error`` anything else (an unexpected
     exception, a lost worker), with the exception's type.
@@ -71,18 +71,16 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from masonry_nscd.studies.point import ERROR, OK, SUMMARY_KEYS, RunRecord, run_point
+
 #: Summary values (masonry_nscd.report) kept per run, in the order of the table.
-OUTPUT_KEYS = ("initial_stiffness_kN_mm", "peak_force_kN", "ux_at_peak_mm", "force_at_target_kN",
-               "target_ux_mm", "peak_force_neg_kN", "ux_at_peak_neg_mm", "dissipated_energy_J",
-               "peak_drift_mm", "residual_drift_mm", "peak_base_shear_kN", "unconverged_steps", "failure_mode_at_peak", "failure_mode",
-               "collapse", "collapse_load_name", "collapse_load", "collapse_time_s")
+OUTPUT_KEYS = SUMMARY_KEYS
 #: Columns of the table after the swept fields.
 TAIL_COLUMNS = (*OUTPUT_KEYS, "run_time_s", "status", "message", "run")
-STATUSES = ("ok", "failed", "invalid", "error")
 RUNS_DIR = "runs"
 DONE_MARKER = "sweep_run.json"
 SWEEP_FILE = "sweep.json"
@@ -116,27 +114,6 @@ class Point:
     @property
     def case_sha256(self) -> str:
         return hashlib.sha256(self.case_yaml.encode()).hexdigest()
-
-
-@dataclass
-class RunRecord:
-    """What a run gave: status, message, run time (s), outputs (units in the keys).
-
-    ``curve``: the columns of ``force_displacement.csv`` (finished runs, when asked for);
-    ``skipped``: finished in an earlier sweep, not run again.
-    """
-
-    name: str
-    status: str
-    message: str = ""
-    run_time_s: float | None = None
-    outputs: dict[str, Any] = field(default_factory=dict)
-    skipped: bool = False
-    curve: dict[str, Any] | None = None
-
-    @property
-    def ok(self) -> bool:
-        return self.status == "ok"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -256,10 +233,6 @@ def sweep_points(case_file: Path, sets: Sequence[str]) -> tuple[list[Point], lis
 # ---------------------------------------------------------------------------------------------
 
 
-def _quiet(_message: str) -> None:
-    """An ``echo`` that prints nothing (the run's log is in its run.log)."""
-
-
 def one_numba_thread() -> None:
     """Give numba and the per-point kernels (``masonry_nscd.threads``) one thread in this
     process (before numba is imported, if possible)."""
@@ -302,7 +275,6 @@ def warm_cache(case_yaml: str) -> None:
     output. A warm-up that fails is ignored (the real run will report the problem).
     """
     from masonry_nscd.case import case_from_dict, read_yaml
-    from masonry_nscd.run import run_case
 
     data = read_yaml(case_yaml)
     kind = (data["blocks"]["material"], data["joint"]["law"], data["solver"]["method"])
@@ -311,8 +283,8 @@ def warm_cache(case_yaml: str) -> None:
     data["output"].update(vtu=False, hdf5=False)
     with cache_lock(), tempfile.TemporaryDirectory(prefix="masonry_warmup_") as tmp, \
             contextlib.suppress(Exception):
-        run_case(case_from_dict(data), Path(tmp) / "run", echo=_quiet,
-                 stop_when=lambda curve: len(curve["step"]) >= WARMUP_STEPS)
+        run_point(case_from_dict(data), Path(tmp) / "run", outputs=False,
+                  stop_when=lambda curve: len(curve["step"]) >= WARMUP_STEPS)
     _warmed.add(kind)
 
 
@@ -340,37 +312,16 @@ def finished_record(point: Point, run_dir: Path, keep_curve: bool = False) -> Ru
             return None
     earlier = marker.get("message") or ""
     message = "finished in an earlier sweep, not run again" + (f"; {earlier}" if earlier else "")
-    return RunRecord(point.name, "ok", message, marker.get("run_time_s"),
-                     dict(marker.get("outputs") or {}), skipped=True, curve=curve)
-
-
-def _outputs(run_dir: Path) -> dict[str, Any]:
-    """The :data:`OUTPUT_KEYS` of the run's summary.json (computed if the file is missing)."""
-    try:
-        summary = json.loads((run_dir / "summary.json").read_text())
-    except (OSError, ValueError):
-        from masonry_nscd.report import summarize_run
-
-        summary = summarize_run(run_dir)
-    out = {k: summary.get(k) for k in OUTPUT_KEYS}
-    for k in ("failure_mode_at_peak", "failure_mode"):  # the name of the mechanism
-        out[k] = (out[k] or {}).get("mode")
-    # a limit-state run: whether it collapsed, the first growing load and the time at the onset
-    limit = summary.get("status") if summary.get("load_factors") is not None else None
-    collapse = summary.get("collapse") if limit is not None else None
-    loads = (collapse or {}).get("loads_at_onset") or {}
-    name = next(iter(loads), None)
-    out.update({"collapse": None if limit is None else limit == "collapse",
-                "collapse_load_name": name, "collapse_load": loads.get(name),
-                "collapse_time_s": (collapse or {}).get("onset_time_s")})
-    return out
+    return RunRecord(point.name, OK, message, seconds=marker.get("run_time_s"),
+                     run_dir=str(run_dir), outputs=dict(marker.get("outputs") or {}),
+                     skipped=True, curve=curve)
 
 
 def _write_marker(run_dir: Path, point: Point, record: RunRecord) -> None:
     from masonry_nscd.io.atomic import atomic_write
 
     text = json.dumps({"status": record.status, "message": record.message,
-                       "run_time_s": record.run_time_s, "outputs": record.outputs,
+                       "run_time_s": record.seconds, "outputs": record.outputs,
                        "params": {k: list(v) if isinstance(v, tuple) else v
                                   for k, v in point.params.items()},
                        "case_sha256": point.case_sha256,
@@ -378,16 +329,16 @@ def _write_marker(run_dir: Path, point: Point, record: RunRecord) -> None:
     atomic_write(run_dir / DONE_MARKER, lambda p: Path(p).write_text(text + "\n"))
 
 
-def run_point(point: Point, runs_dir: str, keep_curve: bool = False) -> RunRecord:
-    """Run one point into ``runs_dir/<name>`` (the task of a worker); never raises for a run
-    that fails: the failure is the record's status and message.
+def point_task(point: Point, runs_dir: str, keep_curve: bool = False) -> RunRecord:
+    """Run one point into ``runs_dir/<name>`` (the task of a worker) with
+    :func:`~masonry_nscd.studies.point.run_point`; never raises for a run that fails: the
+    failure is the record's status and message.
 
     A folder that holds the finished run of the same case is kept (skipped); any other content
     of the folder is removed first.
     """
     one_numba_thread()
     from masonry_nscd.case import case_from_dict, read_yaml
-    from masonry_nscd.run import RunFailure, RunInputError, run_case
 
     run_dir = Path(runs_dir) / point.name
     done = finished_record(point, run_dir, keep_curve)
@@ -396,28 +347,18 @@ def run_point(point: Point, runs_dir: str, keep_curve: bool = False) -> RunRecor
     if run_dir.exists():
         shutil.rmtree(run_dir)
     warm_cache(point.case_yaml)
-    t0 = time.perf_counter()
-    try:
-        run_case(case_from_dict(read_yaml(point.case_yaml)), run_dir, echo=_quiet)
-        status, message = "ok", ""
-    except RunInputError as exc:
-        status, message = "invalid", str(exc)
-    except RunFailure as exc:
-        status, message = "failed", str(exc)
-    except Exception as exc:  # noqa: BLE001 (one run's bug must not end the sweep)
-        status, message = "error", f"{type(exc).__name__}: {exc}"
-    record = RunRecord(point.name, status, message, time.perf_counter() - t0)
+    record = run_point(case_from_dict(read_yaml(point.case_yaml)), run_dir, name=point.name)
     if record.ok:
-        try:
-            record.outputs = _outputs(run_dir)
-            if record.outputs.get("unconverged_steps"):
-                record.message = f"{record.outputs['unconverged_steps']} steps not converged"
-            if keep_curve:
-                from masonry_nscd.report import read_curve_csv
+        if record.outputs.get("unconverged_steps"):
+            record.message = f"{record.outputs['unconverged_steps']} steps not converged"
+        if keep_curve:
+            from masonry_nscd.report import read_curve_csv
 
+            try:
                 record.curve = read_curve_csv(run_dir / "force_displacement.csv")
-        except Exception as exc:  # noqa: BLE001
-            record.status, record.message = "error", f"no summary: {type(exc).__name__}: {exc}"
+            except Exception as exc:  # noqa: BLE001
+                record.status = ERROR
+                record.message = f"no summary: {type(exc).__name__}: {exc}"
     _write_marker(run_dir, point, record)
     return record
 
@@ -498,7 +439,7 @@ def _gather(client: Any, points: Sequence[Point], runs_dir: Path, keep_curve: bo
             on_record: Callable[[RunRecord], None]) -> dict[str, RunRecord]:
     from distributed import as_completed
 
-    futures = {client.submit(run_point, p, str(runs_dir), keep_curve, pure=False): p
+    futures = {client.submit(point_task, p, str(runs_dir), keep_curve, pure=False): p
                for p in points}
     out = {}
     for future in as_completed(futures):
@@ -506,7 +447,7 @@ def _gather(client: Any, points: Sequence[Point], runs_dir: Path, keep_curve: bo
         try:
             rec = future.result()
         except Exception as exc:  # noqa: BLE001 (a lost worker, a task that could not run)
-            rec = RunRecord(p.name, "error", f"the task failed: {type(exc).__name__}: {exc}")
+            rec = RunRecord(p.name, ERROR, f"the task failed: {type(exc).__name__}: {exc}")
         out[p.name] = rec
         on_record(rec)
     return out
@@ -544,7 +485,7 @@ def write_table(path: Path, points: Sequence[Point], records: dict[str, RunRecor
             continue
         w.writerow([format_cell(p.params[k]) for k in param_paths]
                    + [format_cell(r.outputs.get(k)) for k in OUTPUT_KEYS]
-                   + [format_cell(r.run_time_s), r.status, r.message, p.name])
+                   + [format_cell(r.seconds), r.status, r.message, p.name])
     atomic_write(path, lambda tmp: Path(tmp).write_text(buf.getvalue()))
     return path
 
@@ -592,7 +533,7 @@ def prepare_outdir(outdir: Path, marker: str, description: dict[str, Any]) -> No
 
 def progress_line(record: RunRecord, done: int, total: int) -> str:
     """``[2/3] value_Pa=0.3e6: ok in 1.2 s``."""
-    secs = f" in {record.run_time_s:.1f} s" if record.run_time_s is not None else ""
+    secs = f" in {record.seconds:.1f} s" if record.seconds is not None else ""
     what = "kept (finished in an earlier sweep)" if record.skipped else f"{record.status}{secs}"
     tail = f": {record.message}" if record.message and not record.skipped else ""
     return f"[{done}/{total}] {record.name}: {what}{tail}"

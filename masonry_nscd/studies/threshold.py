@@ -103,12 +103,15 @@ def hinge_names(hinges: Sequence[dict[str, Any]]) -> list[str]:
 
 def evaluate(case, run_dir: Path, value: float, number: int,
              echo: Callable[[str], None] | None = None) -> ThresholdRun:
-    """Run ``case`` into ``run_dir`` and read what it ended in (RunFailure when it fails:
-    neither standing nor collapse)."""
+    """Run ``case`` into ``run_dir`` and read what it ended in (a run that fails raises its
+    exception, :meth:`~masonry_nscd.studies.point.RunRecord.raise_failure`; RunFailure when it
+    ended neither standing nor in a collapse)."""
+    from masonry_nscd.errors import RunFailure
     from masonry_nscd.post.limit import read_limit
-    from masonry_nscd.run import RunFailure, run_case
+    from masonry_nscd.studies.point import run_point
 
-    res = run_case(case, run_dir, overwrite=True, echo=echo or (lambda _m: None))
+    rec = run_point(case, run_dir, overwrite=True, echo=echo or (lambda _m: None))
+    rec.raise_failure()
     record = read_limit(run_dir) or {}
     status = record.get("status")
     if status not in ("collapse", "standing"):
@@ -118,7 +121,7 @@ def evaluate(case, run_dir: Path, value: float, number: int,
     collapse = record.get("collapse") or {}
     return ThresholdRun(number, value, status, collapse.get("loads_at_onset"),
                         summary.get("mechanism"), hinge_names(summary.get("hinges") or []),
-                        res.steps, res.seconds, str(run_dir))
+                        rec.steps, rec.seconds, str(run_dir))
 
 
 def find_threshold(case, load: Callable[[float], Any], param: str,
