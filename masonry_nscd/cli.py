@@ -885,7 +885,7 @@ def sensitivity_cmd(
     if workers is not None and scheduler:
         _fail("--workers is for local processes; with --scheduler the cluster has its workers", 2)
     from masonry_nscd.studies import sensitivity as sa
-    from masonry_nscd.studies.sweep import SweepError
+    from masonry_nscd.studies.batch import SweepError
 
     outdir = outdir or Path("results") / f"{case.name}_{method}"
     try:
