@@ -181,7 +181,8 @@ def measure_stiffness(case, run_dir: Path, force_range_kN: tuple[float, float], 
     rec = run_point(case, run_dir, echo=echo or (lambda _m: None),
                     stop_when=stop_above(force_range_kN[1], start_s))
     rec.raise_failure()
-    return stiffness_of_run(run_dir, *force_range_kN, start_s, value, rec.steps, rec.seconds)
+    return stiffness_of_run(run_dir, *force_range_kN, start_s, value, rec.steps,
+                            rec.loop_seconds)
 
 
 class _Close(Exception):

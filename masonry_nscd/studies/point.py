@@ -28,7 +28,9 @@ a threshold's ``standing`` or ``collapse``.
 
 The record holds the point's name and run folder, the status and its message, the steps made
 (of a run that failed: the steps before the one that failed), the wall-clock time of the run
-(s: scene build, steps, outputs, summary), the steps left above the solver tolerance, the
+(s: scene build, steps, outputs, summary) and, for a run that finished, its own time as its
+run.log ends with (``done: N steps in X s``: scene build and steps, without the summary), the
+steps left above the solver tolerance, the
 driven body's displacement (mm) and force (kN) at the last step, and the key numbers of the
 run's summary (:data:`SUMMARY_KEYS`, definitions in :mod:`masonry_nscd.report`). With
 ``time_steps`` it also holds the wall-clock time of every step of the solver (s) and the size
@@ -76,6 +78,7 @@ class RunRecord:
     status: str
     message: str = ""
     seconds: float | None = None
+    loop_seconds: float | None = None
     steps: int = 0
     unconverged_steps: int = 0
     run_dir: str = ""
@@ -216,7 +219,7 @@ def run_point(case, run_dir: Path, *, name: str | None = None, overwrite: bool =
         else:
             rec.status, rec.message = ERROR, f"{rec.error_type}: {exc}"
     else:
-        rec.seconds = time.perf_counter() - t0
+        rec.seconds, rec.loop_seconds = time.perf_counter() - t0, res.seconds
         rec.steps, rec.unconverged_steps = res.steps, res.unconverged_steps
         rec.ux_mm, rec.fx_kN = res.ux_mm, res.fx_kN
         if res.stopped and seen["timed_out"]:

@@ -18,7 +18,8 @@ a collapse can be seen (docs/choices.md).
 
 This reuses the machinery of :mod:`~masonry_nscd.studies.calibrate`: the parameter read and
 checked (:func:`~masonry_nscd.studies.calibrate.parameter_value`), the bounds (``parse_range``),
-the case loaded again with the parameter set for each run, its errors (exit code 2), one folder per run.
+the case loaded again with the parameter set for each run, its errors (exit code 2), one folder
+per run.
 
 Outputs (in the study folder): ``runs/NN_<param>_<value>/`` (each run, without VTU),
 ``threshold.csv`` (one row per run: ``run, value, status, side``, the loads at the onset of a
@@ -121,7 +122,7 @@ def evaluate(case, run_dir: Path, value: float, number: int,
     collapse = record.get("collapse") or {}
     return ThresholdRun(number, value, status, collapse.get("loads_at_onset"),
                         summary.get("mechanism"), hinge_names(summary.get("hinges") or []),
-                        rec.steps, rec.seconds, str(run_dir))
+                        rec.steps, rec.loop_seconds, str(run_dir))
 
 
 def find_threshold(case, load: Callable[[float], Any], param: str,
