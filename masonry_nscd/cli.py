@@ -48,9 +48,9 @@ def _study_runs(param: str, runs: str, what: str):
     """The errors of a search over one case parameter (calibrate, threshold) as exits: an
     invalid value or a study error 2, a failed run 1, an interruption 130 (``runs``: what the
     folder of the runs so far is called; ``what``: the study's name)."""
-    from masonry_nscd.calibrate import CalibrationError
     from masonry_nscd.case import CaseError
     from masonry_nscd.run import RunFailure
+    from masonry_nscd.studies.calibrate import CalibrationError
 
     try:
         yield
@@ -432,8 +432,8 @@ def calibrate_cmd(
     calibrated case and calibration.json.
     """
     case = _load_case_or_exit(case_file, overrides)
-    from masonry_nscd import calibrate as cal
     from masonry_nscd.case import load_case
+    from masonry_nscd.studies import calibrate as cal
 
     try:
         if bounds is None and param not in cal.DEFAULT_BOUNDS:
@@ -496,8 +496,8 @@ def threshold_cmd(
     bisected between a value where the structure stands and one where it collapses; writes
     threshold.csv and threshold.json."""
     case = _load_case_or_exit(case_file, overrides)
-    from masonry_nscd import threshold as th
     from masonry_nscd.case import load_case
+    from masonry_nscd.studies import threshold as th
 
     try:
         th.check_case(case)
@@ -543,7 +543,7 @@ def stress_test_cmd(
     The variants change the time step, theta, the stiffnesses, the stress, the friction, the
     joint damage, the geometry and the materials. Exit 0 when every variant finished in
     equilibrium or failed cleanly, 1 otherwise."""
-    from masonry_nscd import stress
+    from masonry_nscd.studies import stress
 
     base_path = base or stress.DEFAULT_BASE
     _load_case_or_exit(base_path)
@@ -608,7 +608,7 @@ def bench_cmd(
         _fail("--repeats must be >= 1 and --time-limit > 0 s", 2)
     case = _load_case_or_exit(case_file, overrides) if case_file is not None else None
     if case is not None:
-        from masonry_nscd.bench import check_history
+        from masonry_nscd.studies.bench import check_history
 
         try:
             check_history(case)
@@ -616,7 +616,7 @@ def bench_cmd(
             _fail(str(exc), 2)
     outdir = _study_outdir(output, Path("results") / "bench" / (case.name if case else "startup"),
                            overwrite)
-    from masonry_nscd import bench as bm
+    from masonry_nscd.studies import bench as bm
 
     if startup:
         try:
@@ -690,7 +690,7 @@ def bench_scaling_cmd(
     if memory_limit is not None and not memory_limit >= 0.5:
         _fail(f"--memory-limit must be >= 0.5 GiB, got {memory_limit:g}", 2)
     outdir = _study_outdir(output, Path("results") / "bench-scaling" / case.name, overwrite)
-    from masonry_nscd import bench as bm
+    from masonry_nscd.studies import bench as bm
 
     try:
         rows, statements = bm.bench_scaling(case_file, outdir, overrides=list(overrides or ()),
@@ -749,7 +749,7 @@ def check_cases_cmd(
     converged and the curve is within --rtol of the record; the run time is shown beside the
     record's. Writes OUTDIR/check.csv; exit 1 if a case failed, did not converge, changed or
     has no record."""
-    from masonry_nscd import case_check as cc
+    from masonry_nscd.studies import check_cases as cc
 
     if not rtol > 0.0:
         _fail(f"--rtol must be > 0, got {rtol}", 2)
@@ -794,7 +794,7 @@ def sweep_cmd(
     case = _load_case_or_exit(case_file)
     if workers is not None and scheduler:
         _fail("--workers is for local processes; with --scheduler the cluster has its workers", 2)
-    from masonry_nscd.sweep import SweepError, run_sweep
+    from masonry_nscd.studies.sweep import SweepError, run_sweep
 
     outdir = output or Path("results") / f"{case.name}_sweep"
     try:
@@ -848,8 +848,8 @@ def sensitivity_cmd(
     case = _load_case_or_exit(case_file, overrides)
     if workers is not None and scheduler:
         _fail("--workers is for local processes; with --scheduler the cluster has its workers", 2)
-    from masonry_nscd import sensitivity as sa
-    from masonry_nscd.sweep import SweepError
+    from masonry_nscd.studies import sensitivity as sa
+    from masonry_nscd.studies.batch import SweepError
 
     outdir = outdir or Path("results") / f"{case.name}_{method}"
     try:

@@ -35,9 +35,8 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("files", ("io",)),
     ("builders", ("scenes",)),
     ("post", ("post",)),
-    ("run", ("report", "collapse", "plots", "plots_limit", "run")),
-    ("studies", ("studies", "bench", "sweep", "sensitivity", "stress", "calibrate",
-                 "threshold", "case_check", "warmup")),
+    ("run", ("report", "collapse", "plots", "plots_limit", "run", "warmup")),
+    ("studies", ("studies",)),
     ("cli", ("cli",)),
 ]
 

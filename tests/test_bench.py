@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from masonry_nscd import bench as bm
 from masonry_nscd.case import load_case
 from masonry_nscd.cli import app
+from masonry_nscd.studies import bench as bm
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 SMOKE = "cases/smoke.yaml"

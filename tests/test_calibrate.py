@@ -5,9 +5,9 @@ import json
 import pytest
 from typer.testing import CliRunner
 
-from masonry_nscd import calibrate as cal
 from masonry_nscd.case import load_case
 from masonry_nscd.cli import app
+from masonry_nscd.studies import calibrate as cal
 
 # the smoke wall, short: loaded vertically by 0.04 s, then sheared; the stiffness is measured
 # between 10 and 40 % of mu N = 0.7 x 69 kN, reached about 15 steps into the horizontal stage

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from masonry_nscd import bench as bm
 from masonry_nscd.cli import app
 from masonry_nscd.io.runfolder import read_curve_csv
 from masonry_nscd.post.cycles import CYCLE_COLUMNS, ENVELOPE_COLUMNS
+from masonry_nscd.studies import bench as bm
 
 SMOKE = "cases/smoke.yaml"
 #: Faster than the smoke case's push (20 mm/s, 20 ms ramps; the wall is light, the beam's

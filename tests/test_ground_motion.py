@@ -223,8 +223,8 @@ def test_ground_motion_record_is_read_relative_to_the_case(tmp_path):
 
 
 def test_bench_and_calibrate_refuse_a_ground_motion():
-    from masonry_nscd import bench, calibrate
     from masonry_nscd.case import case_from_dict
+    from masonry_nscd.studies import bench, calibrate
 
     case = case_from_dict({"loading": {"horizontal": {"history": "none"},
                                        "ground_motion": {"file": "r.csv"}}})

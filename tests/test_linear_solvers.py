@@ -25,12 +25,12 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from typer.testing import CliRunner
 
-from masonry_nscd import bench as bm
 from masonry_nscd.case import CaseError, load_case
 from masonry_nscd.cli import app
 from masonry_nscd.nscd import linear, pardiso
 from masonry_nscd.nscd.newton import jacobian_coo
 from masonry_nscd.scenes import build_scene, check_case
+from masonry_nscd.studies import bench as bm
 
 SMOKE = "cases/smoke.yaml"
 STUDY = "cases/wall_0.5MPa_elastic.yaml"

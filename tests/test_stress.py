@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from masonry_nscd import stress
 from masonry_nscd.case import load_case
 from masonry_nscd.cli import app
 from masonry_nscd.nscd.integrator import DivergenceError, Integrator
+from masonry_nscd.studies import stress
 
 runner = CliRunner()
 

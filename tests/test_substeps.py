@@ -141,7 +141,7 @@ def test_the_stiffest_springs_of_the_stress_test_converge_by_halving(tmp_path):
     Newton may fail at h (9 of 100 steps did with another round-off, 19 at h/2 throughout):
     with the halving the variant must end ``ok`` (finite, converged, in equilibrium), whichever
     steps round-off makes fail."""
-    from masonry_nscd import stress
+    from masonry_nscd.studies import stress
 
     variant = next(v for v in stress.VARIANTS if v.name == "spring_1e13")
     r = stress.run_variant(stress.DEFAULT_BASE, variant, tmp_path / "v")

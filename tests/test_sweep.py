@@ -10,7 +10,8 @@ import pytest
 from typer.testing import CliRunner
 
 from masonry_nscd.cli import app
-from masonry_nscd.sweep import SweepError, parse_set, point_names, split_values
+from masonry_nscd.studies.batch import SweepError, parse_set, split_values
+from masonry_nscd.studies.sweep import point_names
 
 pytest.importorskip("distributed")
 

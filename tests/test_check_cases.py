@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 from typer.testing import CliRunner
 
-from masonry_nscd import case_check
-from masonry_nscd.case_check import curve_deviation, log_path, reduce_curve
 from masonry_nscd.cli import app
 from masonry_nscd.io.runfolder import read_curve_csv
+from masonry_nscd.studies import check_cases
+from masonry_nscd.studies.check_cases import curve_deviation, log_path, reduce_curve
 
 
 def _curve(n=50):
@@ -80,7 +80,7 @@ def test_a_case_is_recorded_then_checked_and_a_change_is_caught(tmp_path, monkey
     def describe():
         return "abc1234-dirty" if list((tmp_path / "record").glob("*.csv")) else "abc1234"
 
-    monkeypatch.setattr(case_check, "_git_commit", describe)
+    monkeypatch.setattr(check_cases, "_git_commit", describe)
     res = _check(tmp_path, "--write-record")
     assert res.exit_code == 0, res.output
     runs = json.loads((tmp_path / "record" / "runs.json").read_text())

@@ -1,10 +1,10 @@
-"""Sensitivity of one output of a run to the case's parameters, with SALib, on the sweep machinery.
+"""Sensitivity of one output of a run to the case's parameters, with SALib, as a batch of runs.
 
 Each parameter is a numeric field of the case, ``PATH=LOW:HIGH`` (SI units of the field),
-uniform over ``[LOW, HIGH]``. SALib draws the samples, every sample is a run of
-:mod:`masonry_nscd.sweep` (local worker processes or a Dask cluster, resumable, folders
-``OUTDIR/runs/sample_NNNN``), and SALib computes the indices of the chosen output of the run
-summary (:data:`OUTPUTS`, definitions in :mod:`masonry_nscd.report`).
+uniform over ``[LOW, HIGH]``. SALib draws the samples, the samples are a batch of runs as a
+sweep's (:mod:`masonry_nscd.studies.batch`: local worker processes or a Dask cluster,
+resumable, folders ``OUTDIR/runs/sample_NNNN``), and SALib computes the indices of the chosen
+output of the run summary (:data:`OUTPUTS`, definitions in :mod:`masonry_nscd.report`).
 
 Methods (``D`` parameters, ``N`` = ``samples``)
 -----------------------------------------------
@@ -34,8 +34,8 @@ analysis is refused: the runs are listed, ``samples.csv`` holds all of them with
 and message, and the command exits with code 1. Narrow the ranges, or fix the cause, and run
 the same command again: the finished runs are kept.
 
-Files in OUTDIR: ``samples.csv`` (the table of :mod:`masonry_nscd.sweep`: the parameter values,
-the outputs, run time, status, message, run folder), ``indices.csv`` (one row per parameter,
+Files in OUTDIR: ``samples.csv`` (the table of a batch, as a sweep's ``sweep.csv``: the parameter
+values, the outputs, run time, status, message, run folder), ``indices.csv`` (one row per parameter,
 columns above), ``indices.png`` (bar chart of the indices), ``sensitivity.json`` (the problem,
 method, samples, seed and output).
 """
@@ -50,19 +50,16 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from masonry_nscd.sweep import (
+from masonry_nscd.studies.batch import (
     RUNS_DIR,
     Point,
-    RunRecord,
     SweepError,
     field_value,
     make_point,
     parse_set,
-    prepare_outdir,
-    progress_line,
-    run_points,
-    write_table,
+    run_batch,
 )
+from masonry_nscd.studies.point import RunRecord
 
 METHODS = ("morris", "sobol")
 #: Outputs of a run that can be analysed (keys of the run summary, unit in the name).
@@ -88,7 +85,8 @@ class Param:
 
 
 def parse_param(text: str) -> Param:
-    """``"joint.mu=0.5:0.9"`` -> :class:`Param`, or :class:`~masonry_nscd.sweep.SweepError`."""
+    """``"joint.mu=0.5:0.9"`` -> :class:`Param`, or
+    :class:`~masonry_nscd.studies.batch.SweepError`."""
     path, sep, bounds = text.partition("=")
     parts = bounds.split(":")
     try:
@@ -134,7 +132,8 @@ def draw(prob: dict[str, Any], method: str, samples: int, seed: int):  # -> NDAr
 
 def sample_points(case_file: Path, params: Sequence[Param], rows, fixed: Sequence[str]
                   ) -> list[Point]:
-    """A validated :class:`~masonry_nscd.sweep.Point` per sample row (``sample_NNNN``)."""
+    """A validated :class:`~masonry_nscd.studies.batch.Point` per sample row
+    (``sample_NNNN``)."""
     from masonry_nscd.case import CaseError
 
     width = max(4, len(str(len(rows) - 1)))
@@ -295,7 +294,7 @@ def run_sensitivity(case_file: Path, param_texts: Sequence[str], method: str, sa
                     echo: Callable[[str], None] = print) -> SensitivityResult:
     """Sample, validate every sample, run them, analyse (see the module docstring).
 
-    Raises :class:`~masonry_nscd.sweep.SweepError` before any run for a bad option.
+    Raises :class:`~masonry_nscd.studies.batch.SweepError` before any run for a bad option.
     """
     check_design(method, samples, output)
     params = [parse_param(t) for t in param_texts]
@@ -314,21 +313,14 @@ def run_sensitivity(case_file: Path, param_texts: Sequence[str], method: str, sa
     prob = problem(params)
     X = draw(prob, method, samples, seed)
     points = sample_points(case_file, params, X, fixed)
-    prepare_outdir(outdir, MARKER_FILE, {
-        "case_file": str(case_file), "method": method, "samples": samples, "seed": seed,
-        "output": output, "fixed_sets": list(fixed_sets), "problem": prob, "runs": len(points)})
     table = outdir / SAMPLES_FILE
-    records: dict[str, RunRecord] = {}
-
-    def on_record(rec: RunRecord) -> None:
-        records[rec.name] = rec
-        write_table(table, points, records, paths)
-        echo(progress_line(rec, len(records), len(points)))
-
-    echo(f"{method}: {len(points)} runs of {case_file} for {len(params)} parameters in "
-         f"{outdir / RUNS_DIR}" + (f" on the Dask scheduler {scheduler}" if scheduler else ""))
-    done = run_points(points, outdir / RUNS_DIR, workers=workers, scheduler=scheduler,
-                      on_record=on_record)
+    done = run_batch(points, outdir, marker=MARKER_FILE, description={
+        "case_file": str(case_file), "method": method, "samples": samples, "seed": seed,
+        "output": output, "fixed_sets": list(fixed_sets), "problem": prob, "runs": len(points)},
+        table=table, param_paths=paths,
+        intro=(f"{method}: {len(points)} runs of {case_file} for {len(params)} parameters in "
+               f"{outdir / RUNS_DIR}"),
+        workers=workers, scheduler=scheduler, echo=echo)
     Y, missing = output_values(done, output)
     if missing:  # no indices; none of an earlier analysis left beside the new samples
         for name in (INDICES_FILE, CHART_FILE):

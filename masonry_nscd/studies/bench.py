@@ -43,9 +43,9 @@ The reference has the case's mesh: the errors measure the time integration and t
 the mesh. The mesh rungs show how far a coarser or finer mesh per unit moves the curve (the mesh
 is part of the model: the study prescribes 2 x 2 x 1 hexahedra per unit).
 
-Timing. Every run is made in a fresh subprocess (``python -m masonry_nscd.bench SPEC.json``),
-so that its time and memory are its own; the numba cache is warmed first by tiny runs of the
-same solvers and materials. Per run: ``run_s``, the wall-clock time of
+Timing. Every run is made in a fresh subprocess (``python -m masonry_nscd.studies.bench
+SPEC.json``), so that its time and memory are its own; the numba cache is warmed first by tiny
+runs of the same solvers and materials. Per run: ``run_s``, the wall-clock time of
 :func:`masonry_nscd.run.run_case` (scene build, steps, outputs of the case, summary; not the
 interpreter's start-up); ``process_s``, the whole subprocess including start-up;
 ``step_ms_median``, the median wall-clock time of one ``Integrator.step`` (the solver alone,
@@ -88,7 +88,6 @@ untimed run that warms the caches), each timed as a subprocess from launch to ex
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import io
 import itertools
@@ -115,7 +114,8 @@ FloatArray = NDArray[np.float64]
 REFERENCE_TIME_STEP_FACTOR = 0.5
 #: ... and the solver tolerance times this one (same mesh, loading rate and solver).
 REFERENCE_TOLERANCE_FACTOR = 0.1
-#: NLGS tolerance of the reference NSCD code in the anchor of issue 6 (dimensionless).
+#: NLGS tolerance of the anchor, the reference NSCD code the project is compared with
+#: (dimensionless).
 ANCHOR_NLGS_TOLERANCE = 1e-5
 #: Points of the uniform U grid on which the RMS difference of two curves is taken.
 RMS_GRID_POINTS = 401
@@ -125,14 +125,14 @@ CHEAP_S = 30.0
 REFERENCE_TIME_FACTOR = 4.0
 #: Errors below this are drawn at this value on the log scale of the chart.
 ERROR_FLOOR = 1e-7
-#: The issue's limit on the errors of the default settings (relative).
+#: The limit on the errors of the default settings (relative).
 DEFAULT_ERROR_LIMIT = 0.02
 #: A log-log slope of memory increments against contact points up to this counts as linear.
 LINEAR_SLOPE_LIMIT = 1.1
-#: Start-up targets of issue 6 (s).
+#: Start-up targets: ``masonry --help`` and a run of the smoke case (s).
 HELP_TARGET_S = 0.5
 SMOKE_TARGET_S = 10.0
-SMOKE_CASE = Path(__file__).resolve().parents[1] / "cases" / "smoke.yaml"
+SMOKE_CASE = Path(__file__).resolve().parents[2] / "cases" / "smoke.yaml"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -484,52 +484,27 @@ def peak_rss_mib() -> float:
     return rss / 2**20 if sys.platform == "darwin" else rss / 1024.0  # bytes / KiB
 
 
-@contextlib.contextmanager
-def timed_steps(durations: list[float], info: dict[str, Any]):
-    """Inside the block, every ``Integrator.step`` appends its wall-clock time (s) to
-    ``durations``; ``info`` gets the number of contact points and dofs of the first scene.
-    Used in the benchmark's child processes only."""
-    from masonry_nscd.nscd.integrator import Integrator
-
-    original = Integrator.step
-
-    def step(self):
-        info.setdefault("contact_points", int(self.sys.npt))
-        info.setdefault("dofs", int(self.sys.ndof))
-        t0 = time.perf_counter()
-        try:
-            return original(self)
-        finally:
-            durations.append(time.perf_counter() - t0)
-
-    Integrator.step = step
-    try:
-        yield
-    finally:
-        Integrator.step = original
-
-
 def _child_run(spec: Mapping[str, Any]) -> dict[str, Any]:
-    """One run of a case to its target (``kind: run``); see :func:`run_in_child`."""
+    """One run of a case to its target (``kind: run``), every step timed, as a point of the
+    study (:func:`~masonry_nscd.studies.point.run_point`); see :func:`run_in_child`."""
     from masonry_nscd.case import load_case
-    from masonry_nscd.run import RunFailure, run_case
+    from masonry_nscd.studies.point import ERROR, FAILED, as_error, run_point
 
     case = load_case(spec["case"], spec["overrides"])
-    deadline = time.perf_counter() + float(spec["time_limit_s"])
-    durations: list[float] = []
-    out: dict[str, Any] = {"status": "ok", "message": ""}
-    t0 = time.perf_counter()
-    try:
-        with timed_steps(durations, out):
-            res = run_case(case, Path(spec["outdir"]), overwrite=True, echo=lambda m: None,
-                           stop_when=lambda curve: time.perf_counter() > deadline)
-        out.update(steps=res.steps, unconverged_steps=res.unconverged_steps)
-        if res.stopped:
-            out.update(status="timeout", message=f"stopped after {spec['time_limit_s']:g} s "
-                       f"at step {res.steps}")
-    except RunFailure as exc:
-        out.update(status="failed", message=str(exc), steps=len(durations))
-    out["run_s"] = time.perf_counter() - t0
+    rec = run_point(case, Path(spec["outdir"]), overwrite=True,
+                    time_limit_s=float(spec["time_limit_s"]), time_steps=True)
+    status, message = as_error(rec)
+    if status == ERROR:  # the child's outcome, as for an exception outside the run
+        return {"status": status, "message": message}
+    out: dict[str, Any] = {"status": status, "message": message}
+    if rec.contact_points is not None:
+        out.update(contact_points=rec.contact_points, dofs=rec.dofs)
+    durations = rec.step_seconds or []
+    if status == FAILED:
+        out["steps"] = len(durations)  # the one that failed included
+    else:
+        out.update(steps=rec.steps, unconverged_steps=rec.unconverged_steps)
+    out["run_s"] = rec.seconds
     out["solver_s"] = float(sum(durations))
     out["step_ms_median"] = 1e3 * statistics.median(durations) if durations else math.nan
     return out
@@ -630,7 +605,7 @@ def _partial_result(spec: Mapping[str, Any]) -> dict[str, Any]:
 def run_in_child(spec: Mapping[str, Any], timeout_s: float | None = None) -> dict[str, Any]:
     """Run ``spec`` in a fresh Python process and return its result, plus ``process_s``.
 
-    ``spec``: ``kind`` (``run``: :func:`masonry_nscd.run.run_case` of ``case`` with
+    ``spec``: ``kind`` (``run``: :func:`masonry_nscd.studies.point.run_point` of ``case`` with
     ``overrides`` into ``outdir``, stopped after ``time_limit_s``; ``steps``: build the wall and
     make ``steps`` steps, no outputs). The result always has ``status`` (``ok``, ``timeout``,
     ``failed``, ``error``), ``message`` and, unless the process died, ``peak_rss_MiB``.
@@ -640,8 +615,8 @@ def run_in_child(spec: Mapping[str, Any], timeout_s: float | None = None) -> dic
         spec_path.write_text(json.dumps({**spec, "result": str(result)}))
         t0 = time.perf_counter()
         try:
-            proc = subprocess.run([sys.executable, "-m", "masonry_nscd.bench", str(spec_path)],
-                                  check=False, capture_output=True, text=True, timeout=timeout_s)
+            proc = subprocess.run([sys.executable, "-m", "masonry_nscd.studies.bench",
+                                   str(spec_path)], check=False, capture_output=True, text=True, timeout=timeout_s)
         except subprocess.TimeoutExpired:
             # a step that never ended: what the child wrote before it (``_write_partial``)
             return {**_partial_result({"result": str(result)}), "status": "timeout",
@@ -1426,5 +1401,5 @@ def format_startup(rows: Sequence[StartupRow]) -> list[str]:
             f"{'met' if r.median_s < r.target_s else 'MISSED'})" for r in rows]
 
 
-if __name__ == "__main__":  # a child process of the benchmark: python -m masonry_nscd.bench SPEC
+if __name__ == "__main__":  # a child of the benchmark: python -m masonry_nscd.studies.bench SPEC
     sys.exit(_child_main(sys.argv[1]))

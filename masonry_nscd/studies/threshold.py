@@ -1,4 +1,4 @@
-"""The value of one case parameter between standing and collapse, by bisection (issue 18).
+"""The value of one case parameter between standing and collapse, by bisection.
 
 ``masonry threshold CASE --param PATH --bounds LOW:HIGH`` runs the limit-state case (an arch:
 it has a collapse rule, :mod:`masonry_nscd.collapse`) with ``PATH`` at each bound; their
@@ -16,9 +16,10 @@ threshold a mechanism starts slowly (with rigid voussoirs the acceleration of th
 grows with the distance to the threshold), so the end time bounds how close to the threshold
 a collapse can be seen (docs/choices.md).
 
-This reuses the machinery of :mod:`masonry_nscd.calibrate`: the parameter read and checked
-(:func:`~masonry_nscd.calibrate.parameter_value`), the bounds (``parse_range``), the case
-loaded again with the parameter set for each run, its errors (exit code 2), one folder per run.
+This reuses the machinery of :mod:`~masonry_nscd.studies.calibrate`: the parameter read and
+checked (:func:`~masonry_nscd.studies.calibrate.parameter_value`), the bounds (``parse_range``),
+the case loaded again with the parameter set for each run, its errors (exit code 2), one folder
+per run.
 
 Outputs (in the study folder): ``runs/NN_<param>_<value>/`` (each run, without VTU),
 ``threshold.csv`` (one row per run: ``run, value, status, side``, the loads at the onset of a
@@ -37,7 +38,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from masonry_nscd.calibrate import CalibrationError, parameter_value, parse_range
+from masonry_nscd.studies.calibrate import CalibrationError, parameter_value, parse_range
 
 __all__ = ["THRESHOLD_COLUMNS", "Threshold", "ThresholdError", "ThresholdRun", "check_case",
            "find_threshold", "format_table", "parameter_value", "parse_range", "write_outputs"]
@@ -103,12 +104,15 @@ def hinge_names(hinges: Sequence[dict[str, Any]]) -> list[str]:
 
 def evaluate(case, run_dir: Path, value: float, number: int,
              echo: Callable[[str], None] | None = None) -> ThresholdRun:
-    """Run ``case`` into ``run_dir`` and read what it ended in (RunFailure when it fails:
-    neither standing nor collapse)."""
+    """Run ``case`` into ``run_dir`` and read what it ended in (a run that fails raises its
+    exception, :meth:`~masonry_nscd.studies.point.RunRecord.raise_failure`; RunFailure when it
+    ended neither standing nor in a collapse)."""
+    from masonry_nscd.errors import RunFailure
     from masonry_nscd.post.limit import read_limit
-    from masonry_nscd.run import RunFailure, run_case
+    from masonry_nscd.studies.point import run_point
 
-    res = run_case(case, run_dir, overwrite=True, echo=echo or (lambda _m: None))
+    rec = run_point(case, run_dir, overwrite=True, echo=echo or (lambda _m: None))
+    rec.raise_failure()
     record = read_limit(run_dir) or {}
     status = record.get("status")
     if status not in ("collapse", "standing"):
@@ -118,7 +122,7 @@ def evaluate(case, run_dir: Path, value: float, number: int,
     collapse = record.get("collapse") or {}
     return ThresholdRun(number, value, status, collapse.get("loads_at_onset"),
                         summary.get("mechanism"), hinge_names(summary.get("hinges") or []),
-                        res.steps, res.seconds, str(run_dir))
+                        rec.steps, rec.loop_seconds, str(run_dir))
 
 
 def find_threshold(case, load: Callable[[float], Any], param: str,

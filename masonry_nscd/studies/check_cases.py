@@ -2,9 +2,9 @@
 its convergence or moved its curve, to run before a change lands.
 
 The unit tests run the cases shortened (``tests/test_rig.py``, ``tests/test_regression.py``),
-so a regression that shows only past the point where they stop goes unseen: the brick wall's
-two steps at U_x = 0.93 mm were left unconverged from session 12 to session 27
-(docs/performance.md). This check runs each case as shipped, in a fresh process, without field
+so a regression that shows only past the point where they stop goes unseen (the brick wall
+once kept two unconverged steps at U_x = 0.93 mm through many changes: docs/performance.md).
+This check runs each case as shipped, in a fresh process, without field
 outputs (``output.vtu=false``, ``output.hdf5=false``: the curve does not depend on them), and
 judges three things:
 
@@ -16,6 +16,11 @@ judges three things:
   solver's tolerance does not give), and the run ends at the record's end time;
 * its run time is reported beside the record's, not judged: this machine's speed moves by a
   third within an hour (docs/performance.md).
+
+The verdict of a case (``status`` of ``check.csv``) is judged on the record of its run
+(:mod:`masonry_nscd.studies.point`, its status from the process's exit code): ``failed`` when
+the run's status is not ``ok`` or it left no summary, then ``unconverged``, ``changed``, ``no
+record``, or ``written`` when the record is written; else ``ok``.
 
 The record of a case ``cases/NAME.yaml``: ``RECORD/NAME.csv``, at most ``RECORD_ROWS`` rows of its
 curve evenly spaced in the row index, with the rows of the largest |F_x| and the last; and
@@ -38,8 +43,9 @@ import numpy as np
 
 from masonry_nscd.io.atomic import atomic_write
 from masonry_nscd.io.runfolder import CSV, SUMMARY, read_curve_csv
+from masonry_nscd.studies.point import RunRecord, status_of_exit
 
-CASES_DIR = Path(__file__).resolve().parents[1] / "cases"
+CASES_DIR = Path(__file__).resolve().parents[2] / "cases"
 RECORD_DIR = CASES_DIR / "record"
 RUNS = "runs.json"
 RECORD_ROWS = 200  # rows of a curve kept in its record (count)
@@ -124,10 +130,11 @@ def log_path(run_dir: Path) -> Path:
     return run_dir.with_name(run_dir.name + ".log")
 
 
-def run_case_process(case: Path, outdir: Path, overrides: Sequence[str]) -> tuple[int, float]:
-    """``masonry run CASE -o OUTDIR`` without field outputs, in a fresh process: its exit code
-    and wall clock (s). Its log is :func:`log_path`."""
-    from masonry_nscd.bench import masonry_command
+def run_case_process(case: Path, outdir: Path, overrides: Sequence[str]) -> RunRecord:
+    """``masonry run CASE -o OUTDIR`` without field outputs, in a fresh process: its record,
+    the status of its exit code, the message ``masonry run exited CODE`` and the wall clock of
+    the process (s). Its log is :func:`log_path`."""
+    from masonry_nscd.studies.bench import masonry_command
 
     argv = [*masonry_command(), "run", str(case), "-o", str(outdir), "--overwrite"]
     for item in (*NO_FIELDS, *overrides):
@@ -135,7 +142,8 @@ def run_case_process(case: Path, outdir: Path, overrides: Sequence[str]) -> tupl
     t0 = time.perf_counter()
     with open(log_path(outdir), "w") as log:
         code = subprocess.run(argv, stdout=log, stderr=subprocess.STDOUT, check=False).returncode
-    return code, time.perf_counter() - t0
+    return RunRecord(case.stem, status_of_exit(code), f"masonry run exited {code}",
+                     seconds=time.perf_counter() - t0, run_dir=str(outdir))
 
 
 def check_case(case: Path, outdir: Path, record_dir: Path, runs: dict, *, rtol: float,
@@ -144,12 +152,12 @@ def check_case(case: Path, outdir: Path, record_dir: Path, runs: dict, *, rtol: 
     ``commit``, the code it was run with)."""
     name = case.stem
     run_dir = outdir / name
-    code, seconds = run_case_process(case, run_dir, overrides)
+    run = run_case_process(case, run_dir, overrides)
     recorded = runs.get(name, {})
-    out = CaseCheck(name, "ok", seconds, float(recorded.get("run_s", math.nan)), 0, 0,
+    out = CaseCheck(name, "ok", run.seconds, float(recorded.get("run_s", math.nan)), 0, 0,
                     math.nan, "", "")
-    if code != 0 or not (run_dir / SUMMARY).exists():
-        out.status, out.note = "failed", f"masonry run exited {code}: {log_path(run_dir)}"
+    if not run.ok or not (run_dir / SUMMARY).exists():
+        out.status, out.note = "failed", f"{run.message}: {log_path(run_dir)}"
         return out
     summary = json.loads((run_dir / SUMMARY).read_text())
     out.steps, out.unconverged_steps = int(summary["steps"]), int(summary["unconverged_steps"])
@@ -161,7 +169,7 @@ def check_case(case: Path, outdir: Path, record_dir: Path, runs: dict, *, rtol: 
     if write:
         if out.status == "ok":
             write_curve(record_dir / f"{name}.csv", reduce_curve(curve))
-            runs[name] = {"steps": out.steps, "run_s": round(seconds, 1),
+            runs[name] = {"steps": out.steps, "run_s": round(run.seconds, 1),
                           "commit": commit, "date": time.strftime("%Y-%m-%d")}
             out.status = "written"
         else:
@@ -187,7 +195,7 @@ def check_cases(cases: Sequence[Path], outdir: Path, *, record_dir: Path = RECOR
                 echo: Callable[[str], None] = print) -> list[CaseCheck]:
     """Check (or record, ``write``) each case in turn; ``OUTDIR/check.csv`` is written again
     after each, so that an interrupted check keeps the cases done."""
-    from masonry_nscd.bench import write_rows
+    from masonry_nscd.studies.bench import write_rows
 
     outdir.mkdir(parents=True, exist_ok=True)
     if write:

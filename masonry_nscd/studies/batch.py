@@ -1,21 +1,15 @@
-"""Batch runs of one case: parameter sweeps, on local worker processes or on a Dask cluster.
+"""A batch of runs of one case: the points, their execution on Dask workers, resuming, the table.
 
-A sweep takes a case file and, for some of its fields, a list of values (the ``--set`` syntax
-of ``masonry run`` with several values: ``loading.vertical_stress.value_Pa=0.3e6,0.5e6``). It
-runs the cartesian product of the lists, one run per combination, each one in its own folder
-``OUTDIR/runs/<name>`` with the usual outputs of :func:`masonry_nscd.run.run_case`. The name is
-made of the values as typed, ``value_Pa=0.3e6__mu=0.5`` (the last part of each field path, the
-whole path where two last parts are the same). A ``--set`` with one value is a fixed override
-of every run; it is left out of the names and of the table.
-
-Every value is read as YAML like a case file (YAML 1.2: ``0.3e6`` is a float, ``[2,2,1]`` a
-list; commas inside brackets do not split values) and every combination is validated before
-any run starts (:class:`SweepError`, one message per problem, naming the field).
+A sweep (:mod:`~masonry_nscd.studies.sweep`: the combinations of some fields' values) and a
+sensitivity study (:mod:`~masonry_nscd.studies.sensitivity`: the samples of SALib) are both a
+batch: a list of :class:`Point`, each a validated case with a name, run into
+``OUTDIR/runs/<name>`` as a point of the study (:func:`masonry_nscd.studies.point.run_point`),
+and a table of their records, one row per point. :func:`run_batch` does it for both.
 
 Execution
     The runs are tasks of ``dask.distributed``: by default on a ``LocalCluster`` of worker
     processes with one thread each (on the loopback address), or on an existing scheduler
-    (``scheduler="tcp://host:8786"``). A worker runs :func:`run_point`, which needs nothing but
+    (``scheduler="tcp://host:8786"``). A worker runs :func:`point_task`, which needs nothing but
     its arguments and masonry_nscd installed on the worker; the run folders are written by the
     workers, so OUTDIR must be on a file system the workers share (same path) for the run
     folders to be found there; the table and the figure are made from the values the tasks
@@ -28,30 +22,23 @@ Numba
     starts, and once per worker process and kind of case (block material, joint law, solver),
     where they are then read from the cache.
 Failures
-    A run that fails is recorded with its status and message and the others go on:
-    ``ok`` finished; ``failed`` the computation failed (:class:`~masonry_nscd.run.RunFailure`:
-    divergence, a non-finite value...); ``invalid`` the scene refused the case
-    (:class:`~masonry_nscd.run.RunInputError`); ``error`` anything else (an unexpected
-    exception, a lost worker), with the exception's type.
+    A run that fails is recorded with its status and message and the others go on (the
+    statuses of every study, :mod:`masonry_nscd.studies.point`): ``ok`` finished; ``failed``
+    the computation failed (:class:`~masonry_nscd.run.RunFailure`: divergence, a non-finite
+    value...); ``invalid`` the scene refused the case (:class:`~masonry_nscd.run.RunInputError`);
+    ``error`` anything else (an unexpected exception, a lost worker), with the exception's type.
 Resuming
     When a run ends, the marker ``sweep_run.json`` (status, message, run time, outputs and the
-    SHA-256 of the case as run) is written atomically in its folder. Running the same sweep
+    SHA-256 of the case as run) is written atomically in its folder. Running the same batch
     again skips every run whose marker says ``ok`` for the same case; the others (failed,
     interrupted, never started, or whose case changed) are run again from scratch.
-
-``sweep.csv``, one row per run in the order of the product (rewritten as runs end): the swept
-fields (named by their path, values as validated, SI units), then ``initial_stiffness_kN_mm``,
-``peak_force_kN``, ``ux_at_peak_mm``, ``force_at_target_kN``, ``target_ux_mm``, and for cyclic
-and tabulated histories ``peak_force_neg_kN``, ``ux_at_peak_neg_mm``, ``dissipated_energy_J``,
-for ground motion ``peak_drift_mm``, ``residual_drift_mm``, ``peak_base_shear_kN`` (empty
-otherwise; definitions in :mod:`masonry_nscd.report`), ``unconverged_steps``, the failure
-modes, for limit-state cases (arch, vault, assembly) ``collapse`` (true or false: standing),
-``collapse_load_name`` and ``collapse_load`` (the first growing load, e.g. ``lambda``, at the
-onset of the mechanism) and ``collapse_time_s`` (the onset; empty otherwise),
-``run_time_s`` (wall-clock time of the run on its worker, s), ``status``, ``message`` and
-``run`` (the folder name). A run that was skipped keeps the numbers and the run time of the
-sweep that made it. ``force_displacement.png``: the
-curves of the runs that finished (:func:`masonry_nscd.plots.plot_curves`).
+The table
+    One row per point in the order of the points (rewritten as runs end): the fields of the
+    batch (named by their path, values as validated, SI units), then the summary's key numbers
+    (:data:`OUTPUT_KEYS`, definitions in :mod:`masonry_nscd.report`), ``run_time_s``
+    (wall-clock time of the run on its worker, s), ``status``, ``message`` and ``run`` (the
+    folder name). A run that was skipped keeps the numbers and the run time of the batch that
+    made it.
 """
 
 from __future__ import annotations
@@ -60,41 +47,35 @@ import contextlib
 import csv
 import hashlib
 import io
-import itertools
 import json
 import logging
 import math
 import os
-import re
 import shutil
 import sys
 import tempfile
 import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from masonry_nscd.studies.point import ERROR, OK, SUMMARY_KEYS, RunRecord, run_point
+
 #: Summary values (masonry_nscd.report) kept per run, in the order of the table.
-OUTPUT_KEYS = ("initial_stiffness_kN_mm", "peak_force_kN", "ux_at_peak_mm", "force_at_target_kN",
-               "target_ux_mm", "peak_force_neg_kN", "ux_at_peak_neg_mm", "dissipated_energy_J",
-               "peak_drift_mm", "residual_drift_mm", "peak_base_shear_kN", "unconverged_steps", "failure_mode_at_peak", "failure_mode",
-               "collapse", "collapse_load_name", "collapse_load", "collapse_time_s")
-#: Columns of the table after the swept fields.
+OUTPUT_KEYS = SUMMARY_KEYS
+#: Columns of the table after the fields of the batch.
 TAIL_COLUMNS = (*OUTPUT_KEYS, "run_time_s", "status", "message", "run")
-STATUSES = ("ok", "failed", "invalid", "error")
 RUNS_DIR = "runs"
 DONE_MARKER = "sweep_run.json"
-SWEEP_FILE = "sweep.json"
-TABLE_FILE = "sweep.csv"
-PLOT_FILE = "force_displacement.png"
 WARMUP_STEPS = 2
 
 log = logging.getLogger(__name__)
 
 
 class SweepError(ValueError):
-    """A sweep that cannot be started as asked (exit code 2); ``messages``: one line each."""
+    """A sweep or a sensitivity study that cannot be started as asked (exit code 2);
+    ``messages``: one line each."""
 
     def __init__(self, messages: str | Sequence[str]):
         self.messages = [messages] if isinstance(messages, str) else list(messages)
@@ -103,7 +84,7 @@ class SweepError(ValueError):
 
 @dataclass(frozen=True)
 class Point:
-    """One run of a batch: its folder name, its swept values and its full case.
+    """One run of a batch: its folder name, its values of the batch's fields and its full case.
 
     ``params``: field path -> value as validated in the case (SI units); ``case_yaml``: the
     case as :func:`masonry_nscd.case.case_to_yaml` writes it, every default filled in.
@@ -118,29 +99,8 @@ class Point:
         return hashlib.sha256(self.case_yaml.encode()).hexdigest()
 
 
-@dataclass
-class RunRecord:
-    """What a run gave: status, message, run time (s), outputs (units in the keys).
-
-    ``curve``: the columns of ``force_displacement.csv`` (finished runs, when asked for);
-    ``skipped``: finished in an earlier sweep, not run again.
-    """
-
-    name: str
-    status: str
-    message: str = ""
-    run_time_s: float | None = None
-    outputs: dict[str, Any] = field(default_factory=dict)
-    skipped: bool = False
-    curve: dict[str, Any] | None = None
-
-    @property
-    def ok(self) -> bool:
-        return self.status == "ok"
-
-
 # ---------------------------------------------------------------------------------------------
-# The combinations
+# The points
 # ---------------------------------------------------------------------------------------------
 
 
@@ -187,32 +147,6 @@ def field_value(case: Any, path: str) -> Any:
     return obj
 
 
-def _slug(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9.+-]+", "_", text).strip("_") or "_"
-
-
-def short_keys(paths: Sequence[str]) -> dict[str, str]:
-    """Name of each path in the run folders: its last part, or the whole path when two
-    paths end alike."""
-    last = [p.rsplit(".", 1)[-1] for p in paths]
-    return {p: (k if last.count(k) == 1 else p) for p, k in zip(paths, last, strict=True)}
-
-
-def point_names(combos: Sequence[Sequence[tuple[str, str]]]) -> list[str]:
-    """Folder names of the combinations ``[(path, value text), ...]``: ``key=value`` joined by
-    ``__``; a name that repeats (values that differ only in symbols) gets ``~2``, ``~3``..."""
-    keys = short_keys([p for p, _ in combos[0]]) if combos and combos[0] else {}
-    names: list[str] = []
-    for combo in combos:
-        base = "__".join(f"{keys[p]}={_slug(v)}" for p, v in combo) or "run"
-        name, n = base, 1
-        while name in names:
-            n += 1
-            name = f"{base}~{n}"
-        names.append(name)
-    return names
-
-
 def make_point(case_file: Path, name: str, swept: Sequence[tuple[str, str]],
                fixed: Sequence[str] = ()) -> Point:
     """The :class:`Point` of the case file with the ``fixed`` overrides (``PATH=VALUE``) and the
@@ -223,41 +157,9 @@ def make_point(case_file: Path, name: str, swept: Sequence[tuple[str, str]],
     return Point(name, {p: field_value(case, p) for p, _ in swept}, case_to_yaml(case))
 
 
-def sweep_points(case_file: Path, sets: Sequence[str]) -> tuple[list[Point], list[str]]:
-    """Every combination of the ``--set`` options, validated: ``(points, swept paths)``.
-
-    Raises :class:`SweepError` listing every problem (each combination is loaded; a message
-    shared by several combinations is given once).
-    """
-    from masonry_nscd.case import CaseError
-
-    parsed = [parse_set(s) for s in sets]
-    paths = [p for p, _ in parsed]
-    twice = sorted({p for p in paths if paths.count(p) > 1})
-    if twice:
-        raise SweepError(f"--set {', '.join(twice)}: given more than once (put every value "
-                         "in one list)")
-    fixed = [f"{p}={texts[0]}" for p, texts in parsed if len(texts) == 1]
-    lists = [[(p, t) for t in texts] for p, texts in parsed if len(texts) > 1]
-    combos = [list(c) for c in itertools.product(*lists)]
-    points, problems = [], []
-    for name, combo in zip(point_names(combos), combos, strict=True):
-        try:
-            points.append(make_point(case_file, name, combo, fixed))
-        except CaseError as exc:
-            problems += [m for m in exc.messages if m not in problems]
-    if problems:
-        raise SweepError(problems)
-    return points, [p for p, texts in parsed if len(texts) > 1]
-
-
 # ---------------------------------------------------------------------------------------------
 # One run, on a worker
 # ---------------------------------------------------------------------------------------------
-
-
-def _quiet(_message: str) -> None:
-    """An ``echo`` that prints nothing (the run's log is in its run.log)."""
 
 
 def one_numba_thread() -> None:
@@ -302,7 +204,6 @@ def warm_cache(case_yaml: str) -> None:
     output. A warm-up that fails is ignored (the real run will report the problem).
     """
     from masonry_nscd.case import case_from_dict, read_yaml
-    from masonry_nscd.run import run_case
 
     data = read_yaml(case_yaml)
     kind = (data["blocks"]["material"], data["joint"]["law"], data["solver"]["method"])
@@ -311,8 +212,8 @@ def warm_cache(case_yaml: str) -> None:
     data["output"].update(vtu=False, hdf5=False)
     with cache_lock(), tempfile.TemporaryDirectory(prefix="masonry_warmup_") as tmp, \
             contextlib.suppress(Exception):
-        run_case(case_from_dict(data), Path(tmp) / "run", echo=_quiet,
-                 stop_when=lambda curve: len(curve["step"]) >= WARMUP_STEPS)
+        run_point(case_from_dict(data), Path(tmp) / "run", outputs=False,
+                  stop_when=lambda curve: len(curve["step"]) >= WARMUP_STEPS)
     _warmed.add(kind)
 
 
@@ -340,37 +241,16 @@ def finished_record(point: Point, run_dir: Path, keep_curve: bool = False) -> Ru
             return None
     earlier = marker.get("message") or ""
     message = "finished in an earlier sweep, not run again" + (f"; {earlier}" if earlier else "")
-    return RunRecord(point.name, "ok", message, marker.get("run_time_s"),
-                     dict(marker.get("outputs") or {}), skipped=True, curve=curve)
-
-
-def _outputs(run_dir: Path) -> dict[str, Any]:
-    """The :data:`OUTPUT_KEYS` of the run's summary.json (computed if the file is missing)."""
-    try:
-        summary = json.loads((run_dir / "summary.json").read_text())
-    except (OSError, ValueError):
-        from masonry_nscd.report import summarize_run
-
-        summary = summarize_run(run_dir)
-    out = {k: summary.get(k) for k in OUTPUT_KEYS}
-    for k in ("failure_mode_at_peak", "failure_mode"):  # the name of the mechanism
-        out[k] = (out[k] or {}).get("mode")
-    # a limit-state run: whether it collapsed, the first growing load and the time at the onset
-    limit = summary.get("status") if summary.get("load_factors") is not None else None
-    collapse = summary.get("collapse") if limit is not None else None
-    loads = (collapse or {}).get("loads_at_onset") or {}
-    name = next(iter(loads), None)
-    out.update({"collapse": None if limit is None else limit == "collapse",
-                "collapse_load_name": name, "collapse_load": loads.get(name),
-                "collapse_time_s": (collapse or {}).get("onset_time_s")})
-    return out
+    return RunRecord(point.name, OK, message, seconds=marker.get("run_time_s"),
+                     run_dir=str(run_dir), outputs=dict(marker.get("outputs") or {}),
+                     skipped=True, curve=curve)
 
 
 def _write_marker(run_dir: Path, point: Point, record: RunRecord) -> None:
     from masonry_nscd.io.atomic import atomic_write
 
     text = json.dumps({"status": record.status, "message": record.message,
-                       "run_time_s": record.run_time_s, "outputs": record.outputs,
+                       "run_time_s": record.seconds, "outputs": record.outputs,
                        "params": {k: list(v) if isinstance(v, tuple) else v
                                   for k, v in point.params.items()},
                        "case_sha256": point.case_sha256,
@@ -378,16 +258,16 @@ def _write_marker(run_dir: Path, point: Point, record: RunRecord) -> None:
     atomic_write(run_dir / DONE_MARKER, lambda p: Path(p).write_text(text + "\n"))
 
 
-def run_point(point: Point, runs_dir: str, keep_curve: bool = False) -> RunRecord:
-    """Run one point into ``runs_dir/<name>`` (the task of a worker); never raises for a run
-    that fails: the failure is the record's status and message.
+def point_task(point: Point, runs_dir: str, keep_curve: bool = False) -> RunRecord:
+    """Run one point into ``runs_dir/<name>`` (the task of a worker) with
+    :func:`~masonry_nscd.studies.point.run_point`; never raises for a run that fails: the
+    failure is the record's status and message.
 
     A folder that holds the finished run of the same case is kept (skipped); any other content
     of the folder is removed first.
     """
     one_numba_thread()
     from masonry_nscd.case import case_from_dict, read_yaml
-    from masonry_nscd.run import RunFailure, RunInputError, run_case
 
     run_dir = Path(runs_dir) / point.name
     done = finished_record(point, run_dir, keep_curve)
@@ -396,28 +276,18 @@ def run_point(point: Point, runs_dir: str, keep_curve: bool = False) -> RunRecor
     if run_dir.exists():
         shutil.rmtree(run_dir)
     warm_cache(point.case_yaml)
-    t0 = time.perf_counter()
-    try:
-        run_case(case_from_dict(read_yaml(point.case_yaml)), run_dir, echo=_quiet)
-        status, message = "ok", ""
-    except RunInputError as exc:
-        status, message = "invalid", str(exc)
-    except RunFailure as exc:
-        status, message = "failed", str(exc)
-    except Exception as exc:  # noqa: BLE001 (one run's bug must not end the sweep)
-        status, message = "error", f"{type(exc).__name__}: {exc}"
-    record = RunRecord(point.name, status, message, time.perf_counter() - t0)
+    record = run_point(case_from_dict(read_yaml(point.case_yaml)), run_dir, name=point.name)
     if record.ok:
-        try:
-            record.outputs = _outputs(run_dir)
-            if record.outputs.get("unconverged_steps"):
-                record.message = f"{record.outputs['unconverged_steps']} steps not converged"
-            if keep_curve:
-                from masonry_nscd.report import read_curve_csv
+        if record.outputs.get("unconverged_steps"):
+            record.message = f"{record.outputs['unconverged_steps']} steps not converged"
+        if keep_curve:
+            from masonry_nscd.report import read_curve_csv
 
+            try:
                 record.curve = read_curve_csv(run_dir / "force_displacement.csv")
-        except Exception as exc:  # noqa: BLE001
-            record.status, record.message = "error", f"no summary: {type(exc).__name__}: {exc}"
+            except Exception as exc:  # noqa: BLE001
+                record.status = ERROR
+                record.message = f"no summary: {type(exc).__name__}: {exc}"
     _write_marker(run_dir, point, record)
     return record
 
@@ -498,7 +368,7 @@ def _gather(client: Any, points: Sequence[Point], runs_dir: Path, keep_curve: bo
             on_record: Callable[[RunRecord], None]) -> dict[str, RunRecord]:
     from distributed import as_completed
 
-    futures = {client.submit(run_point, p, str(runs_dir), keep_curve, pure=False): p
+    futures = {client.submit(point_task, p, str(runs_dir), keep_curve, pure=False): p
                for p in points}
     out = {}
     for future in as_completed(futures):
@@ -506,14 +376,14 @@ def _gather(client: Any, points: Sequence[Point], runs_dir: Path, keep_curve: bo
         try:
             rec = future.result()
         except Exception as exc:  # noqa: BLE001 (a lost worker, a task that could not run)
-            rec = RunRecord(p.name, "error", f"the task failed: {type(exc).__name__}: {exc}")
+            rec = RunRecord(p.name, ERROR, f"the task failed: {type(exc).__name__}: {exc}")
         out[p.name] = rec
         on_record(rec)
     return out
 
 
 # ---------------------------------------------------------------------------------------------
-# The table and the figure
+# The table and the batch
 # ---------------------------------------------------------------------------------------------
 
 
@@ -544,32 +414,9 @@ def write_table(path: Path, points: Sequence[Point], records: dict[str, RunRecor
             continue
         w.writerow([format_cell(p.params[k]) for k in param_paths]
                    + [format_cell(r.outputs.get(k)) for k in OUTPUT_KEYS]
-                   + [format_cell(r.run_time_s), r.status, r.message, p.name])
+                   + [format_cell(r.seconds), r.status, r.message, p.name])
     atomic_write(path, lambda tmp: Path(tmp).write_text(buf.getvalue()))
     return path
-
-
-def plot_overlay(points: Sequence[Point], records: Sequence[RunRecord], runs_dir: Path,
-                 path: Path) -> Path | None:
-    """The force-displacement curves of the finished runs (with their curve) on one chart;
-    None if there are none."""
-    import numpy as np
-
-    from masonry_nscd.case import case_from_dict, read_yaml
-    from masonry_nscd.plots import RunData, plot_curves
-    from masonry_nscd.report import read_scene_info
-
-    runs = [RunData(runs_dir / p.name, case_from_dict(read_yaml(p.case_yaml)),
-                    read_scene_info(runs_dir / p.name),
-                    {k: np.asarray(v, dtype=float) for k, v in r.curve.items()},
-                    r.outputs, label=p.name)
-            for p, r in zip(points, records, strict=True) if r.ok and r.curve]
-    return plot_curves(runs, path) if runs else None
-
-
-# ---------------------------------------------------------------------------------------------
-# The sweep
-# ---------------------------------------------------------------------------------------------
 
 
 def prepare_outdir(outdir: Path, marker: str, description: dict[str, Any]) -> None:
@@ -592,50 +439,30 @@ def prepare_outdir(outdir: Path, marker: str, description: dict[str, Any]) -> No
 
 def progress_line(record: RunRecord, done: int, total: int) -> str:
     """``[2/3] value_Pa=0.3e6: ok in 1.2 s``."""
-    secs = f" in {record.run_time_s:.1f} s" if record.run_time_s is not None else ""
+    secs = f" in {record.seconds:.1f} s" if record.seconds is not None else ""
     what = "kept (finished in an earlier sweep)" if record.skipped else f"{record.status}{secs}"
     tail = f": {record.message}" if record.message and not record.skipped else ""
     return f"[{done}/{total}] {record.name}: {what}{tail}"
 
 
-@dataclass
-class SweepResult:
-    """The records of a sweep, in the order of the product, and the files written."""
-
-    records: list[RunRecord]
-    table: Path
-    plot: Path | None
-
-    @property
-    def failed(self) -> list[RunRecord]:
-        return [r for r in self.records if not r.ok]
-
-
-def run_sweep(case_file: Path, sets: Sequence[str], outdir: Path, *, workers: int | None = None,
-              scheduler: str | None = None,
-              echo: Callable[[str], None] = print) -> SweepResult:
-    """Validate, then run every combination of ``sets`` (see the module docstring).
-
-    Raises :class:`SweepError` before any run for a bad option or combination.
-    """
-    points, paths = sweep_points(case_file, sets)
-    prepare_outdir(outdir, SWEEP_FILE, {"case_file": str(case_file), "sets": list(sets),
-                                        "runs": [p.name for p in points]})
-    table = outdir / TABLE_FILE
+def run_batch(points: Sequence[Point], outdir: Path, *, marker: str,
+              description: dict[str, Any], table: Path, param_paths: Sequence[str],
+              intro: str, workers: int | None = None, scheduler: str | None = None,
+              keep_curve: bool = False,
+              echo: Callable[[str], None] = print) -> list[RunRecord]:
+    """Run a batch into ``outdir``: the folder prepared (:func:`prepare_outdir` with its
+    ``marker`` file holding ``description``), ``intro`` echoed (with the scheduler's address),
+    then every point not yet finished run (:func:`run_points`), the ``table`` of the fields
+    ``param_paths`` written again and a progress line echoed as each record comes. Returns the
+    records in the order of ``points``."""
+    prepare_outdir(outdir, marker, description)
     records: dict[str, RunRecord] = {}
 
     def on_record(rec: RunRecord) -> None:
         records[rec.name] = rec
-        write_table(table, points, records, paths)
+        write_table(table, points, records, param_paths)
         echo(progress_line(rec, len(records), len(points)))
 
-    echo(f"{len(points)} runs of {case_file} in {outdir / RUNS_DIR}"
-         + (f" on the Dask scheduler {scheduler}" if scheduler else ""))
-    done = run_points(points, outdir / RUNS_DIR, workers=workers, scheduler=scheduler,
-                      keep_curve=True, on_record=on_record)
-    try:
-        plot = plot_overlay(points, done, outdir / RUNS_DIR, outdir / PLOT_FILE)
-    except (OSError, ValueError) as exc:  # the table is written: a figure must not lose it
-        echo(f"no figure: {type(exc).__name__}: {exc}")
-        plot = None
-    return SweepResult(done, table, plot)
+    echo(intro + (f" on the Dask scheduler {scheduler}" if scheduler else ""))
+    return run_points(points, outdir / RUNS_DIR, workers=workers, scheduler=scheduler,
+                      keep_curve=keep_curve, on_record=on_record)

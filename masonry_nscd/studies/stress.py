@@ -5,9 +5,12 @@ Every variant is the base case (``cases/smoke.yaml`` by default) with a few fiel
 theta from 0.5 to 1, the block modulus from 1e8 to 1e11 Pa, the joint springs from 1e9 to
 1e13 Pa/m, the vertical stress from 0 to 5 MPa, friction from 0 to 1.2, virgin and fully
 broken joints, one course, a tall slender wall, rigid blocks, and ENDO3D blocks driven far past
-the peak. Each one is run by :func:`masonry_nscd.run.run_case` into its own folder.
+the peak. Each one is a point of the study (:func:`masonry_nscd.studies.point.run_point`) run
+into its own folder under a wall-clock limit.
 
-Outcome of a variant (``ACCEPTABLE`` ones are what the simulator promises):
+Outcome of a variant (``ACCEPTABLE`` ones are what the simulator promises), judged from the
+run's record: ``failed``, ``timeout`` and ``error`` are its status (a variant the scene refuses
+is an ``error`` too: the variants are the test's own input); a finished run is then judged:
 
 ``ok``
     finished; every value of the CSV and of results.h5 finite; every step converged; the wall
@@ -56,7 +59,7 @@ import numpy as np
 
 EQUILIBRIUM_TOLERANCE = 1e-2
 ACCEPTABLE = ("ok", "failed")
-DEFAULT_BASE = Path(__file__).resolve().parents[1] / "cases" / "smoke.yaml"
+DEFAULT_BASE = Path(__file__).resolve().parents[2] / "cases" / "smoke.yaml"
 
 
 @dataclass(frozen=True)
@@ -223,7 +226,7 @@ def run_variant(base_path: Path, variant: Variant, outdir: Path,
                 time_limit_s: float = 600.0) -> StressResult:
     """Run one variant into ``outdir`` (replaced if it exists) and judge its outcome."""
     from masonry_nscd.case import CaseError, load_case
-    from masonry_nscd.run import RunFailure, run_case
+    from masonry_nscd.studies.point import ERROR, FAILED, TIMEOUT, as_error, run_point
 
     base = load_case(base_path)
     t0 = time.perf_counter()
@@ -237,17 +240,14 @@ def run_variant(base_path: Path, variant: Variant, outdir: Path,
         case = load_case(base_path, variant.overrides(base) + [f"name={variant.name}"])
     except CaseError as exc:
         return result("error", "invalid variant: " + "; ".join(exc.messages))
-    deadline = t0 + time_limit_s
-    log = io.StringIO()
-    try:
-        res = run_case(case, outdir, overwrite=True, echo=lambda m: log.write(m + "\n"),
-                       stop_when=lambda curve: time.perf_counter() > deadline)
-    except RunFailure as exc:
+    rec = run_point(case, outdir, overwrite=True, time_limit_s=time_limit_s)
+    status, message = as_error(rec)
+    if status == FAILED:
         curve = _read_curve(outdir / "force_displacement.csv")
-        return result("failed", str(exc), len(curve.get("step", ())),
+        return result("failed", message, len(curve.get("step", ())),
                       float(np.max(curve["residual"], initial=0.0)) if curve else math.nan)
-    except Exception as exc:  # noqa: BLE001 - a bug of the simulator, reported as such
-        return result("error", f"{type(exc).__name__}: {exc}")
+    if status == ERROR:  # a bug of the simulator, reported as such
+        return result("error", message)
     curve = _read_curve(outdir / "force_displacement.csv")
     worst = float(np.max(curve["residual"], initial=0.0)) if curve else math.nan
     from masonry_nscd.scenes import build_scene
@@ -257,14 +257,14 @@ def run_variant(base_path: Path, variant: Variant, outdir: Path,
     eq = (equilibrium_error(curve, wall_weight_kN(scene, case.loading.gravity.value_m_s2),
                             case.solver.time_step_s, *mom) if mom is not None else math.nan)
     bad = _non_finite_outputs(outdir)
-    args = {"steps": res.steps, "worst": worst, "unconverged": res.unconverged_steps, "eq": eq}
+    args = {"steps": rec.steps, "worst": worst, "unconverged": rec.unconverged_steps, "eq": eq}
     if bad is not None:
         return result("non_finite", f"NaN or infinity in {bad}", **args)
-    if res.stopped:
-        return result("timeout", f"stopped after {time_limit_s:g} s at step {res.steps}", **args)
-    if res.unconverged_steps:
+    if status == TIMEOUT:
+        return result("timeout", message, **args)
+    if rec.unconverged_steps:
         k = int(np.argmax(curve["residual"]))
-        return result("not_converged", f"{res.unconverged_steps} steps above the tolerance "
+        return result("not_converged", f"{rec.unconverged_steps} steps above the tolerance "
                       f"{case.solver.tolerance:g}; worst residual {worst:.3g} at step "
                       f"{int(curve['step'][k])} (t = {curve['time_s'][k]:.4g} s)", **args)
     if math.isnan(eq):
@@ -273,7 +273,7 @@ def run_variant(base_path: Path, variant: Variant, outdir: Path,
     if not eq <= EQUILIBRIUM_TOLERANCE:
         return result("imbalance", f"beam forces off balance by {eq:.3g} of the largest "
                       f"force (tolerance {EQUILIBRIUM_TOLERANCE:g})", **args)
-    return result("ok", f"Ux {res.ux_mm:.4g} mm, Fx {res.fx_kN:.4g} kN", **args)
+    return result("ok", f"Ux {rec.ux_mm:.4g} mm, Fx {rec.fx_kN:.4g} kN", **args)
 
 
 CSV_HEADER = [f.name for f in fields(StressResult)]

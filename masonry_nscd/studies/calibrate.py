@@ -1,7 +1,8 @@
 """Calibrate one parameter of a case so that the wall has a target initial stiffness (kN/mm).
 
 The stiffness ``k(x)`` of the wall for a parameter value ``x`` (``joint.d_spring`` by default)
-is measured on a short run that stops as soon as it is known (``run_case(stop_when=...)``), and
+is measured on a short run that stops as soon as it is known (a point of the study,
+:func:`masonry_nscd.studies.point.run_point` with a ``stop_when``), and
 ``k(x) = target`` is solved by Brent's method (``scipy.optimize.brentq``) between two bounds
 that must bracket the target.
 
@@ -144,8 +145,9 @@ def parameter_value(case, path: str) -> float:
 
 
 def stop_above(force_kN: float, start_s: float) -> Callable[[dict[str, list]], bool]:
-    """A ``stop_when`` for :func:`masonry_nscd.run.run_case`: True at the first converged step
-    of the horizontal stage (``time_s >= start_s``) whose ``fx_kN`` exceeds ``force_kN``."""
+    """A ``stop_when`` of a run (:func:`masonry_nscd.run.run_case`): True at the first
+    converged step of the horizontal stage (``time_s >= start_s``) whose ``fx_kN`` exceeds
+    ``force_kN``."""
 
     def stop(curve: dict[str, list]) -> bool:
         return (curve["time_s"][-1] >= start_s - 1e-12 and bool(curve["converged"][-1])
@@ -173,13 +175,16 @@ def stiffness_of_run(run_dir: Path, f_low_kN: float, f_high_kN: float, start_s: 
 def measure_stiffness(case, run_dir: Path, force_range_kN: tuple[float, float], value: float,
                       echo: Callable[[str], None] | None = None) -> Evaluation:
     """Run ``case`` into ``run_dir`` until ``F_x`` passes the upper force level, and measure
-    the secant stiffness between the two levels (kN/mm)."""
-    from masonry_nscd.run import run_case
+    the secant stiffness between the two levels (kN/mm); a run that fails raises its
+    exception (:meth:`~masonry_nscd.studies.point.RunRecord.raise_failure`)."""
+    from masonry_nscd.studies.point import run_point
 
     start_s = case.loading.horizontal.start_s
-    res = run_case(case, run_dir, echo=echo or (lambda _m: None),
-                   stop_when=stop_above(force_range_kN[1], start_s))
-    return stiffness_of_run(run_dir, *force_range_kN, start_s, value, res.steps, res.seconds)
+    rec = run_point(case, run_dir, echo=echo or (lambda _m: None),
+                    stop_when=stop_above(force_range_kN[1], start_s))
+    rec.raise_failure()
+    return stiffness_of_run(run_dir, *force_range_kN, start_s, value, rec.steps,
+                            rec.loop_seconds)
 
 
 class _Close(Exception):
