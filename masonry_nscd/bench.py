@@ -996,7 +996,7 @@ def plot_bench(rows: Sequence[BenchRow], path: Path, title: str) -> Path | None:
     below :data:`ERROR_FLOOR` are drawn at it. ``None`` when nothing can be drawn."""
     from matplotlib.figure import Figure
 
-    from masonry_nscd.plots import _save
+    from masonry_nscd.figure_files import save_png
 
     pts = [r for r in rows if r.group != "reference" and math.isfinite(r.run_s)
            and math.isfinite(r.err_max)]
@@ -1028,7 +1028,7 @@ def plot_bench(rows: Sequence[BenchRow], path: Path, title: str) -> Path | None:
     ax.set_title(title, fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(loc="best", fontsize=8)
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1320,7 +1320,7 @@ def plot_scaling(rows: Sequence[ScalingRow], path: Path, title: str) -> Path | N
     line of slope 1 through the smallest wall."""
     from matplotlib.figure import Figure
 
-    from masonry_nscd.plots import _save
+    from masonry_nscd.figure_files import save_png
 
     walls = _measured_walls(rows)
     if not walls:
@@ -1354,7 +1354,7 @@ def plot_scaling(rows: Sequence[ScalingRow], path: Path, title: str) -> Path | N
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
     fig.suptitle(title, fontsize=10)
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -53,7 +53,6 @@ Figures
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -62,6 +61,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from masonry_nscd.figure_files import save_png, slug
 from masonry_nscd.report import (
     RunFields,
     compute_summary,
@@ -126,18 +126,6 @@ def label_runs(runs: Sequence[RunData]) -> None:
     names = [r.case.name for r in runs]
     for r in runs:
         r.label = r.case.name if names.count(r.case.name) == 1 else r.outdir.name
-
-
-def _slug(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("_") or "run"
-
-
-def _save(fig, path: Path) -> Path:
-    """Save a figure as PNG atomically."""
-    from masonry_nscd.io.atomic import atomic_write
-
-    atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=120))
-    return path
 
 
 # ---------------------------------------------------------------------------------------------
@@ -223,7 +211,7 @@ def plot_curves(runs: Sequence[RunData], path: Path,
                    ncol=LEGEND_COLUMNS)
     else:
         ax_all.legend(fontsize=8, loc="best")
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -287,7 +275,7 @@ def plot_cycles(run: RunData, path: Path) -> Path | None:
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8, loc="best")
     ax_energy.grid(True, alpha=0.3, axis="y")
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -361,7 +349,7 @@ def plot_ground_motion(run: RunData, path: Path) -> Path:
     ax_h.set_title("base shear against drift")
     for ax in (ax_a, ax_u, ax_f, ax_e, ax_h):
         ax.grid(True, alpha=0.3)
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -486,7 +474,7 @@ def plot_damage_map(run: RunData, step: int, path: Path, magnify: float = 0.0) -
                  f"(step {fields.step}, t = {fields.time_s:.4f} s; $\\sigma_N$ = "
                  f"{case.loading.vertical_stress.value_Pa / 1e6:g} MPa, "
                  f"{case.blocks.material} blocks{shape})")
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 def _frame_axes(axes, polys: NDArray) -> None:
@@ -538,10 +526,10 @@ def plot_runs(outdirs: Sequence[Path | str], plot_dir: Path, at_mm: Sequence[flo
         written.append(plot_curves(pushed, plot_dir / "force_displacement.png", reference_kN_mm))
     for run in runs:
         if is_ground_motion(run):
-            written.append(plot_ground_motion(run, plot_dir / f"ground_motion_{_slug(run.label)}"
+            written.append(plot_ground_motion(run, plot_dir / f"ground_motion_{slug(run.label)}"
                                                               ".png"))
         elif run.summary.get("history", "monotonic") != "monotonic":
-            png = plot_cycles(run, plot_dir / f"cycles_{_slug(run.label)}.png")
+            png = plot_cycles(run, plot_dir / f"cycles_{slug(run.label)}.png")
             if png is None:
                 notes.append(f"{run.outdir}: no completed cycle, no cycles figure")
             else:
@@ -551,6 +539,6 @@ def plot_runs(outdirs: Sequence[Path | str], plot_dir: Path, at_mm: Sequence[flo
             continue
         for ux in (at_mm if at_mm is not None else default_displacements(run)):
             step = nearest_output_step(run, ux)
-            name = f"damage_{_slug(run.label)}_ux_{ux:.2f}mm.png"
+            name = f"damage_{slug(run.label)}_ux_{ux:.2f}mm.png"
             written.append(plot_damage_map(run, step, plot_dir / name, magnify))
     return written, notes

@@ -26,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from masonry_nscd.figure_files import save_png, slug
+
 #: The largest displacement is drawn as this fraction of the structure's width by default.
 AUTO_MAGNIFY_FRACTION = 0.04
 
@@ -55,7 +57,6 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
     from matplotlib.patches import Rectangle
 
     from masonry_nscd.collapse import LIMIT_CSV
-    from masonry_nscd.plots import _save
     from masonry_nscd.post.limit import limit_summary
     from masonry_nscd.report import read_fields
 
@@ -162,19 +163,17 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
         bx.set_title("load against motion" if factors else "motion")
     fig.suptitle(f"{run.label}: {run.scene.get('builder', '')} "
                  f"({run.case.blocks.material} blocks, joints {run.case.joint.law})")
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 def plot_limit_runs(runs: Sequence, plot_dir: Path,
                     magnify: float = 0.0) -> tuple[list[Path], list[str]]:
     """The mechanism figure of each limit-state run with a ``results.h5``."""
-    from masonry_nscd.plots import _slug
-
     written, notes = [], []
     for run in runs:
         if not run.has_fields:
             notes.append(f"{run.outdir}: no results.h5, no mechanism figure")
             continue
-        written.append(plot_mechanism(run, plot_dir / f"mechanism_{_slug(run.label)}.png",
+        written.append(plot_mechanism(run, plot_dir / f"mechanism_{slug(run.label)}.png",
                                       magnify))
     return written, notes

@@ -33,7 +33,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("step", ("nscd",)),
     ("builders", ("scenes",)),
     ("run folder", ("io", "post")),
-    ("run", ("report", "collapse", "plots", "plots_limit", "run")),
+    ("run", ("report", "collapse", "figure_files", "plots", "plots_limit", "run")),
     ("studies", ("studies", "bench", "sweep", "sensitivity", "stress", "calibrate",
                  "threshold", "case_check", "warmup")),
     ("cli", ("cli",)),
