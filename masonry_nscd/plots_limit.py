@@ -20,7 +20,6 @@ Matplotlib through its object-oriented API (Agg), as :mod:`masonry_nscd.plots`.
 
 from __future__ import annotations
 
-import csv
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -32,23 +31,6 @@ from masonry_nscd.figure_files import save_png, slug
 AUTO_MAGNIFY_FRACTION = 0.04
 
 
-def _read_limit_csv(path: Path) -> dict[str, np.ndarray]:
-    with open(path, newline="") as f:
-        rows = list(csv.reader(f))
-    if not rows:
-        return {}
-    head, body = rows[0], []
-    for row in rows[1:]:
-        try:
-            values = [float(v) for v in row]
-        except ValueError:
-            break
-        if len(values) == len(head):
-            body.append(values)
-    data = np.array(body, dtype=float).reshape(-1, len(head))
-    return {k: data[:, j] for j, k in enumerate(head)}
-
-
 def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
     """The mechanism figure of a limit-state run folder (module docstring); ``run`` is a
     :class:`masonry_nscd.plots.RunData`."""
@@ -56,7 +38,7 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
     from matplotlib.figure import Figure
     from matplotlib.patches import Rectangle
 
-    from masonry_nscd.collapse import LIMIT_CSV
+    from masonry_nscd.io.limit_files import read_limit_table
     from masonry_nscd.post.limit import limit_summary
     from masonry_nscd.report import read_fields
 
@@ -134,7 +116,7 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
                  f"{magnify:.3g}; hinges (red) at their pivots, sliding (blue x), open "
                  "(orange)")
 
-    table = _read_limit_csv(run.outdir / LIMIT_CSV)
+    table = read_limit_table(run.outdir)
     factors = [f["name"] for f in summary.get("load_factors", []) if f["name"] in table]
     if table and len(table.get("time_s", [])):
         d = 1e3 * table["max_displacement_m"]

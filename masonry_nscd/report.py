@@ -603,43 +603,6 @@ def summarize_run(outdir: Path | str,
     return {**head, **summary}
 
 
-def write_cycle_tables(outdir: Path | str, rows: Sequence[Mapping[str, Any]],
-                       envelope: Sequence[Mapping[str, Any]]) -> list[Path]:
-    """Write ``cycles.csv`` and ``envelope.csv`` in ``outdir`` atomically (floats in full
-    precision, an undefined value as an empty field); returns their paths."""
-    import csv
-    import io
-
-    from masonry_nscd.io import runfolder as rf
-    from masonry_nscd.io.atomic import atomic_write
-    from masonry_nscd.post.cycles import CYCLE_COLUMNS, ENVELOPE_COLUMNS
-
-    paths = []
-    for name, columns, data in ((rf.CYCLES, CYCLE_COLUMNS, rows),
-                                (rf.ENVELOPE, ENVELOPE_COLUMNS, envelope)):
-        buf = io.StringIO()
-        w = csv.writer(buf, lineterminator="\n")
-        w.writerow(columns)
-        for r in data:
-            w.writerow(["" if r[c] is None else repr(r[c]) if isinstance(r[c], float) else r[c]
-                        for c in columns])
-        path, text = Path(outdir) / name, buf.getvalue()
-        atomic_write(path, lambda p, text=text: Path(p).write_text(text))
-        paths.append(path)
-    return paths
-
-
-def write_summary(outdir: Path | str, summary: Mapping[str, Any]) -> Path:
-    """Write ``summary.json`` in ``outdir`` atomically; returns its path."""
-    from masonry_nscd.io import runfolder as rf
-    from masonry_nscd.io.atomic import atomic_write
-
-    path = Path(outdir) / rf.SUMMARY
-    text = json.dumps(summary, indent=2, allow_nan=False) + "\n"
-    atomic_write(path, lambda p: Path(p).write_text(text))
-    return path
-
-
 def _fmt(x: float | None, spec: str, unit: str = "") -> str:
     return "n/a" if x is None else f"{x:{spec}}{unit}"
 
@@ -718,10 +681,13 @@ def report_run(outdir: Path | str, log: Callable[[str], None],
     Never raises for an ordinary error (a report must not lose a run): the problem is logged
     and ``None`` returned.
     """
+    from masonry_nscd.io.summary_json import write_summary
+
     try:
         summary = summarize_run(outdir, curve)
         path = write_summary(outdir, summary)
         if summary.get("history", "monotonic") not in ("monotonic", "ground_motion"):
+            from masonry_nscd.io.cycle_tables import write_cycle_tables
             from masonry_nscd.io.runfolder import CSV
 
             rows, envelope = run_cycles(curve if curve is not None else

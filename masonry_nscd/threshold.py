@@ -105,7 +105,8 @@ def evaluate(case, run_dir: Path, value: float, number: int,
              echo: Callable[[str], None] | None = None) -> ThresholdRun:
     """Run ``case`` into ``run_dir`` and read what it ended in (RunFailure when it fails:
     neither standing nor collapse)."""
-    from masonry_nscd.post.limit import read_limit
+    from masonry_nscd.io.limit_files import read_limit
+    from masonry_nscd.io.summary_json import read_summary
     from masonry_nscd.run import RunFailure, run_case
 
     res = run_case(case, run_dir, overwrite=True, echo=echo or (lambda _m: None))
@@ -113,8 +114,7 @@ def evaluate(case, run_dir: Path, value: float, number: int,
     status = record.get("status")
     if status not in ("collapse", "standing"):
         raise RunFailure(f"{run_dir}: the run ended with status {status!r}")
-    summary = json.loads((run_dir / "summary.json").read_text()) \
-        if (run_dir / "summary.json").exists() else {}
+    summary = read_summary(run_dir, missing_ok=True) or {}
     collapse = record.get("collapse") or {}
     return ThresholdRun(number, value, status, collapse.get("loads_at_onset"),
                         summary.get("mechanism"), hinge_names(summary.get("hinges") or []),

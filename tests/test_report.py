@@ -7,6 +7,7 @@ import pytest
 from typer.testing import CliRunner
 
 from masonry_nscd.cli import app
+from masonry_nscd.io.summary_json import write_summary
 from masonry_nscd.report import (
     compute_summary,
     first_crossing,
@@ -16,7 +17,6 @@ from masonry_nscd.report import (
     read_scene_info,
     secant_stiffness,
     summarize_run,
-    write_summary,
 )
 from masonry_nscd.run import CSV_COLUMNS
 

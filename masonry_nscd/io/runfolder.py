@@ -13,6 +13,7 @@
                                   at most a second behind it, ``io/recorder.py``)
       summary.json                stiffness, peak, damages (written at the end)
       cycles.csv, envelope.csv    per cycle, and the envelope (cyclic and tabulated histories)
+      limit.csv, limit.json       per step, and the status and collapse (limit-state runs)
       run.log
 """
 
@@ -38,6 +39,8 @@ SUMMARY = "summary.json"
 CYCLES = "cycles.csv"
 ENVELOPE = "envelope.csv"
 LOG = "run.log"
+LIMIT_CSV = "limit.csv"
+LIMIT_JSON = "limit.json"
 
 #: Columns of the CSV (units in the names; see the README).
 CSV_COLUMNS = [
