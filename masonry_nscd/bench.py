@@ -843,7 +843,7 @@ def bench(case_path: Path | str, outdir: Path | str, *, overrides: Sequence[str]
     ``outdir/bench.png``. ``check_reference``: also the reference's own reference, right after
     it, and every row's ``err_max_check``. See the module docstring."""
     from masonry_nscd.case import load_case
-    from masonry_nscd.report import read_curve_csv, read_scene_info
+    from masonry_nscd.io.runfolder import CSV, SCENE, read_curve_csv, read_scene_info
 
     case_path, outdir = Path(case_path), Path(outdir)
     case = load_case(case_path, list(overrides))
@@ -882,9 +882,9 @@ def bench(case_path: Path | str, outdir: Path | str, *, overrides: Sequence[str]
             runs.append(run_in_child(spec, timeout_s=limit_s + 600.0))
         fill_timing(row, runs)
         run_dir = outdir / "runs" / s.name
-        csv_path = run_dir / "force_displacement.csv"
+        csv_path = run_dir / CSV
         curve = read_curve_csv(csv_path) if csv_path.exists() else None
-        scene = read_scene_info(run_dir) if (run_dir / "scene.json").exists() else None
+        scene = read_scene_info(run_dir) if (run_dir / SCENE).exists() else None
         if s is ref_setting and row.status == "ok":
             ref_curve, ref_scene = curve, scene
         fill_curve(row, curve, ref_curve, target_mm, start_s, scene, ref_scene)

@@ -38,6 +38,7 @@ import numpy as np
 
 from masonry_nscd.io.atomic import atomic_write
 from masonry_nscd.io.runfolder import CSV, SUMMARY, read_curve_csv
+from masonry_nscd.io.summary_json import read_summary
 
 CASES_DIR = Path(__file__).resolve().parents[1] / "cases"
 RECORD_DIR = CASES_DIR / "record"
@@ -151,7 +152,7 @@ def check_case(case: Path, outdir: Path, record_dir: Path, runs: dict, *, rtol: 
     if code != 0 or not (run_dir / SUMMARY).exists():
         out.status, out.note = "failed", f"masonry run exited {code}: {log_path(run_dir)}"
         return out
-    summary = json.loads((run_dir / SUMMARY).read_text())
+    summary = read_summary(run_dir)
     out.steps, out.unconverged_steps = int(summary["steps"]), int(summary["unconverged_steps"])
     curve = read_curve_csv(run_dir / CSV)
     if out.unconverged_steps:

@@ -56,22 +56,18 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from masonry_nscd.figure_files import save_png, slug
-from masonry_nscd.report import (
-    RunFields,
-    compute_summary,
-    horizontal_stage_start,
-    output_steps,
-    push_stage_start,
-    read_curve_csv,
-    read_fields,
-    read_scene_info,
-)
+from masonry_nscd.io import runfolder as rf
+from masonry_nscd.io.runfolder import read_curve_csv, read_scene_info
+from masonry_nscd.report import compute_summary, horizontal_stage_start, push_stage_start
+
+if TYPE_CHECKING:
+    from masonry_nscd.io.results_h5 import RunFields
 
 #: The study's initial stiffness of the wall (kN/mm), the same for the three vertical stresses.
 REFERENCE_STIFFNESS_KN_MM = 71.0
@@ -95,7 +91,7 @@ class RunData:
 
     @property
     def has_fields(self) -> bool:
-        return (self.outdir / "results.h5").exists()
+        return (self.outdir / rf.RESULTS).exists()
 
 
 def load_run(outdir: Path | str) -> RunData:
@@ -103,13 +99,13 @@ def load_run(outdir: Path | str) -> RunData:
     from masonry_nscd.case import CaseError, load_case
 
     outdir = Path(outdir)
-    csv_path = outdir / "force_displacement.csv"
+    csv_path = outdir / rf.CSV
     if not csv_path.exists():
-        raise PlotInputError(f"{outdir}: not a run folder (no force_displacement.csv)")
+        raise PlotInputError(f"{outdir}: not a run folder (no {rf.CSV})")
     try:
-        case = load_case(outdir / "case.yaml", check_files=False)
+        case = load_case(outdir / rf.CASE, check_files=False)
     except CaseError as exc:
-        raise PlotInputError(f"{outdir}: cannot read its case.yaml: {exc.messages[0]}") from None
+        raise PlotInputError(f"{outdir}: cannot read its {rf.CASE}: {exc.messages[0]}") from None
     try:
         scene = read_scene_info(outdir)
         curve = read_curve_csv(csv_path)
@@ -298,7 +294,7 @@ def plot_ground_motion(run: RunData, path: Path) -> Path:
     """Time histories of a ground-motion run (module docstring)."""
     from matplotlib.figure import Figure
 
-    from masonry_nscd.io.runfolder import ENERGY
+    from masonry_nscd.io.runfolder import read_energy_csv
 
     c, s = run.curve, run.summary
     ok = c["converged"] != 0 if "converged" in c else np.ones(len(c["time_s"]), bool)
@@ -329,9 +325,8 @@ def plot_ground_motion(run: RunData, path: Path) -> Path:
     ax_u.set_title(f"drift: {s.get('measured') or 'U_x'}", fontsize=9)
     ax_f.plot(t[ok], c["fx_bottom_kN"][ok], color="C1", lw=1.0)
     ax_f.set_ylabel("base shear $F_{x,bottom}$ (kN)")
-    epath = run.outdir / ENERGY
-    if epath.exists():
-        e = read_curve_csv(epath)
+    e = read_energy_csv(run.outdir)
+    if e is not None:
         for key, label in ENERGY_CURVES:
             if key in e and np.abs(e[key]).max() > 0.0:
                 ax_e.plot(e["time_s"], e[key], lw=1.3 if key == "external_work_J" else 1.0,
@@ -339,7 +334,7 @@ def plot_ground_motion(run: RunData, path: Path) -> Path:
         if "imbalance_J" in e:
             ax_e.plot(e["time_s"], e["imbalance_J"], "k:", lw=1.0, label="imbalance")
         ax_e.legend(fontsize=7, ncol=2, loc="upper left")
-        ax_e.set_title("energy balance (energy.csv): external work = the sum of the others",
+        ax_e.set_title(f"energy balance ({rf.ENERGY}): external work = the sum of the others",
                        fontsize=9)
     ax_e.set_ylabel("energy (J)")
     ax_e.set_xlabel("time (s)")
@@ -360,9 +355,11 @@ def plot_ground_motion(run: RunData, path: Path) -> Path:
 def nearest_output_step(run: RunData, ux_mm: float) -> int:
     """The output step of ``results.h5`` whose ``U_x`` is nearest to ``ux_mm`` (the latest one
     among equals, so that ``0`` gives the state just before the horizontal stage)."""
-    steps = [s for s, _ in output_steps(run.outdir / "results.h5")]
+    from masonry_nscd.io.results_h5 import output_steps
+
+    steps = [s for s, _ in output_steps(run.outdir / rf.RESULTS)]
     if not steps:
-        raise PlotInputError(f"{run.outdir}: results.h5 has no output step")
+        raise PlotInputError(f"{run.outdir}: {rf.RESULTS} has no output step")
     ux_of = dict(zip(run.curve["step"].astype(int), run.curve["ux_mm"], strict=True))
     known = [s for s in steps if s in ux_of]
     if not known:
@@ -437,8 +434,10 @@ def plot_damage_map(run: RunData, step: int, path: Path, magnify: float = 0.0) -
     from matplotlib.collections import LineCollection, PolyCollection
     from matplotlib.figure import Figure
 
+    from masonry_nscd.io.results_h5 import read_fields
+
     case = run.case
-    fields = read_fields(run.outdir / "results.h5", step)
+    fields = read_fields(run.outdir / rf.RESULTS, step)
     disp = fields.nodal_displacement_m if fields.nodal_displacement_m is not None \
         else np.zeros_like(fields.nodes_m)
     polys = _element_polygons(fields, disp, magnify)
@@ -535,7 +534,7 @@ def plot_runs(outdirs: Sequence[Path | str], plot_dir: Path, at_mm: Sequence[flo
             else:
                 written.append(png)
         if not run.has_fields:
-            notes.append(f"{run.outdir}: no results.h5, no damage map")
+            notes.append(f"{run.outdir}: no {rf.RESULTS}, no damage map")
             continue
         for ux in (at_mm if at_mm is not None else default_displacements(run)):
             step = nearest_output_step(run, ux)

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from masonry_nscd.figure_files import save_png, slug
+from masonry_nscd.io import runfolder as rf
 
 #: The largest displacement is drawn as this fraction of the structure's width by default.
 AUTO_MAGNIFY_FRACTION = 0.04
@@ -39,12 +40,12 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
     from matplotlib.patches import Rectangle
 
     from masonry_nscd.io.limit_files import read_limit_table
+    from masonry_nscd.io.results_h5 import read_fields
     from masonry_nscd.post.limit import limit_summary
-    from masonry_nscd.report import read_fields
 
-    fields = read_fields(run.outdir / "results.h5")
+    fields = read_fields(run.outdir / rf.RESULTS)
     if fields is None:
-        raise ValueError(f"{run.outdir}: results.h5 has no output step")
+        raise ValueError(f"{run.outdir}: {rf.RESULTS} has no output step")
     summary = limit_summary(run.outdir, run.scene, fields)
     disp = fields.nodal_displacement_m if fields.nodal_displacement_m is not None \
         else np.zeros_like(fields.nodes_m)
@@ -154,7 +155,7 @@ def plot_limit_runs(runs: Sequence, plot_dir: Path,
     written, notes = [], []
     for run in runs:
         if not run.has_fields:
-            notes.append(f"{run.outdir}: no results.h5, no mechanism figure")
+            notes.append(f"{run.outdir}: no {rf.RESULTS}, no mechanism figure")
             continue
         written.append(plot_mechanism(run, plot_dir / f"mechanism_{slug(run.label)}.png",
                                       magnify))

@@ -75,6 +75,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from masonry_nscd.io.runfolder import SWEEP_MARKER
+
 #: Summary values (masonry_nscd.report) kept per run, in the order of the table.
 OUTPUT_KEYS = ("initial_stiffness_kN_mm", "peak_force_kN", "ux_at_peak_mm", "force_at_target_kN",
                "target_ux_mm", "peak_force_neg_kN", "ux_at_peak_neg_mm", "dissipated_energy_J",
@@ -84,7 +86,7 @@ OUTPUT_KEYS = ("initial_stiffness_kN_mm", "peak_force_kN", "ux_at_peak_mm", "for
 TAIL_COLUMNS = (*OUTPUT_KEYS, "run_time_s", "status", "message", "run")
 STATUSES = ("ok", "failed", "invalid", "error")
 RUNS_DIR = "runs"
-DONE_MARKER = "sweep_run.json"
+DONE_MARKER = SWEEP_MARKER
 SWEEP_FILE = "sweep.json"
 TABLE_FILE = "sweep.csv"
 PLOT_FILE = "force_displacement.png"
@@ -332,10 +334,10 @@ def finished_record(point: Point, run_dir: Path, keep_curve: bool = False) -> Ru
         return None
     curve = None
     if keep_curve:
-        from masonry_nscd.report import read_curve_csv
+        from masonry_nscd.io.runfolder import CSV, read_curve_csv
 
         try:
-            curve = read_curve_csv(run_dir / "force_displacement.csv")
+            curve = read_curve_csv(run_dir / CSV)
         except (OSError, ValueError):
             return None
     earlier = marker.get("message") or ""
@@ -346,8 +348,10 @@ def finished_record(point: Point, run_dir: Path, keep_curve: bool = False) -> Ru
 
 def _outputs(run_dir: Path) -> dict[str, Any]:
     """The :data:`OUTPUT_KEYS` of the run's summary.json (computed if the file is missing)."""
+    from masonry_nscd.io.summary_json import read_summary
+
     try:
-        summary = json.loads((run_dir / "summary.json").read_text())
+        summary = read_summary(run_dir)
     except (OSError, ValueError):
         from masonry_nscd.report import summarize_run
 
@@ -413,9 +417,9 @@ def run_point(point: Point, runs_dir: str, keep_curve: bool = False) -> RunRecor
             if record.outputs.get("unconverged_steps"):
                 record.message = f"{record.outputs['unconverged_steps']} steps not converged"
             if keep_curve:
-                from masonry_nscd.report import read_curve_csv
+                from masonry_nscd.io.runfolder import CSV, read_curve_csv
 
-                record.curve = read_curve_csv(run_dir / "force_displacement.csv")
+                record.curve = read_curve_csv(run_dir / CSV)
         except Exception as exc:  # noqa: BLE001
             record.status, record.message = "error", f"no summary: {type(exc).__name__}: {exc}"
     _write_marker(run_dir, point, record)
@@ -556,8 +560,8 @@ def plot_overlay(points: Sequence[Point], records: Sequence[RunRecord], runs_dir
     import numpy as np
 
     from masonry_nscd.case import case_from_dict, read_yaml
+    from masonry_nscd.io.runfolder import read_scene_info
     from masonry_nscd.plots import RunData, plot_curves
-    from masonry_nscd.report import read_scene_info
 
     runs = [RunData(runs_dir / p.name, case_from_dict(read_yaml(p.case_yaml)),
                     read_scene_info(runs_dir / p.name),
