@@ -240,4 +240,3 @@ def watch(scene, end_s: float, log: Callable[..., None] = lambda *_a, **_k: None
     d0 = integ.sys.body_dof0
     out["u"] = {i: integ.u[d0[i]:d0[i + 1]].copy() for i in range(len(scene.bodies))}
     return out
-
