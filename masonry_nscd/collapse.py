@@ -19,15 +19,14 @@ nodes of its mesh: a rigid block's corners move by ``u_0 + theta x (x - x_ref)``
 
 A solver failure is no collapse: the run stops with exit code 1 and the status ``failed``.
 
-Outputs in the run folder: ``limit.csv``, one row per step (``step, time_s``, each load factor,
-``max_displacement_m``, ``max_speed_m_s``, ``kinetic_energy_J``), and ``limit.json``, the status
-and the collapse (:meth:`CollapseMonitor.record`), which the summary reads
-(:mod:`masonry_nscd.post.limit`).
+Outputs in the run folder (written by :mod:`masonry_nscd.io.limit_files`): ``limit.csv``, one
+row per step (``step, time_s``, each load factor, ``max_displacement_m``, ``max_speed_m_s``,
+``kinetic_energy_J``), and ``limit.json``, the status and the collapse
+(:meth:`CollapseMonitor.record`), which the summary reads (:mod:`masonry_nscd.post.limit`).
 """
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -36,8 +35,6 @@ from typing import Any
 
 import numpy as np
 
-LIMIT_CSV = "limit.csv"
-LIMIT_JSON = "limit.json"
 #: Blocks listed as those that moved most at collapse.
 MOVED_MOST = 5
 
@@ -128,36 +125,16 @@ class CollapseMonitor:
         self.last: dict[str, Any] = {}
         self.columns = ["step", "time_s", *(f.name for f in self.rule.factors),
                         "max_displacement_m", "max_speed_m_s", "kinetic_energy_J"]
-        self.file = None
+        self.table = None
         if self.outdir is None:  # no files (:func:`watch`)
             return
-        path = self.outdir / LIMIT_CSV
-        kept: list[str] = []
-        if resume_step is not None and path.exists():
-            kept = self._replay(path, resume_step)
-        self.file = open(path, "w")  # noqa: SIM115 (closed by close)
-        self.file.write(",".join(self.columns) + "\n")
-        for line in kept:
-            self.file.write(line)
-        self.file.flush()
+        from masonry_nscd.io.limit_files import LimitTable
 
-    def _replay(self, path: Path, step: int) -> list[str]:
-        """The rows of an interrupted run's ``limit.csv`` up to ``step`` (kept), and the onset
-        and collapse they show, for a resumed run."""
-        lines = path.read_text().splitlines(keepends=True)[1:]
-        kept = []
-        for line in lines:
-            try:
-                values = [float(v) for v in line.split(",")]
-            except ValueError:
-                break
-            if len(values) != len(self.columns) or values[0] > step:
-                break
-            kept.append(line)
-            row = dict(zip(self.columns, values, strict=True))
+        self.table = LimitTable(self.outdir, self.columns, resume_step=resume_step)
+        # a resumed run: the onset and the collapse the kept rows show
+        for row in self.table.kept:
             self._judge(int(row["step"]), row["time_s"], row["max_displacement_m"],
                         row["max_speed_m_s"], None, quiet=True)
-        return kept
 
     def loads(self, t: float) -> dict[str, float]:
         return {f.name: float(f.value(t)) for f in self.rule.factors}
@@ -172,11 +149,8 @@ class CollapseMonitor:
         loads = self.loads(t)
         self.last = {"step": step, "time_s": t, "loads": loads, "max_displacement_m": d_max,
                      "max_speed_m_s": v_max}
-        if self.file is not None:
-            values = [step, t, *loads.values(), d_max, v_max, kinetic]
-            self.file.write(",".join(repr(float(v)) if not isinstance(v, int) else str(v)
-                                     for v in values) + "\n")
-            self.file.flush()
+        if self.table is not None:
+            self.table.write_row([step, t, *loads.values(), d_max, v_max, kinetic])
         self._judge(step, t, d_max, v_max, disp)
         return self.detected is not None and t >= self.stop_at - 1e-9
 
@@ -238,17 +212,15 @@ class CollapseMonitor:
     def finish(self, status: str, message: str = "") -> None:
         """Write ``limit.json`` with the run's ``status`` (``collapse`` when it was detected,
         whatever is passed, unless the run failed or was interrupted before)."""
-        from masonry_nscd.io.atomic import atomic_write
+        from masonry_nscd.io.limit_files import write_limit
 
         if status == "done":
             status = "collapse" if self.detected is not None else "standing"
-        text = json.dumps(_finite(self.record(status, message)), indent=2,
-                          allow_nan=False) + "\n"
-        atomic_write(self.outdir / LIMIT_JSON, lambda p: Path(p).write_text(text))
+        write_limit(self.outdir, self.record(status, message))
 
     def close(self) -> None:
-        if self.file is not None:
-            self.file.close()
+        if self.table is not None:
+            self.table.close()
 
 
 def watch(scene, end_s: float, log: Callable[..., None] = lambda *_a, **_k: None
@@ -268,14 +240,3 @@ def watch(scene, end_s: float, log: Callable[..., None] = lambda *_a, **_k: None
     d0 = integ.sys.body_dof0
     out["u"] = {i: integ.u[d0[i]:d0[i + 1]].copy() for i in range(len(scene.bodies))}
     return out
-
-
-def _finite(obj):
-    """NaN and infinities as None, for JSON."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_finite(v) for v in obj]
-    return obj

@@ -53,25 +53,21 @@ Figures
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from masonry_nscd.report import (
-    RunFields,
-    compute_summary,
-    horizontal_stage_start,
-    output_steps,
-    push_stage_start,
-    read_curve_csv,
-    read_fields,
-    read_scene_info,
-)
+from masonry_nscd.figure_files import save_png, slug
+from masonry_nscd.io import runfolder as rf
+from masonry_nscd.io.runfolder import read_curve_csv, read_scene_info
+from masonry_nscd.report import compute_summary, horizontal_stage_start, push_stage_start
+
+if TYPE_CHECKING:
+    from masonry_nscd.io.results_h5 import RunFields
 
 #: The study's initial stiffness of the wall (kN/mm), the same for the three vertical stresses.
 REFERENCE_STIFFNESS_KN_MM = 71.0
@@ -95,7 +91,7 @@ class RunData:
 
     @property
     def has_fields(self) -> bool:
-        return (self.outdir / "results.h5").exists()
+        return (self.outdir / rf.RESULTS).exists()
 
 
 def load_run(outdir: Path | str) -> RunData:
@@ -103,13 +99,13 @@ def load_run(outdir: Path | str) -> RunData:
     from masonry_nscd.case import CaseError, load_case
 
     outdir = Path(outdir)
-    csv_path = outdir / "force_displacement.csv"
+    csv_path = outdir / rf.CSV
     if not csv_path.exists():
-        raise PlotInputError(f"{outdir}: not a run folder (no force_displacement.csv)")
+        raise PlotInputError(f"{outdir}: not a run folder (no {rf.CSV})")
     try:
-        case = load_case(outdir / "case.yaml", check_files=False)
+        case = load_case(outdir / rf.CASE, check_files=False)
     except CaseError as exc:
-        raise PlotInputError(f"{outdir}: cannot read its case.yaml: {exc.messages[0]}") from None
+        raise PlotInputError(f"{outdir}: cannot read its {rf.CASE}: {exc.messages[0]}") from None
     try:
         scene = read_scene_info(outdir)
         curve = read_curve_csv(csv_path)
@@ -126,18 +122,6 @@ def label_runs(runs: Sequence[RunData]) -> None:
     names = [r.case.name for r in runs]
     for r in runs:
         r.label = r.case.name if names.count(r.case.name) == 1 else r.outdir.name
-
-
-def _slug(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("_") or "run"
-
-
-def _save(fig, path: Path) -> Path:
-    """Save a figure as PNG atomically."""
-    from masonry_nscd.io.atomic import atomic_write
-
-    atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=120))
-    return path
 
 
 # ---------------------------------------------------------------------------------------------
@@ -223,7 +207,7 @@ def plot_curves(runs: Sequence[RunData], path: Path,
                    ncol=LEGEND_COLUMNS)
     else:
         ax_all.legend(fontsize=8, loc="best")
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -287,7 +271,7 @@ def plot_cycles(run: RunData, path: Path) -> Path | None:
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8, loc="best")
     ax_energy.grid(True, alpha=0.3, axis="y")
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -310,7 +294,7 @@ def plot_ground_motion(run: RunData, path: Path) -> Path:
     """Time histories of a ground-motion run (module docstring)."""
     from matplotlib.figure import Figure
 
-    from masonry_nscd.io.runfolder import ENERGY
+    from masonry_nscd.io.runfolder import read_energy_csv
 
     c, s = run.curve, run.summary
     ok = c["converged"] != 0 if "converged" in c else np.ones(len(c["time_s"]), bool)
@@ -341,9 +325,8 @@ def plot_ground_motion(run: RunData, path: Path) -> Path:
     ax_u.set_title(f"drift: {s.get('measured') or 'U_x'}", fontsize=9)
     ax_f.plot(t[ok], c["fx_bottom_kN"][ok], color="C1", lw=1.0)
     ax_f.set_ylabel("base shear $F_{x,bottom}$ (kN)")
-    epath = run.outdir / ENERGY
-    if epath.exists():
-        e = read_curve_csv(epath)
+    e = read_energy_csv(run.outdir)
+    if e is not None:
         for key, label in ENERGY_CURVES:
             if key in e and np.abs(e[key]).max() > 0.0:
                 ax_e.plot(e["time_s"], e[key], lw=1.3 if key == "external_work_J" else 1.0,
@@ -351,7 +334,7 @@ def plot_ground_motion(run: RunData, path: Path) -> Path:
         if "imbalance_J" in e:
             ax_e.plot(e["time_s"], e["imbalance_J"], "k:", lw=1.0, label="imbalance")
         ax_e.legend(fontsize=7, ncol=2, loc="upper left")
-        ax_e.set_title("energy balance (energy.csv): external work = the sum of the others",
+        ax_e.set_title(f"energy balance ({rf.ENERGY}): external work = the sum of the others",
                        fontsize=9)
     ax_e.set_ylabel("energy (J)")
     ax_e.set_xlabel("time (s)")
@@ -361,7 +344,7 @@ def plot_ground_motion(run: RunData, path: Path) -> Path:
     ax_h.set_title("base shear against drift")
     for ax in (ax_a, ax_u, ax_f, ax_e, ax_h):
         ax.grid(True, alpha=0.3)
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -372,9 +355,11 @@ def plot_ground_motion(run: RunData, path: Path) -> Path:
 def nearest_output_step(run: RunData, ux_mm: float) -> int:
     """The output step of ``results.h5`` whose ``U_x`` is nearest to ``ux_mm`` (the latest one
     among equals, so that ``0`` gives the state just before the horizontal stage)."""
-    steps = [s for s, _ in output_steps(run.outdir / "results.h5")]
+    from masonry_nscd.io.results_h5 import output_steps
+
+    steps = [s for s, _ in output_steps(run.outdir / rf.RESULTS)]
     if not steps:
-        raise PlotInputError(f"{run.outdir}: results.h5 has no output step")
+        raise PlotInputError(f"{run.outdir}: {rf.RESULTS} has no output step")
     ux_of = dict(zip(run.curve["step"].astype(int), run.curve["ux_mm"], strict=True))
     known = [s for s in steps if s in ux_of]
     if not known:
@@ -449,8 +434,10 @@ def plot_damage_map(run: RunData, step: int, path: Path, magnify: float = 0.0) -
     from matplotlib.collections import LineCollection, PolyCollection
     from matplotlib.figure import Figure
 
+    from masonry_nscd.io.results_h5 import read_fields
+
     case = run.case
-    fields = read_fields(run.outdir / "results.h5", step)
+    fields = read_fields(run.outdir / rf.RESULTS, step)
     disp = fields.nodal_displacement_m if fields.nodal_displacement_m is not None \
         else np.zeros_like(fields.nodes_m)
     polys = _element_polygons(fields, disp, magnify)
@@ -486,7 +473,7 @@ def plot_damage_map(run: RunData, step: int, path: Path, magnify: float = 0.0) -
                  f"(step {fields.step}, t = {fields.time_s:.4f} s; $\\sigma_N$ = "
                  f"{case.loading.vertical_stress.value_Pa / 1e6:g} MPa, "
                  f"{case.blocks.material} blocks{shape})")
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 def _frame_axes(axes, polys: NDArray) -> None:
@@ -538,19 +525,19 @@ def plot_runs(outdirs: Sequence[Path | str], plot_dir: Path, at_mm: Sequence[flo
         written.append(plot_curves(pushed, plot_dir / "force_displacement.png", reference_kN_mm))
     for run in runs:
         if is_ground_motion(run):
-            written.append(plot_ground_motion(run, plot_dir / f"ground_motion_{_slug(run.label)}"
+            written.append(plot_ground_motion(run, plot_dir / f"ground_motion_{slug(run.label)}"
                                                               ".png"))
         elif run.summary.get("history", "monotonic") != "monotonic":
-            png = plot_cycles(run, plot_dir / f"cycles_{_slug(run.label)}.png")
+            png = plot_cycles(run, plot_dir / f"cycles_{slug(run.label)}.png")
             if png is None:
                 notes.append(f"{run.outdir}: no completed cycle, no cycles figure")
             else:
                 written.append(png)
         if not run.has_fields:
-            notes.append(f"{run.outdir}: no results.h5, no damage map")
+            notes.append(f"{run.outdir}: no {rf.RESULTS}, no damage map")
             continue
         for ux in (at_mm if at_mm is not None else default_displacements(run)):
             step = nearest_output_step(run, ux)
-            name = f"damage_{_slug(run.label)}_ux_{ux:.2f}mm.png"
+            name = f"damage_{slug(run.label)}_ux_{ux:.2f}mm.png"
             written.append(plot_damage_map(run, step, plot_dir / name, magnify))
     return written, notes

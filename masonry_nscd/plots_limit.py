@@ -20,31 +20,16 @@ Matplotlib through its object-oriented API (Agg), as :mod:`masonry_nscd.plots`.
 
 from __future__ import annotations
 
-import csv
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
+from masonry_nscd.figure_files import save_png, slug
+from masonry_nscd.io import runfolder as rf
+
 #: The largest displacement is drawn as this fraction of the structure's width by default.
 AUTO_MAGNIFY_FRACTION = 0.04
-
-
-def _read_limit_csv(path: Path) -> dict[str, np.ndarray]:
-    with open(path, newline="") as f:
-        rows = list(csv.reader(f))
-    if not rows:
-        return {}
-    head, body = rows[0], []
-    for row in rows[1:]:
-        try:
-            values = [float(v) for v in row]
-        except ValueError:
-            break
-        if len(values) == len(head):
-            body.append(values)
-    data = np.array(body, dtype=float).reshape(-1, len(head))
-    return {k: data[:, j] for j, k in enumerate(head)}
 
 
 def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
@@ -54,14 +39,13 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
     from matplotlib.figure import Figure
     from matplotlib.patches import Rectangle
 
-    from masonry_nscd.collapse import LIMIT_CSV
-    from masonry_nscd.plots import _save
+    from masonry_nscd.io.limit_files import read_limit_table
+    from masonry_nscd.io.results_h5 import read_fields
     from masonry_nscd.post.limit import limit_summary
-    from masonry_nscd.report import read_fields
 
-    fields = read_fields(run.outdir / "results.h5")
+    fields = read_fields(run.outdir / rf.RESULTS)
     if fields is None:
-        raise ValueError(f"{run.outdir}: results.h5 has no output step")
+        raise ValueError(f"{run.outdir}: {rf.RESULTS} has no output step")
     summary = limit_summary(run.outdir, run.scene, fields)
     disp = fields.nodal_displacement_m if fields.nodal_displacement_m is not None \
         else np.zeros_like(fields.nodes_m)
@@ -133,7 +117,7 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
                  f"{magnify:.3g}; hinges (red) at their pivots, sliding (blue x), open "
                  "(orange)")
 
-    table = _read_limit_csv(run.outdir / LIMIT_CSV)
+    table = read_limit_table(run.outdir)
     factors = [f["name"] for f in summary.get("load_factors", []) if f["name"] in table]
     if table and len(table.get("time_s", [])):
         d = 1e3 * table["max_displacement_m"]
@@ -162,19 +146,17 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
         bx.set_title("load against motion" if factors else "motion")
     fig.suptitle(f"{run.label}: {run.scene.get('builder', '')} "
                  f"({run.case.blocks.material} blocks, joints {run.case.joint.law})")
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 def plot_limit_runs(runs: Sequence, plot_dir: Path,
                     magnify: float = 0.0) -> tuple[list[Path], list[str]]:
     """The mechanism figure of each limit-state run with a ``results.h5``."""
-    from masonry_nscd.plots import _slug
-
     written, notes = [], []
     for run in runs:
         if not run.has_fields:
-            notes.append(f"{run.outdir}: no results.h5, no mechanism figure")
+            notes.append(f"{run.outdir}: no {rf.RESULTS}, no mechanism figure")
             continue
-        written.append(plot_mechanism(run, plot_dir / f"mechanism_{_slug(run.label)}.png",
+        written.append(plot_mechanism(run, plot_dir / f"mechanism_{slug(run.label)}.png",
                                       magnify))
     return written, notes

@@ -5,7 +5,11 @@ Everything is computed from the force-displacement curve (the columns of
 scene (``scene.json``: the stage whose curve is read, the target, the joint groups, the names
 and places of the bodies) and, where the run wrote it, from the last output step of
 ``results.h5``. Units are in the key names (``_kN``, ``_mm``, ``_kN_mm``, ``_m``, ``_s``);
-damages, residuals and counts are dimensionless.
+damages, residuals and counts are dimensionless. The run folder is read and written through
+:mod:`masonry_nscd.io` (the readers of :mod:`~masonry_nscd.io.runfolder` and
+:mod:`~masonry_nscd.io.results_h5`; ``summary.json`` by :mod:`~masonry_nscd.io.summary_json`,
+``cycles.csv`` and ``envelope.csv`` by :mod:`~masonry_nscd.io.cycle_tables`): this module
+computes.
 
 Definitions (also in ``docs/choices.md``, "Run summary")
 --------------------------------------------------------
@@ -27,7 +31,7 @@ Initial stiffness (kN/mm)
     below the force at which the joints start to slide and the curve bends. If ``fx`` is
     already above ``F_low`` when the stage starts, the secant is not defined (``None``).
     :func:`secant_stiffness` takes any two levels (the calibration uses fixed ones, see
-    :mod:`masonry_nscd.calibrate`).
+    :mod:`masonry_nscd.studies.calibrate`).
 Force at the target
     ``fx`` interpolated linearly in ``ux`` at the case's target displacement
     (``loading.horizontal.target_m``, 10 mm for the study), ``None`` if the run stopped before
@@ -77,18 +81,20 @@ Largest damages
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from masonry_nscd.io.runfolder import read_curve_csv
+from masonry_nscd.io import runfolder as rf
+from masonry_nscd.io.runfolder import read_curve_csv, read_energy_csv, read_scene_info
 from masonry_nscd.post.failure import COHESION_LOST_BETA, failure_mode, failure_sequence
+
+if TYPE_CHECKING:
+    from masonry_nscd.io.results_h5 import RunFields
 
 #: Fractions of the peak force between which the initial stiffness is measured.
 STIFFNESS_FRACTIONS = (0.10, 0.40)
@@ -249,90 +255,8 @@ def _num(x: float | None) -> float | None:
 
 
 # ---------------------------------------------------------------------------------------------
-# The fields of one output step, and where things are
+# The largest damages of one output step, and where they are
 # ---------------------------------------------------------------------------------------------
-
-
-def read_scene_info(outdir: Path | str) -> dict[str, Any]:
-    """What the run folder keeps of its scene (``scene.json``)."""
-    from masonry_nscd.io import runfolder as rf
-
-    path = Path(outdir) / rf.SCENE
-    try:
-        return json.loads(path.read_text())
-    except FileNotFoundError:
-        raise FileNotFoundError(f"{path} is missing: the run folder was written by an older "
-                                "version of masonry_nscd (run the case again)") from None
-
-
-@dataclass
-class RunFields:
-    """The mesh and the fields of one output step (SI units, damages dimensionless)."""
-
-    nodes_m: FloatArray  # (nn, 3) reference coordinates
-    hexes: NDArray[np.int64]  # (ne, 8) VTK order: the z-min face first, counter-clockwise
-    block_of_element: NDArray[np.int64]  # (ne,) position of the element's body in the structure
-    structure_bodies: NDArray[np.int64]  # (nb,) scene index of each structure body
-    contact_points_m: FloatArray  # (npt, 3)
-    contact_group: NDArray[np.int64]  # (npt,) joint group id (scene.json "groups")
-    contact_bodies: NDArray[np.int64]  # (npt, 2) candidate and antagonist body (scene indices)
-    contact_area_m2: FloatArray  # (npt,)
-    contact_frame: FloatArray  # (npt, 3, 3) rows n (antagonist to candidate), t, s
-    contact_gap_m: FloatArray  # (npt,)
-    contact_initial_damage: FloatArray  # (npt,) d_0 of the point's law
-    d_c: FloatArray  # (ne,) post-peak compressive damage
-    d_cpp: FloatArray  # (ne,) pre-peak compressive damage
-    d_t: FloatArray  # (ne,) largest tensile damage
-    joint_beta: FloatArray  # (npt,) integrity, 1 as built
-    step: int
-    time_s: float
-    nodal_displacement_m: FloatArray | None = None  # (nn, 3)
-    joint_u_m: FloatArray | None = None  # (npt, 3) relative displacements (n, t, s)
-
-    @property
-    def joint_d_coh(self) -> FloatArray:
-        """Total cohesive damage ``1 - beta (1 - d_0)`` per contact point."""
-        return 1.0 - self.joint_beta * (1.0 - self.contact_initial_damage)
-
-
-def output_steps(h5_path: Path | str) -> list[tuple[int, float]]:
-    """``(step, time_s)`` of every complete output step of a results file, in order (waits up
-    to 2 s for a run that is writing the file, as :func:`~masonry_nscd.io.results_h5.read_results`
-    does)."""
-    from masonry_nscd.io.results_h5 import _open_for_reading
-
-    with _open_for_reading(h5_path, 2.0) as f:
-        out = [(int(g.attrs["step"]), float(g.attrs["time"])) for g in f["steps"].values()
-               if "step" in g.attrs and "time" in g.attrs]
-    return sorted(out)
-
-
-def read_fields(h5_path: Path | str, step: int | None = None) -> RunFields | None:
-    """The fields of output ``step`` (default: the last one) of a results file; ``None`` if
-    the file has no complete output step."""
-    from masonry_nscd.io.results_h5 import _open_for_reading
-
-    steps = output_steps(h5_path)
-    if not steps:
-        return None
-    if step is None:
-        step = steps[-1][0]
-    with _open_for_reading(h5_path, 2.0) as f:
-        mesh = {k: ds[()] for k, ds in f["mesh"].items()}
-        g = f["steps"][f"{step:06d}"]
-        data = {k: ds[()] for k, ds in g.items()}
-        time_s = float(g.attrs["time"])
-    ne = len(mesh["hexes"])
-    return RunFields(
-        nodes_m=mesh["nodes_m"], hexes=mesh["hexes"], block_of_element=mesh["block_of_element"],
-        structure_bodies=mesh["structure_bodies"], contact_points_m=mesh["contact_points_m"], contact_group=mesh["contact_group"],
-        contact_bodies=mesh["contact_bodies"], contact_area_m2=mesh["contact_area_m2"],
-        contact_frame=mesh["contact_frame"], contact_gap_m=mesh["contact_gap_m"],
-        contact_initial_damage=mesh["contact_initial_damage"],
-        d_c=data.get("element_d_c", np.zeros(ne)), d_cpp=data.get("element_d_cpp", np.zeros(ne)),
-        d_t=data.get("element_d_t", np.zeros(ne)), joint_beta=data["joint_beta"],
-        step=int(step), time_s=time_s, nodal_displacement_m=data.get("nodal_displacement_m"),
-        joint_u_m=data.get("joint_u_m"))
 
 
 def body_names(scene: Mapping[str, Any]) -> dict[int, str]:
@@ -499,13 +423,8 @@ def ground_motion_summary(curve: Mapping[str, Sequence[float]], start_s: float |
 def read_energy(outdir: Path | str) -> dict[str, Any]:
     """The energy balance of a run folder's ``energy.csv``: the terms of its last row (J),
     its relative imbalance and the worst over the rows; ``{}`` without the file or rows."""
-    from masonry_nscd.io.runfolder import ENERGY
-
-    path = Path(outdir) / ENERGY
-    if not path.exists():
-        return {}
-    rows = read_curve_csv(path)
-    if not len(rows.get("step", [])):
+    rows = read_energy_csv(outdir)
+    if rows is None or not len(rows.get("step", [])):
         return {}
     last = {k: _num(v[-1]) for k, v in rows.items() if k not in ("step", "relative_imbalance")}
     return {"energy": last,
@@ -559,7 +478,7 @@ def summarize_run(outdir: Path | str,
     ``results.h5`` when there is one.
     """
     from masonry_nscd.case import load_case
-    from masonry_nscd.io import runfolder as rf
+    from masonry_nscd.io.results_h5 import output_steps, read_fields
 
     outdir = Path(outdir)
     case = load_case(outdir / rf.CASE, check_files=False)
@@ -608,43 +527,6 @@ def summarize_run(outdir: Path | str,
     return {**head, **summary}
 
 
-def write_cycle_tables(outdir: Path | str, rows: Sequence[Mapping[str, Any]],
-                       envelope: Sequence[Mapping[str, Any]]) -> list[Path]:
-    """Write ``cycles.csv`` and ``envelope.csv`` in ``outdir`` atomically (floats in full
-    precision, an undefined value as an empty field); returns their paths."""
-    import csv
-    import io
-
-    from masonry_nscd.io import runfolder as rf
-    from masonry_nscd.io.atomic import atomic_write
-    from masonry_nscd.post.cycles import CYCLE_COLUMNS, ENVELOPE_COLUMNS
-
-    paths = []
-    for name, columns, data in ((rf.CYCLES, CYCLE_COLUMNS, rows),
-                                (rf.ENVELOPE, ENVELOPE_COLUMNS, envelope)):
-        buf = io.StringIO()
-        w = csv.writer(buf, lineterminator="\n")
-        w.writerow(columns)
-        for r in data:
-            w.writerow(["" if r[c] is None else repr(r[c]) if isinstance(r[c], float) else r[c]
-                        for c in columns])
-        path, text = Path(outdir) / name, buf.getvalue()
-        atomic_write(path, lambda p, text=text: Path(p).write_text(text))
-        paths.append(path)
-    return paths
-
-
-def write_summary(outdir: Path | str, summary: Mapping[str, Any]) -> Path:
-    """Write ``summary.json`` in ``outdir`` atomically; returns its path."""
-    from masonry_nscd.io import runfolder as rf
-    from masonry_nscd.io.atomic import atomic_write
-
-    path = Path(outdir) / rf.SUMMARY
-    text = json.dumps(summary, indent=2, allow_nan=False) + "\n"
-    atomic_write(path, lambda p: Path(p).write_text(text))
-    return path
-
-
 def _fmt(x: float | None, spec: str, unit: str = "") -> str:
     return "n/a" if x is None else f"{x:{spec}}{unit}"
 
@@ -672,7 +554,7 @@ def format_summary(s: Mapping[str, Any]) -> list[str]:
                 f"{_fmt(s['peak_force_neg_kN'], '.4g', ' kN')} at Ux "
                 f"{_fmt(s['ux_at_peak_neg_mm'], '.4g', ' mm')}; {s['cycles_completed']} of "
                 f"{s['cycles_planned']} cycles, {_fmt(s['dissipated_energy_J'], '.4g', ' J')} "
-                "dissipated (cycles.csv, envelope.csv)")
+                f"dissipated ({rf.CYCLES}, {rf.ENVELOPE})")
     else:
         peak = (f"peak force {_fmt(s['peak_force_kN'], '.4g', ' kN')} at Ux "
                 f"{_fmt(s['ux_at_peak_mm'], '.4g', ' mm')}; force at Ux = "
@@ -701,7 +583,7 @@ def format_summary(s: Mapping[str, Any]) -> list[str]:
                      f"dissipated {_fmt(sum(e[k] for k in e if k.startswith('dissipated')), '.4g', ' J')}"
                      f", numerical {_fmt(e['numerical_J'], '.4g', ' J')}; relative imbalance "
                      f"{_fmt(s['energy_relative_imbalance'], '.2e')} (worst "
-                     f"{_fmt(s['energy_worst_relative_imbalance'], '.2e')}; energy.csv)")
+                     f"{_fmt(s['energy_worst_relative_imbalance'], '.2e')}; {rf.ENERGY})")
     for name, e in (s.get("largest_damage") or {}).items():
         if e.get("where"):
             where = f" at {e['where']} (x {e['x_m']:.3f}, y {e['y_m']:.3f} m)"
@@ -723,14 +605,16 @@ def report_run(outdir: Path | str, log: Callable[[str], None],
     Never raises for an ordinary error (a report must not lose a run): the problem is logged
     and ``None`` returned.
     """
+    from masonry_nscd.io.summary_json import write_summary
+
     try:
         summary = summarize_run(outdir, curve)
         path = write_summary(outdir, summary)
         if summary.get("history", "monotonic") not in ("monotonic", "ground_motion"):
-            from masonry_nscd.io.runfolder import CSV
+            from masonry_nscd.io.cycle_tables import write_cycle_tables
 
             rows, envelope = run_cycles(curve if curve is not None else
-                                        read_curve_csv(Path(outdir) / CSV),
+                                        read_curve_csv(Path(outdir) / rf.CSV),
                                         read_scene_info(outdir))
             write_cycle_tables(outdir, rows, envelope)
     except Exception as exc:  # noqa: BLE001 (a bad report must not fail a finished run)

@@ -2,8 +2,9 @@
 
 The loop only: the scene (:mod:`masonry_nscd.scenes`) says what is driven, what is reported and
 when to stop; the recorder (:mod:`masonry_nscd.io.recorder`) writes the run folder
-(:mod:`masonry_nscd.io.runfolder`); the fields come from :mod:`masonry_nscd.post.fields`; the
-summary from :mod:`masonry_nscd.report`. Per step, the CSV row: ``U_x``, ``U_y`` the driven
+(:mod:`masonry_nscd.io.runfolder`), the log goes to ``run.log`` (:mod:`masonry_nscd.io.run_log`);
+the fields come from :mod:`masonry_nscd.post.fields`; the summary from
+:mod:`masonry_nscd.report`. Per step, the CSV row: ``U_x``, ``U_y`` the driven
 body's reference point, ``F_x``, ``F_y`` the force of the scene's ``top`` reaction body on the
 others (the upper beam on the wall), ``*_bottom`` that of the ``bottom`` one, the solver's
 iterations and residual, the largest damages.
@@ -28,7 +29,7 @@ from pathlib import Path
 from masonry_nscd import arithmetic, threads, timing
 from masonry_nscd.errors import RunFailure, RunInputError, RunOutputError
 from masonry_nscd.io import runfolder as rf
-from masonry_nscd.io.atomic import writing
+from masonry_nscd.io.run_log import RunLog
 from masonry_nscd.io.runfolder import CSV_COLUMNS
 from masonry_nscd.nscd import mpi
 
@@ -88,25 +89,6 @@ class RunResult:
     stopped: bool = False  # ended by ``stop_when`` before the target
 
 
-class _Log:
-    """``run.log`` (appended to on resume), echoing the lines shown."""
-
-    def __init__(self, path: Path, append: bool, echo: Callable[[str], None]):
-        self.path, self.echo = path, echo
-        with writing(path):
-            self.file = open(path, "a" if append else "w")  # noqa: SIM115 (closed by close)
-
-    def __call__(self, msg: str, show: bool = True) -> None:
-        if show:
-            self.echo(msg)
-        with writing(self.path):
-            self.file.write(f"{time.strftime('%H:%M:%S')} {msg}\n")
-            self.file.flush()
-
-    def close(self) -> None:
-        self.file.close()
-
-
 def output_mesh_arrays(scene, mesh, integ) -> dict:
     """The ``mesh`` group of results.h5: the structure's hexahedra and the contact points."""
     import numpy as np
@@ -129,7 +111,7 @@ def output_mesh_arrays(scene, mesh, integ) -> dict:
 _RUN_PARTS = ("scene build", "steps", "outputs")
 
 
-def _log_end(log: _Log, integ, secs: float, ux: float, top, unconverged: int, worst: float,
+def _log_end(log: RunLog, integ, secs: float, ux: float, top, unconverged: int, worst: float,
              spans: dict[int, int], h: float) -> None:
     """The closing lines of ``run.log``: the run's end, the linear solver's work, where the
     time went (``masonry_nscd.timing``), the step sizes taken and the energy balance."""
@@ -228,7 +210,7 @@ def _failure(scene, step: int, t: float, what: str) -> RunFailure:
     return RunFailure(f"step {step} ({scene.stage_at(t)} stage, t = {t:.6g} s): {what}")
 
 
-def _advance(integ, scene, log: _Log):
+def _advance(integ, scene, log: RunLog):
     """One step of ``integ`` (its ``StepReport``): a divergence or a solver's exception ends
     the run with a RunFailure naming the step and the load stage (the traceback in run.log)."""
     from masonry_nscd.nscd.integrator import DivergenceError
@@ -245,7 +227,7 @@ def _advance(integ, scene, log: _Log):
         with contextlib.suppress(RunOutputError):
             log(traceback.format_exc(), show=False)
         raise _failure(scene, integ.step_index + 1, t1, f"the solver raised "
-                       f"{type(exc).__name__}: {exc} (traceback in run.log)") from exc
+                       f"{type(exc).__name__}: {exc} (traceback in {rf.LOG})") from exc
 
 
 @dataclass
@@ -254,7 +236,7 @@ class _StepNotes:
     made again as smaller ones, Krylov solves made again by LU, steps by size (in steps of h).
     :meth:`note` logs the unusual steps (the first five of each kind shown, all in run.log)."""
 
-    log: _Log
+    log: RunLog
     scene: object
     unconverged: int = 0
     worst: float = 0.0
@@ -355,7 +337,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
 
     ``stop_when(curve)``, called after every step with the curve so far (``{column: [values]}``
     of the CSV columns), ends the run early when it returns True (e.g. once a stiffness is
-    measured, :mod:`masonry_nscd.calibrate`).
+    measured, :mod:`masonry_nscd.studies.calibrate`).
     """
     import numpy as np
 
@@ -370,7 +352,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     outdir = Path(outdir)
     case_yaml = case_to_yaml(case)
     point = _open_run(case_yaml, outdir, resume, overwrite)
-    log = _Log(outdir / rf.LOG, resume, echo)
+    log = RunLog(outdir, resume, echo)
 
     t_start = time.perf_counter()
     timing.reset()
@@ -487,7 +469,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
                      stopped)
 
 
-def _close_stopped(exc: BaseException, outdir: Path, log: _Log, curve, monitor,
+def _close_stopped(exc: BaseException, outdir: Path, log: RunLog, curve, monitor,
                    step: int) -> None:
     """The end of a run stopped by a RunFailure or an interruption (KeyboardInterrupt, at
     step ``step``): the log's last line, the collapse watch told, the summary of what was

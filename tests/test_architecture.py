@@ -35,7 +35,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("files", ("io",)),
     ("builders", ("scenes",)),
     ("post", ("post",)),
-    ("run", ("report", "collapse", "plots", "plots_limit", "run", "warmup")),
+    ("run", ("report", "collapse", "figure_files", "plots", "plots_limit", "run", "warmup")),
     ("studies", ("studies",)),
     ("cli", ("cli",)),
 ]
@@ -210,8 +210,51 @@ def test_every_module_has_a_layer():
         layer_of(name)
 
 
-if __name__ == "__main__":
-    print(table(read_package()))
+#: Modules outside ``io/`` that may name a run-folder file in a string: the schema's help
+#: texts (``case/``), and the CLI's help texts and its resume check (``cli.py``).
+NAMES_ALLOWED = ("case", "cli")
+
+
+def _strings(tree: ast.Module) -> list[ast.Constant]:
+    """The string constants of a module that are not docstrings (f-strings' parts included)."""
+    docs = {id(node.body[0].value) for node in ast.walk(tree)
+            if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
+            and node.body and isinstance(node.body[0], ast.Expr)
+            and isinstance(node.body[0].value, ast.Constant)}
+    return [node for node in ast.walk(tree) if isinstance(node, ast.Constant)
+            and isinstance(node.value, str) and id(node) not in docs]
+
+
+def test_only_io_names_the_run_folder_files():
+    """The names of the run folder's files are the constants of ``io/runfolder.py``."""
+    from masonry_nscd.io import runfolder as rf
+
+    names = [rf.CASE, rf.SCENE, rf.CSV, rf.ENERGY, rf.RESULTS, rf.PVD, rf.CHECKPOINT, rf.SUMMARY,
+             rf.CYCLES, rf.ENVELOPE, rf.LOG, rf.LIMIT_CSV, rf.LIMIT_JSON, rf.SWEEP_MARKER]
+    found = []
+    for path in sorted(PKG.rglob("*.py")):
+        module = _module_name(path)
+        if any(module == m or module.startswith(m + ".") for m in ("io", *NAMES_ALLOWED)):
+            continue
+        for node in _strings(ast.parse(path.read_text())):
+            found += [f"{module}:{node.lineno} {n}" for n in names if n in node.value]
+    assert not found, found
+
+
+def test_only_io_opens_hdf5_files():
+    """No module outside ``io/`` imports h5py: the results file is read through io/."""
+    found = []
+    for path in sorted(PKG.rglob("*.py")):
+        module = _module_name(path)
+        if module == "io" or module.startswith("io."):
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import) and any(a.name.split(".")[0] == "h5py"
+                                                    for a in node.names) or \
+                    isinstance(node, ast.ImportFrom) and (node.module or "").startswith("h5py"):
+                found.append(f"{module}:{node.lineno}")
+    assert not found, found
+
 
 
 def test_every_structure_has_its_builder_and_every_builder_its_structure():
@@ -235,3 +278,7 @@ def test_the_schema_imports_nothing_above_it():
     schema = [m for m in modules if layer_of(m) == layer_of("case")]
     up = [a for a in back_up(modules) if a.split(" -> ")[0] in schema]
     assert not up, up
+
+
+if __name__ == "__main__":
+    print(table(read_package()))

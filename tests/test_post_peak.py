@@ -10,8 +10,9 @@ from typer.testing import CliRunner
 from masonry_nscd.case import CaseError, load_case
 from masonry_nscd.cli import app
 from masonry_nscd.contact.scatter import lognormal_factors
+from masonry_nscd.io.results_h5 import read_fields
+from masonry_nscd.io.runfolder import read_scene_info
 from masonry_nscd.post.failure import failure_mode
-from masonry_nscd.report import read_fields, read_scene_info
 from masonry_nscd.scenes import build_scene
 
 STUDY = "cases/wall_0.5MPa_elastic.yaml"

@@ -7,16 +7,15 @@ import pytest
 from typer.testing import CliRunner
 
 from masonry_nscd.cli import app
+from masonry_nscd.io.results_h5 import read_fields
+from masonry_nscd.io.runfolder import read_curve_csv, read_scene_info
+from masonry_nscd.io.summary_json import write_summary
 from masonry_nscd.report import (
     compute_summary,
     first_crossing,
     largest_damages,
-    read_curve_csv,
-    read_fields,
-    read_scene_info,
     secant_stiffness,
     summarize_run,
-    write_summary,
 )
 from masonry_nscd.run import CSV_COLUMNS
 

@@ -24,16 +24,11 @@ from typer.testing import CliRunner
 
 from masonry_nscd.case import load_case
 from masonry_nscd.cli import app
+from masonry_nscd.io.checkpoint_file import load_checkpoint, save_checkpoint
 from masonry_nscd.io.recorder import read_resume_point, truncate_csv
 from masonry_nscd.io.results_h5 import ResultsFile, read_results
 from masonry_nscd.io.runfolder import CHECKPOINT as CHECKPOINT_NAME
-from masonry_nscd.nscd.checkpoint import (
-    CheckpointError,
-    integrator_state,
-    load_checkpoint,
-    restore_integrator,
-    save_checkpoint,
-)
+from masonry_nscd.nscd.checkpoint import CheckpointError, integrator_state, restore_integrator
 from masonry_nscd.nscd.integrator import Integrator
 from masonry_nscd.run import CSV_COLUMNS, RunFailure, RunInputError, run_case
 
@@ -186,7 +181,7 @@ def test_interrupted_run_resumes_to_the_uninterrupted_curve(tmp_path, monkeypatc
 def test_resume_drops_what_was_written_after_the_checkpoint(tmp_path, monkeypatch, reference):
     """A run killed between its HDF5 step and its checkpoint: the later outputs are dropped."""
     out = tmp_path / "run"
-    import masonry_nscd.nscd.checkpoint as ck
+    import masonry_nscd.io.checkpoint_file as ck
     from masonry_nscd.io import recorder
 
     monkeypatch.setattr(recorder, "SYNC_EVERY_S", 0.0)  # a checkpoint at every output step

@@ -47,11 +47,11 @@ from typing import Any
 import numpy as np
 
 from masonry_nscd.errors import RunFailure, RunInputError, RunOutputError
+from masonry_nscd.io import checkpoint_file
 from masonry_nscd.io import runfolder as rf
 from masonry_nscd.io.atomic import atomic_write, writing
 from masonry_nscd.io.background import BackgroundWriter
-from masonry_nscd.nscd import checkpoint
-from masonry_nscd.nscd.checkpoint import CheckpointError, load_checkpoint
+from masonry_nscd.nscd.checkpoint import CheckpointError
 
 _INT_COLUMNS = ("step", "iterations", "converged", "failed_gauss_points", "substeps")
 
@@ -82,7 +82,7 @@ def read_resume_point(outdir: str | os.PathLike[str]) -> ResumePoint | None:
     """
     path = Path(outdir) / rf.CHECKPOINT
     try:
-        state, extra = load_checkpoint(path)
+        state, extra = checkpoint_file.load_checkpoint(path)
     except FileNotFoundError:
         return None
     need = ("step", "finished", "pvd_time", "pvd_file", "pvd_part", "unconverged",
@@ -338,7 +338,7 @@ class Recorder:
             append = self.h5.staged_step(step, time, out.h5)
             self._files.submit(lambda _path: append(), self.h5_path)
         self._queued = (len(self.pvd), len(self.curve[rf.CSV_COLUMNS[0]]),
-                        checkpoint.checkpoint_arrays(integ), {
+                        checkpoint_file.checkpoint_arrays(integ), {
                             "step": np.int64(step), "finished": np.int64(done),
                             "unconverged": np.int64(unconverged),
                             "worst_residual": np.float64(worst_residual)})
@@ -373,7 +373,7 @@ class Recorder:
                 self.h5.write_curve({c: np.asarray(v[:rows], dtype=float)
                                      for c, v in self.curve.items()})
         with writing(self.ckpt_path):
-            checkpoint.write_checkpoint(self.ckpt_path, state, {
+            checkpoint_file.write_checkpoint(self.ckpt_path, state, {
                 **scalars,
                 "pvd_time": np.array([p[0] for p in pvd], dtype=float),
                 "pvd_file": np.array([p[1] for p in pvd], dtype=str),

@@ -48,6 +48,15 @@ Guarantees (tested in tests/test_io.py)
   one and the curve rows beyond a given length are dropped on a copy that then replaces the
   file, so an interruption there also leaves the file as it was.
 - Not guarded: two writers on the same path (the second one replaces the file).
+
+Reading
+-------
+Every reader opens the file through :func:`open_for_reading` (which waits while a writer holds
+it): :func:`read_results` reads the whole file; for the post-processing of a run folder,
+:func:`output_steps` lists its complete output steps, :func:`read_fields` gives the mesh and
+the fields of one of them (:class:`RunFields`), :func:`read_mesh_arrays` some arrays of the
+mesh and :func:`read_step_field` one field over the output steps. No module outside ``io/``
+opens the file itself.
 """
 
 from __future__ import annotations
@@ -55,7 +64,8 @@ from __future__ import annotations
 import contextlib
 import shutil
 import time as _time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
 from typing import Any, NamedTuple, Self
@@ -219,7 +229,7 @@ class ResultsFile:
         ``ValueError`` (not a results file of this format).
         """
         target = Path(path)
-        with _open_for_reading(target, 0.5) as f:
+        with open_for_reading(target, 0.5) as f:
             if _attr(f.attrs.get("format")) != FORMAT or "steps" not in f or "curve" not in f:
                 raise ValueError(f"{target}: not a {FORMAT} file")
             kept: set[int] = set()
@@ -355,7 +365,11 @@ class ResultsFile:
 
 
 # -- reading -------------------------------------------------------------------------------
-def _open_for_reading(path: PathLike, wait_s: float) -> h5py.File:
+def open_for_reading(path: PathLike, wait_s: float) -> h5py.File:
+    """The results file at ``path`` opened for reading (an ``h5py.File``, to be closed by the
+    caller, e.g. ``with``). While a writer holds the file (the "open for write" flag, module
+    docstring) the open is retried for ``wait_s`` seconds, then an OSError says how to clear
+    the flag."""
     deadline = _time.monotonic() + wait_s
     while True:
         try:
@@ -387,7 +401,7 @@ def read_results(path: PathLike, *, wait_s: float = 2.0) -> dict[str, Any]:
     without their step/time attributes (an interrupted write) are skipped. If the file is
     being written, retries for ``wait_s`` seconds.
     """
-    with _open_for_reading(path, wait_s) as f:
+    with open_for_reading(path, wait_s) as f:
         attrs = {k: _attr(v) for k, v in f.attrs.items()}
         case_yaml = f["case/yaml"].asstr()[()]
         mesh = {k: ds[()] for k, ds in f["mesh"].items()}
@@ -400,3 +414,96 @@ def read_results(path: PathLike, *, wait_s: float = 2.0) -> dict[str, Any]:
         steps.sort(key=lambda s: s.step)
         curve = {k: ds[()] for k, ds in f["curve"].items()}
     return {"case_yaml": case_yaml, "mesh": mesh, "steps": steps, "curve": curve, "attrs": attrs}
+
+
+# -- a run's output steps: the mesh and fields the recorder writes ------------------------------
+#: Float arrays of a run's fields (SI units).
+FloatArray = NDArray[np.float64]
+
+
+@dataclass
+class RunFields:
+    """The mesh and the fields of one output step (SI units, damages dimensionless)."""
+
+    nodes_m: FloatArray  # (nn, 3) reference coordinates
+    hexes: NDArray[np.int64]  # (ne, 8) VTK order: the z-min face first, counter-clockwise
+    block_of_element: NDArray[np.int64]  # (ne,) position of the element's body in the structure
+    structure_bodies: NDArray[np.int64]  # (nb,) scene index of each structure body
+    contact_points_m: FloatArray  # (npt, 3)
+    contact_group: NDArray[np.int64]  # (npt,) joint group id (scene.json "groups")
+    contact_bodies: NDArray[np.int64]  # (npt, 2) candidate and antagonist body (scene indices)
+    contact_area_m2: FloatArray  # (npt,)
+    contact_frame: FloatArray  # (npt, 3, 3) rows n (antagonist to candidate), t, s
+    contact_gap_m: FloatArray  # (npt,)
+    contact_initial_damage: FloatArray  # (npt,) d_0 of the point's law
+    d_c: FloatArray  # (ne,) post-peak compressive damage
+    d_cpp: FloatArray  # (ne,) pre-peak compressive damage
+    d_t: FloatArray  # (ne,) largest tensile damage
+    joint_beta: FloatArray  # (npt,) integrity, 1 as built
+    step: int
+    time_s: float
+    nodal_displacement_m: FloatArray | None = None  # (nn, 3)
+    joint_u_m: FloatArray | None = None  # (npt, 3) relative displacements (n, t, s)
+
+    @property
+    def joint_d_coh(self) -> FloatArray:
+        """Total cohesive damage ``1 - beta (1 - d_0)`` per contact point."""
+        return 1.0 - self.joint_beta * (1.0 - self.contact_initial_damage)
+
+
+def output_steps(h5_path: Path | str) -> list[tuple[int, float]]:
+    """``(step, time_s)`` of every complete output step of a results file, in order (waits up
+    to 2 s for a run that is writing the file, as :func:`read_results` does)."""
+    with open_for_reading(h5_path, 2.0) as f:
+        out = [(int(g.attrs["step"]), float(g.attrs["time"])) for g in f["steps"].values()
+               if "step" in g.attrs and "time" in g.attrs]
+    return sorted(out)
+
+
+def read_fields(h5_path: Path | str, step: int | None = None) -> RunFields | None:
+    """The fields of output ``step`` (default: the last one) of a results file; ``None`` if
+    the file has no complete output step."""
+    steps = output_steps(h5_path)
+    if not steps:
+        return None
+    if step is None:
+        step = steps[-1][0]
+    with open_for_reading(h5_path, 2.0) as f:
+        mesh = {k: ds[()] for k, ds in f["mesh"].items()}
+        g = f["steps"][f"{step:06d}"]
+        data = {k: ds[()] for k, ds in g.items()}
+        time_s = float(g.attrs["time"])
+    ne = len(mesh["hexes"])
+    return RunFields(
+        nodes_m=mesh["nodes_m"], hexes=mesh["hexes"], block_of_element=mesh["block_of_element"],
+        structure_bodies=mesh["structure_bodies"], contact_points_m=mesh["contact_points_m"],
+        contact_group=mesh["contact_group"],
+        contact_bodies=mesh["contact_bodies"], contact_area_m2=mesh["contact_area_m2"],
+        contact_frame=mesh["contact_frame"], contact_gap_m=mesh["contact_gap_m"],
+        contact_initial_damage=mesh["contact_initial_damage"],
+        d_c=data.get("element_d_c", np.zeros(ne)), d_cpp=data.get("element_d_cpp", np.zeros(ne)),
+        d_t=data.get("element_d_t", np.zeros(ne)), joint_beta=data["joint_beta"],
+        step=int(step), time_s=time_s, nodal_displacement_m=data.get("nodal_displacement_m"),
+        joint_u_m=data.get("joint_u_m"))
+
+
+def read_mesh_arrays(h5_path: PathLike, names: Sequence[str]) -> dict[str, NDArray]:
+    """The arrays ``names`` of the ``mesh`` group of a results file (waits up to 2 s for a run
+    that is writing the file)."""
+    with open_for_reading(h5_path, 2.0) as f:
+        return {k: f["mesh"][k][()] for k in names}
+
+
+def read_step_field(h5_path: PathLike, name: str, *,
+                    last: int | None = None) -> list[tuple[int, NDArray]]:
+    """``(step, array)`` of the field ``name`` at every complete output step of a results file
+    (those with their step and time attributes), in the order of the steps; only the ``last``
+    ones when given. Waits up to 2 s for a run that is writing the file."""
+    with open_for_reading(h5_path, 2.0) as f:
+        if "steps" not in f:
+            return []
+        steps = sorted((int(g.attrs["step"]), key) for key, g in f["steps"].items()
+                       if "step" in g.attrs and "time" in g.attrs)
+        if last is not None:
+            steps = steps[max(0, len(steps) - last):]
+        return [(step, f["steps"][key][name][()]) for step, key in steps]

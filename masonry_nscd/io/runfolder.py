@@ -1,4 +1,5 @@
-"""The run folder: the names of the files a run writes, and the folder made ready for them.
+"""The run folder: the names of the files a run writes, the folder made ready for them, and
+the readers of its small files.
 
 ::
 
@@ -13,14 +14,32 @@
                                   at most a second behind it, ``io/recorder.py``)
       summary.json                stiffness, peak, damages (written at the end)
       cycles.csv, envelope.csv    per cycle, and the envelope (cyclic and tabulated histories)
+      limit.csv, limit.json       per step, and the status and collapse (limit-state runs)
       run.log
+      sweep_run.json              what a sweep recorded of the run (runs made by a sweep)
+
+Every name is a constant of this module, and ``io/`` writes and reads every file of a run
+(a sweep writes and reads its own ``sweep_run.json``):
+
+* :mod:`~masonry_nscd.io.recorder`: ``case.yaml``, ``scene.json``, the CSV, ``energy.csv``,
+  ``results.h5`` (:mod:`~masonry_nscd.io.results_h5`), the VTU files and the PVD collection
+  (:mod:`~masonry_nscd.io.vtu`), the checkpoint (:mod:`~masonry_nscd.io.checkpoint_file`);
+* :mod:`~masonry_nscd.io.run_log`: ``run.log``;
+* :mod:`~masonry_nscd.io.summary_json`: ``summary.json``; :mod:`~masonry_nscd.io.cycle_tables`:
+  ``cycles.csv`` and ``envelope.csv``;
+* :mod:`~masonry_nscd.io.limit_files`: ``limit.csv`` and ``limit.json``;
+* readers: the curve (:func:`read_curve_csv`), the scene (:func:`read_scene_info`), the energy
+  balance (:func:`read_energy_csv`) here; the output steps and their fields in
+  :mod:`~masonry_nscd.io.results_h5`; the summary and the limit files in their modules.
 """
 
 from __future__ import annotations
 
 import csv
+import json
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -38,6 +57,10 @@ SUMMARY = "summary.json"
 CYCLES = "cycles.csv"
 ENVELOPE = "envelope.csv"
 LOG = "run.log"
+LIMIT_CSV = "limit.csv"
+LIMIT_JSON = "limit.json"
+#: What a sweep recorded of one of its runs (:mod:`masonry_nscd.studies.sweep`), in the run's folder.
+SWEEP_MARKER = "sweep_run.json"
 
 #: Columns of the CSV (units in the names; see the README).
 CSV_COLUMNS = [
@@ -93,3 +116,22 @@ def read_curve_csv(path: Path | str) -> dict[str, np.ndarray]:
             rows.append(values)
     data = np.array(rows, dtype=float).reshape(-1, len(header))
     return {name: data[:, j] for j, name in enumerate(header)}
+
+
+def read_scene_info(outdir: Path | str) -> dict[str, Any]:
+    """What the run folder keeps of its scene (``scene.json``)."""
+    path = Path(outdir) / SCENE
+    try:
+        return json.loads(path.read_text())
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{path} is missing: the run folder was written by an older "
+                                "version of masonry_nscd (run the case again)") from None
+
+
+def read_energy_csv(outdir: Path | str) -> dict[str, np.ndarray] | None:
+    """The columns of the run folder's ``energy.csv`` (J, the relative imbalance
+    dimensionless) as :func:`read_curve_csv` reads them; None when the run wrote none."""
+    path = Path(outdir) / ENERGY
+    if not path.exists():
+        return None
+    return read_curve_csv(path)

@@ -1,4 +1,4 @@
-"""Checkpoints of the NSCD time loop: the integrator's state as plain arrays, to disk and back.
+"""Checkpoints of the NSCD time loop: the integrator's state as plain arrays, and back.
 
 What a checkpoint holds (SI units, as in the integrator):
 
@@ -28,27 +28,18 @@ are rebuilt by a freshly built integrator on its first step. That changes only t
 path: a resumed run reaches the same states as an uninterrupted one within the solver
 tolerance.
 
-The file is a NumPy ``.npz`` (no pickled objects), written atomically
-(:mod:`masonry_nscd.io.atomic`): a checkpoint on disk is always either the previous complete one
-or the new complete one. The caller may add its own arrays (prefixed
-``run_`` by :func:`write_checkpoint` to keep them apart).
+The file that holds these arrays (``checkpoint.npz`` of a run folder) is written and read by
+:mod:`masonry_nscd.io.checkpoint_file`: this module knows no file.
 """
 
 from __future__ import annotations
 
-import os
-import zipfile
 from collections.abc import Mapping
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from masonry_nscd.io.atomic import atomic_write
-
-FORMAT = "masonry_nscd.checkpoint"
-FORMAT_VERSION = 1
 _JOINT_FIELDS = ("u", "U", "uc", "beta", "T", "status")
-_EXTRA = "run_"
 
 
 class CheckpointError(ValueError):
@@ -126,62 +117,3 @@ def restore_integrator(integ, state: Mapping[str, ArrayLike]) -> None:
     integ.step_index = int(arr["step_index"])
     integ.set_step_memory({k: np.asarray(v) for k, v in state.items()
                            if k in ("halve_next", "halve_run", "step_level", "step_easy")})
-
-
-def save_checkpoint(path: str | os.PathLike[str], integ,
-                    extra: Mapping[str, ArrayLike] | None = None) -> None:
-    """Write the state of ``integ`` and the caller's ``extra`` arrays to ``path`` atomically
-    (:func:`checkpoint_arrays`, then :func:`write_checkpoint`)."""
-    write_checkpoint(path, checkpoint_arrays(integ), extra)
-
-
-def checkpoint_arrays(integ) -> dict[str, NDArray]:
-    """The integrator's part of a checkpoint of ``integ``, as copies: a file written later by
-    :func:`write_checkpoint` holds the state of now."""
-    return {
-        "format": np.array(FORMAT), "format_version": np.int64(FORMAT_VERSION),
-        **integrator_state(integ),
-        **{k: np.int64(v) for k, v in integ.step_memory().items()},
-    }
-
-
-def write_checkpoint(path: str | os.PathLike[str], state: Mapping[str, NDArray],
-                     extra: Mapping[str, ArrayLike] | None = None) -> None:
-    """Write ``state`` (:func:`checkpoint_arrays`) and the caller's ``extra`` arrays to
-    ``path`` atomically. ``extra`` arrays must be numeric or unicode strings (no objects); they
-    are read back by :func:`load_checkpoint` under their own names."""
-    arrays = dict(state)
-    for k, v in (extra or {}).items():
-        a = np.asarray(v)
-        if a.dtype.kind not in "biufU":
-            raise TypeError(f"checkpoint extra {k!r}: numeric or str array expected, got "
-                            f"dtype {a.dtype}")
-        arrays[_EXTRA + k] = a
-
-    def write(tmp: str) -> None:
-        with open(tmp, "wb") as f:  # a file object: np.savez would add .npz to a name
-            np.savez(f, **arrays)
-
-    atomic_write(path, write)
-
-
-def load_checkpoint(path: str | os.PathLike[str]) -> tuple[dict[str, NDArray],
-                                                           dict[str, NDArray]]:
-    """Read a checkpoint: ``(integrator state, extra arrays)``. :class:`CheckpointError` when
-    the file is not a checkpoint of this format (``FileNotFoundError`` when it is missing)."""
-    try:
-        with open(path, "rb") as f, np.load(f, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except FileNotFoundError:
-        raise
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
-        raise CheckpointError(f"{path}: not a readable checkpoint ({exc})") from exc
-    if str(data.pop("format", "")) != FORMAT:
-        raise CheckpointError(f"{path}: not a {FORMAT} file")
-    version = int(data.pop("format_version", -1))
-    if version != FORMAT_VERSION:
-        raise CheckpointError(f"{path}: checkpoint format version {version}, this program "
-                              f"reads version {FORMAT_VERSION}")
-    extra = {k[len(_EXTRA):]: v for k, v in data.items() if k.startswith(_EXTRA)}
-    state = {k: v for k, v in data.items() if not k.startswith(_EXTRA)}
-    return state, extra

@@ -112,7 +112,7 @@ def failure_sequence(h5_path, scene: Mapping[str, Any], ux_by_step: Mapping[int,
     it over half of its area (None: never). Reads the integrities of every output step."""
     from types import SimpleNamespace
 
-    from masonry_nscd.io.results_h5 import _open_for_reading
+    from masonry_nscd.io.results_h5 import read_mesh_arrays, read_step_field
 
     groups = list(scene["groups"])
     structure = scene["structure"]
@@ -124,29 +124,27 @@ def failure_sequence(h5_path, scene: Mapping[str, Any], ux_by_step: Mapping[int,
     out: dict[str, float | None] = {"base_joint_80pct_lost_at_ux_mm": None,
                                     "middle_course_head_joint_cracked_at_ux_mm": None,
                                     "middle_course": middle}
-    with _open_for_reading(h5_path, 2.0) as f:
-        mesh = SimpleNamespace(**{k: f["mesh"][k][()] for k in (
-            "contact_group", "contact_points_m", "contact_area_m2", "contact_bodies")})
-        base = _base_points(mesh, groups)
-        joints = [jt for jt in _head_joints(mesh, groups) if body_course.get(jt[1]) == middle]
-        area = mesh.contact_area_m2
-        steps = sorted((int(g.attrs["step"]), name) for name, g in f["steps"].items()
-                       if "step" in g.attrs and "time" in g.attrs)
-        for step, name in steps:
-            lost = f["steps"][name]["joint_beta"][()] < COHESION_LOST_BETA
-            ux = ux_by_step.get(step)
-            if out["base_joint_80pct_lost_at_ux_mm"] is None and base.any() and \
-                    area[base & lost].sum() >= BASE_LOST_FRACTION * area[base].sum():
-                out["base_joint_80pct_lost_at_ux_mm"] = ux
-            if out["middle_course_head_joint_cracked_at_ux_mm"] is None and \
-                    _cracked(joints, area, lost):
-                out["middle_course_head_joint_cracked_at_ux_mm"] = ux
+    mesh = SimpleNamespace(**read_mesh_arrays(h5_path, (
+        "contact_group", "contact_points_m", "contact_area_m2", "contact_bodies")))
+    base = _base_points(mesh, groups)
+    joints = [jt for jt in _head_joints(mesh, groups) if body_course.get(jt[1]) == middle]
+    area = mesh.contact_area_m2
+    for step, beta in read_step_field(h5_path, "joint_beta"):
+        lost = beta < COHESION_LOST_BETA
+        ux = ux_by_step.get(step)
+        if out["base_joint_80pct_lost_at_ux_mm"] is None and base.any() and \
+                area[base & lost].sum() >= BASE_LOST_FRACTION * area[base].sum():
+            out["base_joint_80pct_lost_at_ux_mm"] = ux
+        if out["middle_course_head_joint_cracked_at_ux_mm"] is None and \
+                _cracked(joints, area, lost):
+            out["middle_course_head_joint_cracked_at_ux_mm"] = ux
     return out
 
 
 def failure_mode(fields, scene: Mapping[str, Any], joint_u_m: np.ndarray | None) -> dict[str, Any]:
-    """The failure mode at the output step of ``fields`` (``report.RunFields``); ``joint_u_m``:
-    the relative displacements of the contact points (n, t, s) at that step, m."""
+    """The failure mode at the output step of ``fields``
+    (:class:`~masonry_nscd.io.results_h5.RunFields`); ``joint_u_m``: the relative
+    displacements of the contact points (n, t, s) at that step, m."""
     groups = list(scene["groups"])
     structure = scene["structure"]
     if "head" not in groups or not any(g.startswith("bed") for g in groups) \

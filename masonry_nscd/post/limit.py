@@ -1,7 +1,8 @@
 r"""What a limit-state run ended in: its status, its collapse, its hinges and sliding joints.
 
-The status and the collapse come from ``limit.json`` (:mod:`masonry_nscd.collapse`); the state
-of the joints from the last output step of ``results.h5``.
+The status and the collapse come from ``limit.json`` (:mod:`masonry_nscd.collapse`, read by
+:func:`masonry_nscd.io.limit_files.read_limit`); the state of the joints from the last output
+step of ``results.h5``.
 
 A joint (the contact points between two bodies) at one output step, from the normal opening
 ``u_n`` (m) of its points (positive: open) and their slip:
@@ -36,13 +37,14 @@ same :func:`classify_joints` from the step's relative displacements.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from masonry_nscd.io.limit_files import read_limit
 
 #: A hinge is open over at least this fraction of its face.
 HINGE_FRACTION = 0.5
@@ -194,16 +196,6 @@ def mechanism_name(joints: list[dict[str, Any]]) -> str:
         return _COUNT_NAMES.get(hinges, f"{hinges}-hinge")
     return "none" if not any(j["kind"] in ("open", "partly open") for j in joints) \
         else "joints opening"
-
-
-def read_limit(outdir: Path | str) -> dict[str, Any] | None:
-    """``limit.json`` of a run folder (None: none written)."""
-    from masonry_nscd.collapse import LIMIT_JSON
-
-    path = Path(outdir) / LIMIT_JSON
-    if not path.exists():
-        return None
-    return json.loads(path.read_text())
 
 
 def limit_summary(outdir: Path | str, scene: Mapping[str, Any], fields) -> dict[str, Any]:

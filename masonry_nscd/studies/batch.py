@@ -60,6 +60,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from masonry_nscd.io.runfolder import SWEEP_MARKER
 from masonry_nscd.studies.point import ERROR, OK, SUMMARY_KEYS, RunRecord, run_point
 
 #: Summary values (masonry_nscd.report) kept per run, in the order of the table.
@@ -67,7 +68,7 @@ OUTPUT_KEYS = SUMMARY_KEYS
 #: Columns of the table after the fields of the batch.
 TAIL_COLUMNS = (*OUTPUT_KEYS, "run_time_s", "status", "message", "run")
 RUNS_DIR = "runs"
-DONE_MARKER = "sweep_run.json"
+DONE_MARKER = SWEEP_MARKER
 WARMUP_STEPS = 2
 
 log = logging.getLogger(__name__)
@@ -233,10 +234,10 @@ def finished_record(point: Point, run_dir: Path, keep_curve: bool = False) -> Ru
         return None
     curve = None
     if keep_curve:
-        from masonry_nscd.report import read_curve_csv
+        from masonry_nscd.io.runfolder import CSV, read_curve_csv
 
         try:
-            curve = read_curve_csv(run_dir / "force_displacement.csv")
+            curve = read_curve_csv(run_dir / CSV)
         except (OSError, ValueError):
             return None
     earlier = marker.get("message") or ""
@@ -281,10 +282,10 @@ def point_task(point: Point, runs_dir: str, keep_curve: bool = False) -> RunReco
         if record.outputs.get("unconverged_steps"):
             record.message = f"{record.outputs['unconverged_steps']} steps not converged"
         if keep_curve:
-            from masonry_nscd.report import read_curve_csv
+            from masonry_nscd.io.runfolder import CSV, read_curve_csv
 
             try:
-                record.curve = read_curve_csv(run_dir / "force_displacement.csv")
+                record.curve = read_curve_csv(run_dir / CSV)
             except Exception as exc:  # noqa: BLE001
                 record.status = ERROR
                 record.message = f"no summary: {type(exc).__name__}: {exc}"

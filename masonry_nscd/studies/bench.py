@@ -818,7 +818,7 @@ def bench(case_path: Path | str, outdir: Path | str, *, overrides: Sequence[str]
     ``outdir/bench.png``. ``check_reference``: also the reference's own reference, right after
     it, and every row's ``err_max_check``. See the module docstring."""
     from masonry_nscd.case import load_case
-    from masonry_nscd.report import read_curve_csv, read_scene_info
+    from masonry_nscd.io.runfolder import CSV, SCENE, read_curve_csv, read_scene_info
 
     case_path, outdir = Path(case_path), Path(outdir)
     case = load_case(case_path, list(overrides))
@@ -857,9 +857,9 @@ def bench(case_path: Path | str, outdir: Path | str, *, overrides: Sequence[str]
             runs.append(run_in_child(spec, timeout_s=limit_s + 600.0))
         fill_timing(row, runs)
         run_dir = outdir / "runs" / s.name
-        csv_path = run_dir / "force_displacement.csv"
+        csv_path = run_dir / CSV
         curve = read_curve_csv(csv_path) if csv_path.exists() else None
-        scene = read_scene_info(run_dir) if (run_dir / "scene.json").exists() else None
+        scene = read_scene_info(run_dir) if (run_dir / SCENE).exists() else None
         if s is ref_setting and row.status == "ok":
             ref_curve, ref_scene = curve, scene
         fill_curve(row, curve, ref_curve, target_mm, start_s, scene, ref_scene)
@@ -971,7 +971,7 @@ def plot_bench(rows: Sequence[BenchRow], path: Path, title: str) -> Path | None:
     below :data:`ERROR_FLOOR` are drawn at it. ``None`` when nothing can be drawn."""
     from matplotlib.figure import Figure
 
-    from masonry_nscd.plots import _save
+    from masonry_nscd.figure_files import save_png
 
     pts = [r for r in rows if r.group != "reference" and math.isfinite(r.run_s)
            and math.isfinite(r.err_max)]
@@ -1003,7 +1003,7 @@ def plot_bench(rows: Sequence[BenchRow], path: Path, title: str) -> Path | None:
     ax.set_title(title, fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(loc="best", fontsize=8)
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1295,7 +1295,7 @@ def plot_scaling(rows: Sequence[ScalingRow], path: Path, title: str) -> Path | N
     line of slope 1 through the smallest wall."""
     from matplotlib.figure import Figure
 
-    from masonry_nscd.plots import _save
+    from masonry_nscd.figure_files import save_png
 
     walls = _measured_walls(rows)
     if not walls:
@@ -1329,7 +1329,7 @@ def plot_scaling(rows: Sequence[ScalingRow], path: Path, title: str) -> Path | N
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
     fig.suptitle(title, fontsize=10)
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -161,9 +161,10 @@ def stiffness_of_run(run_dir: Path, f_low_kN: float, f_high_kN: float, start_s: 
     """The secant stiffness of a finished short run, read from its CSV."""
     import numpy as np
 
-    from masonry_nscd.report import horizontal_stage_start, read_curve_csv, secant_stiffness
+    from masonry_nscd.io.runfolder import CSV, read_curve_csv
+    from masonry_nscd.report import horizontal_stage_start, secant_stiffness
 
-    c = read_curve_csv(run_dir / "force_displacement.csv")
+    c = read_curve_csv(run_dir / CSV)
     i0 = horizontal_stage_start(c, start_s)
     ok = c["converged"][i0:] != 0
     ux, fx = c["ux_mm"][i0:][ok], c["fx_kN"][i0:][ok]

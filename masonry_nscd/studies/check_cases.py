@@ -43,6 +43,7 @@ import numpy as np
 
 from masonry_nscd.io.atomic import atomic_write
 from masonry_nscd.io.runfolder import CSV, SUMMARY, read_curve_csv
+from masonry_nscd.io.summary_json import read_summary
 from masonry_nscd.studies.point import RunRecord, status_of_exit
 
 CASES_DIR = Path(__file__).resolve().parents[2] / "cases"
@@ -159,7 +160,7 @@ def check_case(case: Path, outdir: Path, record_dir: Path, runs: dict, *, rtol: 
     if not run.ok or not (run_dir / SUMMARY).exists():
         out.status, out.note = "failed", f"{run.message}: {log_path(run_dir)}"
         return out
-    summary = json.loads((run_dir / SUMMARY).read_text())
+    summary = read_summary(run_dir)
     out.steps, out.unconverged_steps = int(summary["steps"]), int(summary["unconverged_steps"])
     curve = read_curve_csv(run_dir / CSV)
     if out.unconverged_steps:

@@ -40,13 +40,14 @@ of the system (contact points, degrees of freedom).
 from __future__ import annotations
 
 import contextlib
-import json
 import math
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+from masonry_nscd.io.summary_json import read_summary
 
 OK, INVALID, FAILED, ERROR, TIMEOUT = "ok", "invalid", "failed", "error", "timeout"
 #: The statuses of a run, shared by every study (module docstring).
@@ -155,7 +156,7 @@ def timed_steps(durations: list[float], info: dict[str, Any]) -> Iterator[None]:
 def summary_outputs(run_dir: Path) -> dict[str, Any]:
     """The :data:`SUMMARY_KEYS` of the run's summary.json (computed if the file is missing)."""
     try:
-        summary = json.loads((run_dir / "summary.json").read_text())
+        summary = read_summary(run_dir)
     except (OSError, ValueError):
         from masonry_nscd.report import summarize_run
 

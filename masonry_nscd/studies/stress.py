@@ -57,6 +57,8 @@ from pathlib import Path
 
 import numpy as np
 
+from masonry_nscd.io import runfolder as rf
+
 EQUILIBRIUM_TOLERANCE = 1e-2
 ACCEPTABLE = ("ok", "failed")
 DEFAULT_BASE = Path(__file__).resolve().parents[2] / "cases" / "smoke.yaml"
@@ -157,11 +159,11 @@ def _read_curve(path: Path) -> dict[str, np.ndarray]:
 
 def _non_finite_outputs(outdir: Path) -> str | None:
     """Where a NaN or an infinity sits in the CSV or results.h5 of a run, or None."""
-    curve = _read_curve(outdir / "force_displacement.csv")
+    curve = _read_curve(outdir / rf.CSV)
     for k, v in curve.items():
         if not np.isfinite(v).all():
-            return f"force_displacement.csv column {k}"
-    h5 = outdir / "results.h5"
+            return f"{rf.CSV} column {k}"
+    h5 = outdir / rf.RESULTS
     if h5.exists():
         from masonry_nscd.io.results_h5 import read_results
 
@@ -170,7 +172,7 @@ def _non_finite_outputs(outdir: Path) -> str | None:
         arrays += [(f"steps/{s.step}/{k}", v) for s in res["steps"] for k, v in s.fields.items()]
         for name, v in arrays:
             if v.dtype.kind == "f" and not np.isfinite(v).all():
-                return f"results.h5 {name}"
+                return f"{rf.RESULTS} {name}"
     return None
 
 
@@ -205,15 +207,13 @@ def equilibrium_error(curve: dict[str, np.ndarray], weight_kN: float, h_s: float
 def wall_momentum(scene, outdir: Path) -> tuple[tuple[int, int], tuple[np.ndarray, ...]] | None:
     """The last two output steps of results.h5 and the momentum (x, y) of the scene's
     structure at each, N s; None without two output steps."""
-    import h5py
-
+    from masonry_nscd.io.results_h5 import read_step_field
     from masonry_nscd.model import body_momentum, dof_offsets
 
-    with h5py.File(outdir / "results.h5", "r") as f:
-        names = sorted(f["steps"]) if "steps" in f else []
-        if len(names) < 2:
-            return None
-        vs = [np.asarray(f["steps"][k]["v"]) for k in names[-2:]]
+    last = read_step_field(outdir / rf.RESULTS, "v", last=2)
+    if len(last) < 2:
+        return None
+    names, vs = [k for k, _ in last], [np.asarray(v) for _, v in last]
     dof0 = dof_offsets(scene.bodies)
     out = []
     for v in vs:
@@ -243,12 +243,12 @@ def run_variant(base_path: Path, variant: Variant, outdir: Path,
     rec = run_point(case, outdir, overwrite=True, time_limit_s=time_limit_s)
     status, message = as_error(rec)
     if status == FAILED:
-        curve = _read_curve(outdir / "force_displacement.csv")
+        curve = _read_curve(outdir / rf.CSV)
         return result("failed", message, len(curve.get("step", ())),
                       float(np.max(curve["residual"], initial=0.0)) if curve else math.nan)
     if status == ERROR:  # a bug of the simulator, reported as such
         return result("error", message)
-    curve = _read_curve(outdir / "force_displacement.csv")
+    curve = _read_curve(outdir / rf.CSV)
     worst = float(np.max(curve["residual"], initial=0.0)) if curve else math.nan
     from masonry_nscd.scenes import build_scene
 
@@ -268,7 +268,7 @@ def run_variant(base_path: Path, variant: Variant, outdir: Path,
                       f"{case.solver.tolerance:g}; worst residual {worst:.3g} at step "
                       f"{int(curve['step'][k])} (t = {curve['time_s'][k]:.4g} s)", **args)
     if math.isnan(eq):
-        return result("imbalance", "the momentum balance cannot be checked: results.h5 has "
+        return result("imbalance", f"the momentum balance cannot be checked: {rf.RESULTS} has "
                       "fewer than two output steps", **args)
     if not eq <= EQUILIBRIUM_TOLERANCE:
         return result("imbalance", f"beam forces off balance by {eq:.3g} of the largest "

@@ -122,8 +122,8 @@ def plot_overlay(points: Sequence[Point], records: Sequence[RunRecord], runs_dir
     import numpy as np
 
     from masonry_nscd.case import case_from_dict, read_yaml
+    from masonry_nscd.io.runfolder import read_scene_info
     from masonry_nscd.plots import RunData, plot_curves
-    from masonry_nscd.report import read_scene_info
 
     runs = [RunData(runs_dir / p.name, case_from_dict(read_yaml(p.case_yaml)),
                     read_scene_info(runs_dir / p.name),

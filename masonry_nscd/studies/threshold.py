@@ -108,7 +108,8 @@ def evaluate(case, run_dir: Path, value: float, number: int,
     exception, :meth:`~masonry_nscd.studies.point.RunRecord.raise_failure`; RunFailure when it
     ended neither standing nor in a collapse)."""
     from masonry_nscd.errors import RunFailure
-    from masonry_nscd.post.limit import read_limit
+    from masonry_nscd.io.limit_files import read_limit
+    from masonry_nscd.io.summary_json import read_summary
     from masonry_nscd.studies.point import run_point
 
     rec = run_point(case, run_dir, overwrite=True, echo=echo or (lambda _m: None))
@@ -117,8 +118,7 @@ def evaluate(case, run_dir: Path, value: float, number: int,
     status = record.get("status")
     if status not in ("collapse", "standing"):
         raise RunFailure(f"{run_dir}: the run ended with status {status!r}")
-    summary = json.loads((run_dir / "summary.json").read_text()) \
-        if (run_dir / "summary.json").exists() else {}
+    summary = read_summary(run_dir, missing_ok=True) or {}
     collapse = record.get("collapse") or {}
     return ThresholdRun(number, value, status, collapse.get("loads_at_onset"),
                         summary.get("mechanism"), hinge_names(summary.get("hinges") or []),
