@@ -1,6 +1,7 @@
 r"""Collapse of a limit-state run: when a structure has become a mechanism, and at what load.
 
-A limit-state scene (an arch, :mod:`masonry_nscd.scenes.arch`) carries a :class:`CollapseRule`;
+A limit-state scene (an arch, :mod:`masonry_nscd.scenes.arch`) carries a collapse rule
+(:class:`~masonry_nscd.scenes.scene.CollapseRule`);
 the run loop (:mod:`masonry_nscd.run`) gives every step to a :class:`CollapseMonitor`, which
 reads the displacement and the velocity of every point of every block of the structure (the
 nodes of its mesh: a rigid block's corners move by ``u_0 + theta x (x - x_ref)``) and decides:
@@ -12,7 +13,8 @@ nodes of its mesh: a rigid block's corners move by ``u_0 + theta x (x - x_ref)``
 * the **onset** of the mechanism: the last step before the collapse at which every block point
   was slower than ``onset_velocity_m_s`` (m/s), the structure at rest. The loads at collapse
   (the body-force multiplier ``lambda``, the force on a block, a settlement: the scene's
-  :class:`LoadFactor` s) are read there: with a load that grows while the mechanism gains
+  :class:`~masonry_nscd.scenes.scene.LoadFactor` s) are read there: with a load that grows
+  while the mechanism gains
   speed, the load when the displacement bound is passed is later, and higher, than the load
   that started it. Both are reported.
 * **standing**: the run reached its end time (``collapse.end_time_s``) without collapse.
@@ -29,44 +31,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from masonry_nscd.scenes.scene import CollapseRule
+
 #: Blocks listed as those that moved most at collapse.
 MOVED_MOST = 5
-
-
-@dataclass(frozen=True)
-class LoadFactor:
-    """A load whose value at collapse is reported: ``name`` (a CSV column and a key of the
-    summary), its unit, ``value(t)`` and what it is."""
-
-    name: str
-    unit: str
-    value: Callable[[float], float]
-    description: str = ""
-
-
-@dataclass
-class CollapseRule:
-    """What a scene calls a collapse (module docstring; ``collapse`` section of the case)."""
-
-    displacement_m: float
-    velocity_m_s: float | None = None
-    onset_velocity_m_s: float = 1e-3
-    hinge_opening_m: float = 1e-4
-    after_s: float = 0.0
-    factors: list[LoadFactor] = field(default_factory=list)
-
-    def info(self) -> dict[str, Any]:
-        return {"displacement_m": self.displacement_m, "velocity_m_s": self.velocity_m_s,
-                "onset_velocity_m_s": self.onset_velocity_m_s,
-                "hinge_opening_m": self.hinge_opening_m, "after_s": self.after_s,
-                "load_factors": [{"name": f.name, "unit": f.unit, "description": f.description}
-                                 for f in self.factors]}
 
 
 def point_map(bodies, structure, body_dof0, ndof):

@@ -48,15 +48,6 @@ from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
 
-#: Columns of ``cycles.csv`` (units in the names; ``damping_ratio_eq`` is dimensionless).
-CYCLE_COLUMNS = (
-    "cycle", "amplitude_mm", "repetition", "start_s", "end_s",
-    "peak_force_pos_kN", "ux_at_peak_pos_mm", "peak_force_neg_kN", "ux_at_peak_neg_mm",
-    "ux_max_mm", "fx_at_ux_max_kN", "ux_min_mm", "fx_at_ux_min_kN",
-    "secant_stiffness_kN_mm", "dissipated_energy_J", "damping_ratio_eq",
-)
-#: Columns of ``envelope.csv``: ``direction`` is ``positive`` or ``negative``.
-ENVELOPE_COLUMNS = ("direction", "amplitude_mm", "cycle", "ux_mm", "fx_kN")
 
 
 def cut(t: Sequence[float], u: Sequence[float], f: Sequence[float], start_s: float,

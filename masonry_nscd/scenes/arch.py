@@ -53,7 +53,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from masonry_nscd.collapse import LoadFactor
 from masonry_nscd.contact import laws
 from masonry_nscd.fe import hex8
 from masonry_nscd.loading import at_rest
@@ -62,7 +61,7 @@ from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody
 from masonry_nscd.model.detection import find_joints, joint_points
 from masonry_nscd.scenes import Builder
 from masonry_nscd.scenes.limit_loads import limit_loads, limit_settings
-from masonry_nscd.scenes.scene import Scene, Stage
+from masonry_nscd.scenes.scene import LoadFactor, Scene, Stage
 
 X, Y, Z = 0, 1, 2
 #: Joint groups of an arch, in the order of their ids.

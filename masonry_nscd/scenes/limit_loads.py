@@ -22,11 +22,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from masonry_nscd.collapse import CollapseRule, LoadFactor
 from masonry_nscd.loading import Loads, Ramp
 from masonry_nscd.loading.multiplier import GrowingMultiplier
 from masonry_nscd.model import RigidBody, dof_offsets
-from masonry_nscd.scenes.scene import SolverSettings, Stage
+from masonry_nscd.scenes.scene import CollapseRule, LoadFactor, SolverSettings, Stage
 
 
 def limit_loads(case, bodies: list, structure: list[int],

@@ -34,6 +34,7 @@ import bisect
 import dataclasses
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -102,6 +103,36 @@ class SolverSettings:
                    easy_damage=sol.easy_damage, linear=sol.linear)
 
 
+@dataclass(frozen=True)
+class LoadFactor:
+    """A load whose value at collapse is reported: ``name`` (a CSV column and a key of the
+    summary), its unit, ``value(t)`` and what it is."""
+
+    name: str
+    unit: str
+    value: Callable[[float], float]
+    description: str = ""
+
+
+@dataclass
+class CollapseRule:
+    """What a scene calls a collapse (module docstring; ``collapse`` section of the case)."""
+
+    displacement_m: float
+    velocity_m_s: float | None = None
+    onset_velocity_m_s: float = 1e-3
+    hinge_opening_m: float = 1e-4
+    after_s: float = 0.0
+    factors: list[LoadFactor] = field(default_factory=list)
+
+    def info(self) -> dict[str, Any]:
+        return {"displacement_m": self.displacement_m, "velocity_m_s": self.velocity_m_s,
+                "onset_velocity_m_s": self.onset_velocity_m_s,
+                "hinge_opening_m": self.hinge_opening_m, "after_s": self.after_s,
+                "load_factors": [{"name": f.name, "unit": f.unit, "description": f.description}
+                                 for f in self.factors]}
+
+
 @dataclass
 class Scene:
     """A block assembly ready to step, and what the recorders and the post read of it."""
@@ -136,7 +167,7 @@ class Scene:
     meta: dict[str, Any] = field(default_factory=dict)  # builder's values for the summary
     # (dofs, weights) of U_x and of U_y, global dofs (None: the driven body's reference point)
     measured: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None
-    collapse: Any = None  # a limit-state scene's collapse.CollapseRule (None: no watch)
+    collapse: CollapseRule | None = None  # a limit-state scene's (None: no watch)
 
     # --- what changes with time -----------------------------------------------------------
     def stage_at(self, t: float) -> str:

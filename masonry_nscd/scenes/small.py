@@ -345,9 +345,8 @@ def tilting_block(*, width=0.1, height=0.4, depth=0.15, mu=0.6, rate_per_s=0.05,
     about its toe at ``lambda = width / height`` if ``mu`` is larger, and slides at
     ``lambda = mu`` otherwise, with its contact points at the corners of its base (``rule``
     ``lobatto``). Returns the :class:`~masonry_nscd.scenes.scene.Scene`."""
-    from masonry_nscd.collapse import CollapseRule, LoadFactor
     from masonry_nscd.loading.multiplier import GrowingMultiplier
-    from masonry_nscd.scenes.scene import Scene, SolverSettings, Stage
+    from masonry_nscd.scenes.scene import CollapseRule, LoadFactor, Scene, SolverSettings, Stage
 
     P = np.atleast_2d(fczm.joint_params(law=law, mu=mu, **dict(joint_kw or {})))
     base = _fixed_plate((width / 2, -0.05, depth / 2), (4 * width, 0.1, 2 * depth))
