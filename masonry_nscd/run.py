@@ -451,14 +451,21 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
             if done:
                 break
     except (RunFailure, KeyboardInterrupt) as exc:
-        _close_stopped(exc, outdir, log, curve, monitor, integ.step_index)
-        raise
+        stop = exc
+    else:
+        stop = None
     finally:
         gc.unfreeze()
         with _writing_files():
             rec.close()
         if monitor is not None:
             monitor.close()
+    if stop is not None:
+        # after the recorder has settled: the summary reads results.h5, which its background
+        # writer may still be appending the last output step to (HDF5 refuses a file opened
+        # for reading to a writer of the same process, and that step was lost)
+        _close_stopped(stop, outdir, log, curve, monitor, integ.step_index)
+        raise stop
     secs = time.perf_counter() - t_start
     _log_end(log, integ, secs, ux, top, notes.unconverged, notes.worst, notes.spans, h)
     if monitor is not None:
