@@ -36,6 +36,8 @@ from typing import Any
 
 import numpy as np
 
+from masonry_nscd.io.limit_files import LimitTable, write_limit
+from masonry_nscd.model import RigidBody
 from masonry_nscd.scenes.scene import CollapseRule
 
 #: Blocks listed as those that moved most at collapse.
@@ -46,8 +48,6 @@ def point_map(bodies, structure, body_dof0, ndof):
     """The sparse map ``B`` (3p, ndof) from the dofs to the displacements of the nodes of the
     structure's bodies (p points), and the body of each point."""
     from scipy.sparse import csr_matrix
-
-    from masonry_nscd.model import RigidBody
 
     rows, cols, vals, owner = [], [], [], []
     p = 0
@@ -101,8 +101,6 @@ class CollapseMonitor:
         self.table = None
         if self.outdir is None:  # no files (:func:`watch`)
             return
-        from masonry_nscd.io.limit_files import LimitTable
-
         self.table = LimitTable(self.outdir, self.columns, resume_step=resume_step)
         # a resumed run: the onset and the collapse the kept rows show
         for row in self.table.kept:
@@ -185,8 +183,6 @@ class CollapseMonitor:
     def finish(self, status: str, message: str = "") -> None:
         """Write ``limit.json`` with the run's ``status`` (``collapse`` when it was detected,
         whatever is passed, unless the run failed or was interrupted before)."""
-        from masonry_nscd.io.limit_files import write_limit
-
         if status == "done":
             status = "collapse" if self.detected is not None else "standing"
         write_limit(self.outdir, self.record(status, message))

@@ -10,6 +10,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from masonry_nscd.io.atomic import atomic_write
+
 #: Resolution of the PNG files (dots per inch).
 DPI = 120
 
@@ -22,7 +24,5 @@ def slug(text: str) -> str:
 
 def save_png(fig, path: Path) -> Path:
     """Save a matplotlib figure as PNG at ``path`` atomically; returns ``path``."""
-    from masonry_nscd.io.atomic import atomic_write
-
     atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=DPI))
     return path

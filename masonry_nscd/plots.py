@@ -61,10 +61,19 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from masonry_nscd.case import CaseError, load_case
 from masonry_nscd.figure_files import save_png, slug
 from masonry_nscd.io import runfolder as rf
-from masonry_nscd.io.runfolder import read_curve_csv, read_scene_info
-from masonry_nscd.report import compute_summary, horizontal_stage_start, push_stage_start
+from masonry_nscd.io.results_h5 import output_steps, read_fields
+from masonry_nscd.io.runfolder import read_curve_csv, read_energy_csv, read_scene_info
+from masonry_nscd.plots_limit import plot_limit_runs
+from masonry_nscd.post.cycles import cut, envelope_arrays
+from masonry_nscd.report import (
+    compute_summary,
+    horizontal_stage_start,
+    push_stage_start,
+    run_cycles,
+)
 
 if TYPE_CHECKING:
     from masonry_nscd.io.results_h5 import RunFields
@@ -96,8 +105,6 @@ class RunData:
 
 def load_run(outdir: Path | str) -> RunData:
     """Read the case and the curve of a run folder (raises :class:`PlotInputError`)."""
-    from masonry_nscd.case import CaseError, load_case
-
     outdir = Path(outdir)
     csv_path = outdir / rf.CSV
     if not csv_path.exists():
@@ -223,9 +230,6 @@ def plot_cycles(run: RunData, path: Path) -> Path | None:
     from matplotlib.colors import Normalize
     from matplotlib.figure import Figure
 
-    from masonry_nscd.post.cycles import cut, envelope_arrays
-    from masonry_nscd.report import run_cycles
-
     rows, env = run_cycles(run.curve, run.scene)
     if not rows:
         return None
@@ -294,8 +298,6 @@ def plot_ground_motion(run: RunData, path: Path) -> Path:
     """Time histories of a ground-motion run (module docstring)."""
     from matplotlib.figure import Figure
 
-    from masonry_nscd.io.runfolder import read_energy_csv
-
     c, s = run.curve, run.summary
     ok = c["converged"] != 0 if "converged" in c else np.ones(len(c["time_s"]), bool)
     t = c["time_s"]
@@ -355,8 +357,6 @@ def plot_ground_motion(run: RunData, path: Path) -> Path:
 def nearest_output_step(run: RunData, ux_mm: float) -> int:
     """The output step of ``results.h5`` whose ``U_x`` is nearest to ``ux_mm`` (the latest one
     among equals, so that ``0`` gives the state just before the horizontal stage)."""
-    from masonry_nscd.io.results_h5 import output_steps
-
     steps = [s for s, _ in output_steps(run.outdir / rf.RESULTS)]
     if not steps:
         raise PlotInputError(f"{run.outdir}: {rf.RESULTS} has no output step")
@@ -433,8 +433,6 @@ def plot_damage_map(run: RunData, step: int, path: Path, magnify: float = 0.0) -
     """The four damage panels of ``run`` at output ``step`` (see the module docstring)."""
     from matplotlib.collections import LineCollection, PolyCollection
     from matplotlib.figure import Figure
-
-    from masonry_nscd.io.results_h5 import read_fields
 
     case = run.case
     fields = read_fields(run.outdir / rf.RESULTS, step)
@@ -514,8 +512,6 @@ def plot_runs(outdirs: Sequence[Path | str], plot_dir: Path, at_mm: Sequence[flo
     written, notes = [], []
     limit = [r for r in runs if r.scene.get("limit_state")]  # arches: their mechanisms
     if limit:
-        from masonry_nscd.plots_limit import plot_limit_runs
-
         written, notes = plot_limit_runs(limit, plot_dir, magnify)
         runs = [r for r in runs if not r.scene.get("limit_state")]
         if not runs:

@@ -27,6 +27,9 @@ import numpy as np
 
 from masonry_nscd.figure_files import save_png, slug
 from masonry_nscd.io import runfolder as rf
+from masonry_nscd.io.limit_files import read_limit_table
+from masonry_nscd.io.results_h5 import read_fields
+from masonry_nscd.post.limit import limit_summary
 
 #: The largest displacement is drawn as this fraction of the structure's width by default.
 AUTO_MAGNIFY_FRACTION = 0.04
@@ -38,10 +41,6 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
     from matplotlib.collections import PolyCollection
     from matplotlib.figure import Figure
     from matplotlib.patches import Rectangle
-
-    from masonry_nscd.io.limit_files import read_limit_table
-    from masonry_nscd.io.results_h5 import read_fields
-    from masonry_nscd.post.limit import limit_summary
 
     fields = read_fields(run.outdir / rf.RESULTS)
     if fields is None:

@@ -89,9 +89,15 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from masonry_nscd.case import load_case
 from masonry_nscd.io import runfolder as rf
+from masonry_nscd.io.cycle_tables import write_cycle_tables
+from masonry_nscd.io.results_h5 import output_steps, read_fields
 from masonry_nscd.io.runfolder import read_curve_csv, read_energy_csv, read_scene_info
+from masonry_nscd.io.summary_json import write_summary
+from masonry_nscd.post.cycles import cycle_rows, envelope_rows
 from masonry_nscd.post.failure import COHESION_LOST_BETA, failure_mode, failure_sequence
+from masonry_nscd.post.limit import format_limit, limit_summary
 
 if TYPE_CHECKING:
     from masonry_nscd.io.results_h5 import RunFields
@@ -347,8 +353,6 @@ def run_cycles(curve: Mapping[str, Sequence[float]],
     """The rows of ``cycles.csv`` and of ``envelope.csv`` of a run (empty when its history has
     no cycles): the cycles of the history completed by the last row, on the converged rows
     of the horizontal stage and the row before it (:mod:`masonry_nscd.post.cycles`)."""
-    from masonry_nscd.post.cycles import cycle_rows, envelope_rows
-
     cycles = scene_history(scene).get("cycles") or []
     t = np.asarray(curve["time_s"], dtype=float)
     if not cycles or not len(t):
@@ -477,9 +481,6 @@ def summarize_run(outdir: Path | str,
     the run's in-memory curve when the CSV may not be flushed) and the last output step of
     ``results.h5`` when there is one.
     """
-    from masonry_nscd.case import load_case
-    from masonry_nscd.io.results_h5 import output_steps, read_fields
-
     outdir = Path(outdir)
     case = load_case(outdir / rf.CASE, check_files=False)
     scene = read_scene_info(outdir)
@@ -501,8 +502,6 @@ def summarize_run(outdir: Path | str,
                               (float(v) for v in curve["ux_mm"]), strict=True))
         summary["failure_sequence"] = failure_sequence(h5, scene, ux_by_step)
     if scene.get("limit_state"):  # an arch: its status, collapse and hinges
-        from masonry_nscd.post.limit import limit_summary
-
         keep = ("steps", "last_time_s", "unconverged_steps", "worst_residual",
                 "max_iterations_per_step", "steps_with_failed_gauss_points", "steps_subdivided",
                 "largest_damage")
@@ -534,8 +533,6 @@ def _fmt(x: float | None, spec: str, unit: str = "") -> str:
 def format_summary(s: Mapping[str, Any]) -> list[str]:
     """A short human report of a summary, a few lines."""
     if "status" in s and "collapse" in s:  # a limit-state run (masonry_nscd/post/limit.py)
-        from masonry_nscd.post.limit import format_limit
-
         return [*format_limit(s), f"steps not converged {s['unconverged_steps']} (worst "
                 f"residual {_fmt(s['worst_residual'], '.2e')})"
                 + (f"; {s['steps_subdivided']} steps made again as smaller ones"
@@ -605,14 +602,10 @@ def report_run(outdir: Path | str, log: Callable[[str], None],
     Never raises for an ordinary error (a report must not lose a run): the problem is logged
     and ``None`` returned.
     """
-    from masonry_nscd.io.summary_json import write_summary
-
     try:
         summary = summarize_run(outdir, curve)
         path = write_summary(outdir, summary)
         if summary.get("history", "monotonic") not in ("monotonic", "ground_motion"):
-            from masonry_nscd.io.cycle_tables import write_cycle_tables
-
             rows, envelope = run_cycles(curve if curve is not None else
                                         read_curve_csv(Path(outdir) / rf.CSV),
                                         read_scene_info(outdir))

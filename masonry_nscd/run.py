@@ -27,11 +27,22 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from masonry_nscd import arithmetic, threads, timing
+from masonry_nscd.case import case_to_yaml
+from masonry_nscd.collapse import CollapseMonitor
 from masonry_nscd.errors import RunFailure, RunInputError, RunOutputError
 from masonry_nscd.io import runfolder as rf
+from masonry_nscd.io.recorder import Recorder, StepOutput, read_resume_point
 from masonry_nscd.io.run_log import RunLog
 from masonry_nscd.io.runfolder import CSV_COLUMNS
 from masonry_nscd.nscd import mpi
+from masonry_nscd.nscd.checkpoint import CheckpointError, integrator_state, restore_integrator
+from masonry_nscd.nscd.energy import energy_row
+from masonry_nscd.nscd.integrator import DivergenceError
+from masonry_nscd.nscd.newton import CYCLE_VISITS
+from masonry_nscd.post.fields import OutputMesh, StepFields, point_initial_damage, von_mises
+from masonry_nscd.report import report_run
+from masonry_nscd.scenes import build_scene
+from masonry_nscd.scenes.scene import DOF_NAMES
 
 __all__ = ["CSV_COLUMNS", "LOST_RESIDUAL", "TERMINATE", "WRITING", "RunFailure",
            "RunInputError", "RunOutputError", "RunResult", "request_stop", "run_case"]
@@ -93,8 +104,6 @@ def output_mesh_arrays(scene, mesh, integ) -> dict:
     """The ``mesh`` group of results.h5: the structure's hexahedra and the contact points."""
     import numpy as np
 
-    from masonry_nscd.post.fields import point_initial_damage
-
     s = integ.sys
     return {"nodes_m": mesh.nodes, "hexes": mesh.hexes, "block_of_element": mesh.block_of_element,
             "structure_bodies": np.array(mesh.bodies, dtype=np.int64).reshape(-1),
@@ -152,9 +161,6 @@ def _open_run(case_yaml: str, outdir: Path, resume: bool, overwrite: bool):
     """The checkpoint a resumed run continues from (``io.recorder.ResumePoint``), after the
     checks that it may; None for a new run, whose folder is made ready (RunInputError when it
     may not be written)."""
-    from masonry_nscd.io.recorder import read_resume_point
-    from masonry_nscd.nscd.checkpoint import CheckpointError
-
     if not resume:
         rf.prepare_outdir(outdir, overwrite)
         return None
@@ -213,8 +219,6 @@ def _failure(scene, step: int, t: float, what: str) -> RunFailure:
 def _advance(integ, scene, log: RunLog):
     """One step of ``integ`` (its ``StepReport``): a divergence or a solver's exception ends
     the run with a RunFailure naming the step and the load stage (the traceback in run.log)."""
-    from masonry_nscd.nscd.integrator import DivergenceError
-
     t1 = integ.t + scene.solver.h
     try:
         with timing.part("steps"):
@@ -260,7 +264,6 @@ class _StepNotes:
             self.subdivided += 1
             cycled = ""
             if counts["cycles"] > before["cycles"]:
-                from masonry_nscd.nscd.newton import CYCLE_VISITS
                 cycled = (" (Newton's iterations cycled: an iterate met "
                           f"{CYCLE_VISITS} times)")
             why = (f"not converged with h = {solver.h:g} s{cycled}, made again" if rep.tried_h
@@ -295,10 +298,6 @@ def _write_output_step(rec, scene, integ, fields, mesh, damage: dict, rep, done:
     """The fields of step ``rep`` into the run's files (VTU, HDF5, energy, checkpoint):
     RunFailure when a value is not finite (the writers refuse NaN and inf, naming the
     field)."""
-    from masonry_nscd.io.recorder import StepOutput
-    from masonry_nscd.nscd.energy import energy_row
-    from masonry_nscd.post.fields import von_mises
-
     with timing.part("outputs"):
         sig = fields.element_stress()
         disp = fields.nodal_displacement()
@@ -341,14 +340,6 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     """
     import numpy as np
 
-    from masonry_nscd.case import case_to_yaml
-    from masonry_nscd.io.recorder import Recorder
-    from masonry_nscd.nscd.checkpoint import CheckpointError, integrator_state, restore_integrator
-    from masonry_nscd.post.fields import OutputMesh, StepFields
-    from masonry_nscd.report import report_run
-    from masonry_nscd.scenes import build_scene
-    from masonry_nscd.scenes.scene import DOF_NAMES
-
     outdir = Path(outdir)
     case_yaml = case_to_yaml(case)
     point = _open_run(case_yaml, outdir, resume, overwrite)
@@ -385,8 +376,6 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     curve = rec.curve
     monitor = None  # a limit-state scene's watch for its collapse (masonry_nscd/collapse.py)
     if scene.collapse is not None:
-        from masonry_nscd.collapse import CollapseMonitor
-
         monitor = CollapseMonitor(scene, integ, outdir, log,
                                   resume_step=point.step if point else None)
     h = scene.solver.h
@@ -481,8 +470,6 @@ def _close_stopped(exc: BaseException, outdir: Path, log: RunLog, curve, monitor
     """The end of a run stopped by a RunFailure or an interruption (KeyboardInterrupt, at
     step ``step``): the log's last line, the collapse watch told, the summary of what was
     computed (not after a failure to write the outputs), the log closed."""
-    from masonry_nscd.report import report_run
-
     failed = isinstance(exc, RunFailure)
     with contextlib.suppress(RunOutputError):
         log(f"failed: {exc}" if failed else

@@ -34,6 +34,9 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from masonry_nscd.case import load_case
+from masonry_nscd.run import run_case
+
 SIGNATURES = Path(__file__).resolve().parent / "kernel_signatures.txt"
 
 #: The kernels of each group, in the order a run first calls them.
@@ -166,9 +169,6 @@ def record(path: Path = SIGNATURES) -> dict[str, list[str]]:
     """The types each listed kernel is called with in two short runs of the study's wall
     (elastic blocks, then ENDO3D blocks; no files kept), written to ``path``."""
     import tempfile
-
-    from masonry_nscd.case import load_case
-    from masonry_nscd.run import run_case
 
     cases = Path(__file__).resolve().parent.parent / "cases"
     short = ["loading.horizontal.target_m=0.00002", "output.vtu=false", "output.hdf5=false"]

@@ -9,6 +9,9 @@ from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_
 
 from masonry_nscd.case.errors import raise_problems
 from masonry_nscd.case.fields import Direction, Real, Section, Vector3, Whole
+from masonry_nscd.loading import histories as hs
+from masonry_nscd.loading.ground_motion import GroundMotion, read_acceleration_record
+from masonry_nscd.loading.histories import read_displacement_table
 
 
 class BodyForce(Section):
@@ -191,8 +194,6 @@ class HorizontalStage(Section):
                 problems.append(("file", (
                     "missing; history 'table' needs a CSV file of time_s,displacement_m")))
             elif (info.context or {}).get("check_files"):
-                from masonry_nscd.loading.histories import read_displacement_table
-
                 try:
                     self._table = read_displacement_table(self.file)
                 except ValueError as exc:
@@ -206,8 +207,6 @@ class HorizontalStage(Section):
         """The history (:class:`masonry_nscd.loading.histories.DisplacementHistory`): the
         beam's velocity, the end of the motion, the cycles. A table is read from ``file``
         (ValueError naming the file and line if it cannot be). None for ``none``."""
-        from masonry_nscd.loading import histories as hs
-
         if self.history == "cyclic":
             return hs.cyclic(self.amplitudes_m, self.cycles_per_amplitude, self.rate_m_s,
                              self.start_s, self.ramp_s)
@@ -259,8 +258,6 @@ class GroundMotionStage(Section):
     @model_validator(mode="after")
     def _check_file(self, info: ValidationInfo) -> GroundMotionStage:
         if (info.context or {}).get("check_files"):
-            from masonry_nscd.loading.ground_motion import read_acceleration_record
-
             try:  # read to check it only: nothing kept, so the case compares equal to a
                 # copy read without its files
                 read_acceleration_record(self.file)
@@ -272,8 +269,6 @@ class GroundMotionStage(Section):
         """The base's motion (:class:`masonry_nscd.loading.ground_motion.GroundMotion`),
         scaled; the record read from ``file`` at each call (ValueError naming the file and
         line if it cannot be)."""
-        from masonry_nscd.loading.ground_motion import GroundMotion, read_acceleration_record
-
         t, a = read_acceleration_record(self.file)
         return GroundMotion(t, self.scale * a, self.start_s)
 

@@ -51,7 +51,10 @@ from masonry_nscd.io import checkpoint_file
 from masonry_nscd.io import runfolder as rf
 from masonry_nscd.io.atomic import atomic_write, writing
 from masonry_nscd.io.background import BackgroundWriter
+from masonry_nscd.io.results_h5 import ResultsFile
+from masonry_nscd.io.vtu import blocks_file, points_file, write_pvd
 from masonry_nscd.nscd.checkpoint import CheckpointError
+from masonry_nscd.nscd.energy import ENERGY_COLUMNS
 
 _INT_COLUMNS = ("step", "iterations", "converged", "failed_gauss_points", "substeps")
 
@@ -225,14 +228,10 @@ class Recorder:
             with writing(self.outdir / name):
                 atomic_write(self.outdir / name, lambda p, t=text: Path(p).write_text(t))
         if hdf5:
-            from masonry_nscd.io.results_h5 import ResultsFile
-
             with writing(self.h5_path):
                 self.h5 = ResultsFile(self.h5_path, case_yaml, mesh)
         self._open_csv(append=False)
         self._writer.writerow(rf.CSV_COLUMNS)
-        from masonry_nscd.nscd.energy import ENERGY_COLUMNS
-
         with writing(self.energy_path):
             self.energy_path.unlink(missing_ok=True)
             if energy:
@@ -250,8 +249,6 @@ class Recorder:
         try:
             self.curve = truncate_csv(self.csv_path, point.step, rf.CSV_COLUMNS)
             if hdf5:
-                from masonry_nscd.io.results_h5 import ResultsFile
-
                 self.h5 = ResultsFile.reopen(self.h5_path, last_step=point.step,
                                              curve_length=point.step)
         except (CheckpointError, ValueError) as exc:
@@ -264,8 +261,6 @@ class Recorder:
             raise RunOutputError(f"cannot resume the outputs in {outdir}: {exc}") from exc
         self.pvd = list(point.pvd)
         if vtu:
-            from masonry_nscd.io.vtu import write_pvd
-
             with writing(self.pvd_path):
                 write_pvd(self.pvd_path, self.pvd)
                 prune_vtu(self.outdir / rf.VTU_DIR, point.step)
@@ -311,8 +306,6 @@ class Recorder:
         and the bookkeeping (PVD, HDF5 curve, checkpoint) now or at a later sync (module
         docstring). A NaN or infinity in a field raises ValueError naming it (nothing of it
         written)."""
-        from masonry_nscd.io.vtu import blocks_file, points_file
-
         self._settle()  # the last output step's files (long written, as a rule)
         self.flush_rows()
         if energy_row is not None:
@@ -361,8 +354,6 @@ class Recorder:
         collection, the curve of results.h5 up to that step, then its checkpoint (last, so
         that what it points to is on disk before it; its VTU files and HDF5 step are,
         ``_settle``)."""
-        from masonry_nscd.io.vtu import write_pvd
-
         entries, rows, state, scalars = self._unsynced
         pvd = self.pvd[:entries]
         if self.vtu:

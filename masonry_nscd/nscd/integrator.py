@@ -54,10 +54,13 @@ import numpy as np
 from masonry_nscd import timing
 from masonry_nscd.contact import laws
 from masonry_nscd.loading import Loads, step_velocity
+from masonry_nscd.materials.blocks import Endo3dBlocks
 from masonry_nscd.model import DOF_IMPOSED, ContactPoint, RigidBody
 from masonry_nscd.nscd import kernels
 from masonry_nscd.nscd.block_diagonal import without
 from masonry_nscd.nscd.checkpoint import integrator_state, restore_integrator
+from masonry_nscd.nscd.energy import ACCUMULATED, EnergyAccount
+from masonry_nscd.nscd.newton import NewtonSolver
 from masonry_nscd.nscd.step_size import StepSizeControl
 from masonry_nscd.nscd.system import build_system
 
@@ -216,8 +219,6 @@ class Integrator:
             raise ValueError(f"solver method must be 'nlgs' or 'newton', got {method!r}")
         self.method = method
         self.newton = None
-        from masonry_nscd.materials.blocks import Endo3dBlocks
-
         self.material = Endo3dBlocks(bodies, s.body_dof0, endo3d_params, tau=endo3d_tau, h=h) \
             if endo3d_params is not None else None
         if self.material is not None and not self.material:
@@ -227,8 +228,6 @@ class Integrator:
             raise ValueError("ENDO3D blocks need the Newton solver (method 'newton'): the "
                              "material enters its residual")
         if method == "newton":
-            from masonry_nscd.nscd.newton import NewtonSolver
-
             joints = s.kind == laws.KIND_JOINT
             used = self.params[np.unique(s.law[joints])] if joints.any() else self.params[:0]
             if not all(laws.newton_ready(P) for P in used):
@@ -241,8 +240,6 @@ class Integrator:
             self.newton.on_slow = self._on_slow
         self._products_without_blocks()
         # the energy balance (nscd/energy.py): its accumulated terms are part of the state
-        from masonry_nscd.nscd.energy import ACCUMULATED, EnergyAccount
-
         self.energy = np.zeros(len(ACCUMULATED))
         self.energy_account = EnergyAccount(self) if energy else None
 

@@ -42,6 +42,8 @@ from typing import Any
 
 import numpy as np
 
+from masonry_nscd.io.results_h5 import read_mesh_arrays, read_step_field
+
 #: A joint point whose integrity ``beta`` is below this has lost its cohesion.
 COHESION_LOST_BETA = 0.01
 BASE_LOST_FRACTION = 0.8
@@ -111,8 +113,6 @@ def failure_sequence(h5_path, scene: Mapping[str, Any], ux_by_step: Mapping[int,
     over 80 % of its area, and of the first at which a head joint of the middle course has lost
     it over half of its area (None: never). Reads the integrities of every output step."""
     from types import SimpleNamespace
-
-    from masonry_nscd.io.results_h5 import read_mesh_arrays, read_step_field
 
     groups = list(scene["groups"])
     structure = scene["structure"]

@@ -25,6 +25,7 @@ import numpy as np
 from masonry_nscd.contact import laws
 from masonry_nscd.fe import hex8
 from masonry_nscd.model import Block, RigidBody
+from masonry_nscd.post.limit import classify_joints, state_codes
 
 
 @dataclass
@@ -150,8 +151,6 @@ class StepFields:
                "T_t_Pa": np.hypot(j.T[:, 1], j.T[:, 2]), "status": j.status.astype(float),
                "group": self.group.astype(float), **self.point_fields}
         if self._states is not None:
-            from masonry_nscd.post.limit import classify_joints, state_codes
-
             x, normal, bodies, ids, opening = self._states
             joints = classify_joints(x, normal, bodies, self.group, ids, j.u, opening)
             out["joint_state"] = state_codes(joints, len(x))

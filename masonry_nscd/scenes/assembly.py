@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from masonry_nscd.contact import laws
+from masonry_nscd.io.mesh_file import MeshFileError, read_block_mesh
 from masonry_nscd.loading import at_rest
 from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody
 from masonry_nscd.model.detection import find_joints, joint_points
@@ -106,8 +107,6 @@ def _faces_overlap(bodies, a, b) -> bool:
 def read_assembly(a) -> AssemblyBlocks:
     """Read and check the mesh of the ``assembly`` section ``a`` (module docstring);
     AssemblyError naming the field and the blocks."""
-    from masonry_nscd.io.mesh_file import MeshFileError, read_block_mesh
-
     try:
         mesh = read_block_mesh(a.mesh_file, a.tag_field)
     except MeshFileError as exc:

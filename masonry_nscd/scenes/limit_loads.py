@@ -24,6 +24,7 @@ import numpy as np
 
 from masonry_nscd.loading import Loads, Ramp
 from masonry_nscd.loading.multiplier import GrowingMultiplier
+from masonry_nscd.materials.point_driver import params_from_case
 from masonry_nscd.model import RigidBody, dof_offsets
 from masonry_nscd.scenes.scene import CollapseRule, LoadFactor, SolverSettings, Stage
 
@@ -89,8 +90,6 @@ def limit_settings(case, factors: list[LoadFactor]) -> tuple[SolverSettings, Col
     col = case.collapse
     endo = None
     if case.blocks.material == "endo3d":
-        from masonry_nscd.materials.point_driver import params_from_case
-
         endo = params_from_case(case)
     solver = SolverSettings.from_case(case, endo)
     rule = CollapseRule(displacement_m=col.displacement_m, velocity_m_s=col.velocity_m_s,

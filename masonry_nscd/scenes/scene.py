@@ -43,6 +43,7 @@ import numpy as np
 from masonry_nscd.contact.laws import KIND_JOINT
 from masonry_nscd.loading import Loads, at_rest
 from masonry_nscd.model import ContactPoint, RigidBody
+from masonry_nscd.nscd.integrator import Integrator
 
 DOF_NAMES = ("x", "y", "z", "rot_x", "rot_y", "rot_z")
 SCENE_FORMAT = "masonry_nscd.scene"
@@ -241,8 +242,6 @@ class Scene:
     def integrator(self, t: float = 0.0):
         """A new integrator of the scene for a step starting at ``t`` (s), with the holds active
         then (its state is the initial one: restore a state into it to continue a run)."""
-        from masonry_nscd.nscd.integrator import Integrator
-
         bodies = list(self.bodies)
         for hd in self.holds_at(t):
             b = bodies[hd.body]

@@ -12,10 +12,14 @@ import numpy as np
 from masonry_nscd.contact.laws import KIND_GLUED, KIND_JOINT, fczm
 from masonry_nscd.fe import hex8
 from masonry_nscd.loading import Loads, Ramp, RampedVelocity, at_rest, smooth_step
+from masonry_nscd.loading.ground_motion import GroundMotion
+from masonry_nscd.loading.multiplier import GrowingMultiplier
 from masonry_nscd.model import Block, RigidBody, dof_offsets
 from masonry_nscd.model.detection import contact_points
 from masonry_nscd.model.faces import boundary_quads, quad_frame
+from masonry_nscd.nscd import kernels
 from masonry_nscd.nscd.integrator import Integrator
+from masonry_nscd.scenes.scene import CollapseRule, LoadFactor, Scene, SolverSettings, Stage
 
 X, Y, Z = 0, 1, 2
 
@@ -295,9 +299,6 @@ def rocking_block(*, width=0.2, height=0.8, depth=0.15, mu=0.8, record=None, til
     ``g b / h`` (``b``, ``h`` its half width and half height), and each impact multiplies the
     angular velocity by ``1 - 1.5 sin^2(alpha)``, ``tan(alpha) = b / h``.
     """
-    from masonry_nscd.loading.ground_motion import GroundMotion
-    from masonry_nscd.nscd import kernels
-
     P = fczm.joint_params(law="coulomb", mu=mu)
     base_geom = (6 * width, 0.1, depth)
     c = np.array([width / 2, -0.05, depth / 2])
@@ -345,9 +346,6 @@ def tilting_block(*, width=0.1, height=0.4, depth=0.15, mu=0.6, rate_per_s=0.05,
     about its toe at ``lambda = width / height`` if ``mu`` is larger, and slides at
     ``lambda = mu`` otherwise, with its contact points at the corners of its base (``rule``
     ``lobatto``). Returns the :class:`~masonry_nscd.scenes.scene.Scene`."""
-    from masonry_nscd.loading.multiplier import GrowingMultiplier
-    from masonry_nscd.scenes.scene import CollapseRule, LoadFactor, Scene, SolverSettings, Stage
-
     P = np.atleast_2d(fczm.joint_params(law=law, mu=mu, **dict(joint_kw or {})))
     base = _fixed_plate((width / 2, -0.05, depth / 2), (4 * width, 0.1, 2 * depth))
     base.name = "base"

@@ -39,6 +39,7 @@ from masonry_nscd.contact import laws
 from masonry_nscd.contact.scatter import scatter_rows
 from masonry_nscd.fe import hex8
 from masonry_nscd.loading import Loads, Ramp, at_rest
+from masonry_nscd.materials.point_driver import params_from_case
 from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody, dof_offsets
 from masonry_nscd.model.bodies import body_mass
 from masonry_nscd.model.detection import find_joints, joint_points
@@ -280,8 +281,6 @@ def _endo3d_params(case):
     """The ENDO3D parameters of the blocks (None unless ``blocks.material`` is endo3d)."""
     if case.blocks.material != "endo3d":
         return None
-    from masonry_nscd.materials.point_driver import params_from_case
-
     return params_from_case(case)
 
 

@@ -60,7 +60,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from masonry_nscd.io.runfolder import SWEEP_MARKER
+from masonry_nscd import source_hash, threads
+from masonry_nscd.case import case_from_dict, case_to_yaml, load_case, read_yaml
+from masonry_nscd.io.atomic import atomic_write
+from masonry_nscd.io.runfolder import CSV, SWEEP_MARKER, read_curve_csv
 from masonry_nscd.studies.point import ERROR, OK, SUMMARY_KEYS, RunRecord, run_point
 
 #: Summary values (masonry_nscd.report) kept per run, in the order of the table.
@@ -152,8 +155,6 @@ def make_point(case_file: Path, name: str, swept: Sequence[tuple[str, str]],
                fixed: Sequence[str] = ()) -> Point:
     """The :class:`Point` of the case file with the ``fixed`` overrides (``PATH=VALUE``) and the
     swept values ``[(path, value text), ...]``; raises :class:`~masonry_nscd.case.CaseError`."""
-    from masonry_nscd.case import case_to_yaml, load_case
-
     case = load_case(case_file, [*fixed, *(f"{p}={v}" for p, v in swept)])
     return Point(name, {p: field_value(case, p) for p, _ in swept}, case_to_yaml(case))
 
@@ -166,8 +167,6 @@ def make_point(case_file: Path, name: str, swept: Sequence[tuple[str, str]],
 def one_numba_thread() -> None:
     """Give numba and the per-point kernels (``masonry_nscd.threads``) one thread in this
     process (before numba is imported, if possible)."""
-    from masonry_nscd import threads
-
     threads.set_count(1)
     if "numba" in sys.modules:
         import numba
@@ -204,8 +203,6 @@ def warm_cache(case_yaml: str) -> None:
     A run of ``WARMUP_STEPS`` steps of the case in a temporary folder, with no VTU or HDF5
     output. A warm-up that fails is ignored (the real run will report the problem).
     """
-    from masonry_nscd.case import case_from_dict, read_yaml
-
     data = read_yaml(case_yaml)
     kind = (data["blocks"]["material"], data["joint"]["law"], data["solver"]["method"])
     if kind in _warmed:
@@ -234,8 +231,6 @@ def finished_record(point: Point, run_dir: Path, keep_curve: bool = False) -> Ru
         return None
     curve = None
     if keep_curve:
-        from masonry_nscd.io.runfolder import CSV, read_curve_csv
-
         try:
             curve = read_curve_csv(run_dir / CSV)
         except (OSError, ValueError):
@@ -248,8 +243,6 @@ def finished_record(point: Point, run_dir: Path, keep_curve: bool = False) -> Ru
 
 
 def _write_marker(run_dir: Path, point: Point, record: RunRecord) -> None:
-    from masonry_nscd.io.atomic import atomic_write
-
     text = json.dumps({"status": record.status, "message": record.message,
                        "run_time_s": record.seconds, "outputs": record.outputs,
                        "params": {k: list(v) if isinstance(v, tuple) else v
@@ -268,8 +261,6 @@ def point_task(point: Point, runs_dir: str, keep_curve: bool = False) -> RunReco
     of the folder is removed first.
     """
     one_numba_thread()
-    from masonry_nscd.case import case_from_dict, read_yaml
-
     run_dir = Path(runs_dir) / point.name
     done = finished_record(point, run_dir, keep_curve)
     if done is not None:
@@ -282,8 +273,6 @@ def point_task(point: Point, runs_dir: str, keep_curve: bool = False) -> RunReco
         if record.outputs.get("unconverged_steps"):
             record.message = f"{record.outputs['unconverged_steps']} steps not converged"
         if keep_curve:
-            from masonry_nscd.io.runfolder import CSV, read_curve_csv
-
             try:
                 record.curve = read_curve_csv(run_dir / CSV)
             except Exception as exc:  # noqa: BLE001
@@ -327,8 +316,6 @@ def dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
 
 def _check_workers(client: Any) -> None:
     """Warn when the workers of a cluster run other sources of masonry_nscd."""
-    from masonry_nscd import source_hash
-
     try:
         hashes = client.run(source_hash)
     except Exception as exc:  # noqa: BLE001 (e.g. masonry_nscd not installed there)
@@ -404,8 +391,6 @@ def format_cell(value: Any) -> str:
 def write_table(path: Path, points: Sequence[Point], records: dict[str, RunRecord],
                 param_paths: Sequence[str]) -> Path:
     """Write the table of the runs recorded so far (see the module docstring), atomically."""
-    from masonry_nscd.io.atomic import atomic_write
-
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow([*param_paths, *TAIL_COLUMNS])
@@ -423,8 +408,6 @@ def write_table(path: Path, points: Sequence[Point], records: dict[str, RunRecor
 def prepare_outdir(outdir: Path, marker: str, description: dict[str, Any]) -> None:
     """Create OUTDIR, or reuse it if it holds a batch of the same kind (``marker`` file);
     refuse any other folder that is not empty (:class:`SweepError`). Writes the marker."""
-    from masonry_nscd.io.atomic import atomic_write
-
     if outdir.exists() and not outdir.is_dir():
         raise SweepError(f"output path {outdir} exists and is not a folder")
     if outdir.is_dir() and any(outdir.iterdir()) and not (outdir / marker).exists():

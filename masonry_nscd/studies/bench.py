@@ -107,6 +107,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 from masonry_nscd import timing
+from masonry_nscd.case import load_case
+from masonry_nscd.figure_files import save_png
+from masonry_nscd.io.atomic import atomic_write
+from masonry_nscd.io.runfolder import CSV, SCENE, read_curve_csv, read_scene_info
+from masonry_nscd.report import (
+    curve_summary,
+    horizontal_stage_start,
+    push_stage_start,
+    run_cycles,
+    scene_history,
+)
+from masonry_nscd.scenes import build_scene
+from masonry_nscd.studies.point import ERROR, FAILED, as_error, run_point
 
 FloatArray = NDArray[np.float64]
 
@@ -272,8 +285,6 @@ def horizontal_curve(curve: Mapping[str, Sequence[float]],
     """``(ux_mm, fx_kN)`` of the converged rows of the horizontal stage, ``ux`` strictly
     increasing (of rows with the same ``ux`` the last one is kept). When the first row of the
     stage has already moved, the row before it (the state at ``U = 0``) is kept too."""
-    from masonry_nscd.report import horizontal_stage_start
-
     i0 = horizontal_stage_start(curve, start_s)
     if 0 < i0 < len(curve["ux_mm"]) and curve["ux_mm"][i0] > 0.0:
         i0 -= 1
@@ -377,8 +388,6 @@ def cyclic_metrics(curve: Mapping[str, Sequence[float]],
     """Peak forces of the envelope in both directions (kN), the first-branch stiffness
     (kN/mm), the envelope rows and the work summed over the cycles (J) of a cyclic run, with
     the number of cycles completed and planned."""
-    from masonry_nscd.report import curve_summary, push_stage_start, run_cycles, scene_history
-
     rows, env = run_cycles(curve, scene)
     s = curve_summary(curve, horizontal_start_s=push_stage_start(scene), first_branch=True)
     pos = [e["fx_kN"] for e in env if e["direction"] == "positive"]
@@ -426,8 +435,6 @@ def curve_metrics(curve: Mapping[str, Sequence[float]], target_mm: float,
                   start_s: float | None) -> dict[str, float | None]:
     """Peak force (kN), initial stiffness (kN/mm) and force at the target (kN) of a curve up to
     the target (:func:`clip_at_target`), as in :func:`masonry_nscd.report.curve_summary`."""
-    from masonry_nscd.report import curve_summary
-
     s = curve_summary(clip_at_target(curve, target_mm), target_ux_mm=target_mm,
                       horizontal_start_s=start_s)
     return {k: s[k] for k in ("peak_force_kN", "initial_stiffness_kN_mm", "force_at_target_kN")}
@@ -487,9 +494,6 @@ def peak_rss_mib() -> float:
 def _child_run(spec: Mapping[str, Any]) -> dict[str, Any]:
     """One run of a case to its target (``kind: run``), every step timed, as a point of the
     study (:func:`~masonry_nscd.studies.point.run_point`); see :func:`run_in_child`."""
-    from masonry_nscd.case import load_case
-    from masonry_nscd.studies.point import ERROR, FAILED, as_error, run_point
-
     case = load_case(spec["case"], spec["overrides"])
     rec = run_point(case, Path(spec["outdir"]), overwrite=True,
                     time_limit_s=float(spec["time_limit_s"]), time_steps=True)
@@ -517,9 +521,6 @@ def _child_steps(spec: Mapping[str, Any]) -> dict[str, Any]:
     (status ``timeout``, the steps made so far reported). The result so far is written to
     ``result`` after the build and after every step, so that a parent that has to kill a step
     that never ends still reads the build time and the steps before it."""
-    from masonry_nscd.case import load_case
-    from masonry_nscd.scenes import build_scene
-
     case = load_case(spec["case"], spec["overrides"])
     limit = spec.get("time_limit_s")
     t0 = time.perf_counter()
@@ -773,8 +774,6 @@ def _fmt_csv(v: Any) -> Any:
 
 def write_rows(path: Path, rows: Sequence[Any], columns: Sequence[str]) -> None:
     """Write dataclass rows as a CSV file atomically (NaN as an empty field)."""
-    from masonry_nscd.io.atomic import atomic_write
-
     buf = io.StringIO()
     w = csv.writer(buf)
     w.writerow(columns)
@@ -788,8 +787,6 @@ def warm_up_specs(case_path: Path, overrides: Sequence[str], case,
                   settings: Sequence[Setting]) -> list[dict[str, Any]]:
     """Tiny runs (2 x 2 units, one hexahedron per unit, about 150 loose steps) with every
     solver and block material of ``settings``, to fill the numba cache before timing."""
-    from masonry_nscd.case import load_case
-
     combos = []
     for s in settings:
         c = load_case(case_path, [*overrides, *s.overrides])
@@ -817,9 +814,6 @@ def bench(case_path: Path | str, outdir: Path | str, *, overrides: Sequence[str]
     ``outdir/runs/<setting>/``; write ``outdir/bench.csv`` (after every setting) and
     ``outdir/bench.png``. ``check_reference``: also the reference's own reference, right after
     it, and every row's ``err_max_check``. See the module docstring."""
-    from masonry_nscd.case import load_case
-    from masonry_nscd.io.runfolder import CSV, SCENE, read_curve_csv, read_scene_info
-
     case_path, outdir = Path(case_path), Path(outdir)
     case = load_case(case_path, list(overrides))
     check_history(case)
@@ -970,8 +964,6 @@ def plot_bench(rows: Sequence[BenchRow], path: Path, title: str) -> Path | None:
     default settings as a red star. Rows without a finite time and error are left out; errors
     below :data:`ERROR_FLOOR` are drawn at it. ``None`` when nothing can be drawn."""
     from matplotlib.figure import Figure
-
-    from masonry_nscd.figure_files import save_png
 
     pts = [r for r in rows if r.group != "reference" and math.isfinite(r.run_s)
            and math.isfinite(r.err_max)]
@@ -1178,8 +1170,6 @@ def bench_scaling(case_path: Path | str, outdir: Path | str, *, overrides: Seque
     ``timeout`` and the steps it made. ``memory_limit_gib``: the address space of each wall's
     process (GiB); a wall that needs more is reported with status ``memory``, and the larger
     walls are not tried."""
-    from masonry_nscd.case import load_case
-
     case_path, outdir = Path(case_path), Path(outdir)
     case = load_case(case_path, list(overrides))
     sizes = scaling_sizes(case.wall.courses, case.wall.units_per_course, largest)
@@ -1294,8 +1284,6 @@ def plot_scaling(rows: Sequence[ScalingRow], path: Path, title: str) -> Path | N
     """Time per step and memory above the baseline against contact points (log-log), with a
     line of slope 1 through the smallest wall."""
     from matplotlib.figure import Figure
-
-    from masonry_nscd.figure_files import save_png
 
     walls = _measured_walls(rows)
     if not walls:

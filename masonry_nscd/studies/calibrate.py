@@ -45,7 +45,12 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from masonry_nscd.case import case_to_yaml
 from masonry_nscd.case.structures.wall import vertical_force_N
+from masonry_nscd.io.atomic import atomic_write
+from masonry_nscd.io.runfolder import CSV, read_curve_csv
+from masonry_nscd.report import horizontal_stage_start, secant_stiffness
+from masonry_nscd.studies.point import run_point
 
 #: Parameter calibrated by default, and its default bounds (dimensionless).
 DEFAULT_PARAM = "joint.d_spring"
@@ -161,9 +166,6 @@ def stiffness_of_run(run_dir: Path, f_low_kN: float, f_high_kN: float, start_s: 
     """The secant stiffness of a finished short run, read from its CSV."""
     import numpy as np
 
-    from masonry_nscd.io.runfolder import CSV, read_curve_csv
-    from masonry_nscd.report import horizontal_stage_start, secant_stiffness
-
     c = read_curve_csv(run_dir / CSV)
     i0 = horizontal_stage_start(c, start_s)
     ok = c["converged"][i0:] != 0
@@ -178,8 +180,6 @@ def measure_stiffness(case, run_dir: Path, force_range_kN: tuple[float, float], 
     """Run ``case`` into ``run_dir`` until ``F_x`` passes the upper force level, and measure
     the secant stiffness between the two levels (kN/mm); a run that fails raises its
     exception (:meth:`~masonry_nscd.studies.point.RunRecord.raise_failure`)."""
-    from masonry_nscd.studies.point import run_point
-
     start_s = case.loading.horizontal.start_s
     rec = run_point(case, run_dir, echo=echo or (lambda _m: None),
                     stop_when=stop_above(force_range_kN[1], start_s))
@@ -269,9 +269,6 @@ def _unmeasured(param: str, e: Evaluation, f_lo: float, f_hi: float) -> str:
 
 def write_calibrated_case(case, result: Calibration, path: Path) -> None:
     """Write the calibrated case (every default filled in) with a header saying how."""
-    from masonry_nscd.case import case_to_yaml
-    from masonry_nscd.io.atomic import atomic_write
-
     header = (f"# calibrated by `masonry calibrate`: {result.param} = {result.value:.10g} gives "
               f"an initial stiffness of {result.stiffness_kN_mm:.6g} kN/mm\n"
               f"# (target {result.target_stiffness_kN_mm:g} kN/mm; secant between "
@@ -283,8 +280,6 @@ def write_calibrated_case(case, result: Calibration, path: Path) -> None:
 
 def write_report(result: Calibration, path: Path) -> None:
     """Write ``calibration.json``."""
-    from masonry_nscd.io.atomic import atomic_write
-
     text = json.dumps(result.to_json(), indent=2, allow_nan=False) + "\n"
     atomic_write(path, lambda p: Path(p).write_text(text))
 

@@ -44,6 +44,7 @@ import numpy as np
 from masonry_nscd.io.atomic import atomic_write
 from masonry_nscd.io.runfolder import CSV, SUMMARY, read_curve_csv
 from masonry_nscd.io.summary_json import read_summary
+from masonry_nscd.studies.bench import masonry_command, write_rows
 from masonry_nscd.studies.point import RunRecord, status_of_exit
 
 CASES_DIR = Path(__file__).resolve().parents[2] / "cases"
@@ -135,8 +136,6 @@ def run_case_process(case: Path, outdir: Path, overrides: Sequence[str]) -> RunR
     """``masonry run CASE -o OUTDIR`` without field outputs, in a fresh process: its record,
     the status of its exit code, the message ``masonry run exited CODE`` and the wall clock of
     the process (s). Its log is :func:`log_path`."""
-    from masonry_nscd.studies.bench import masonry_command
-
     argv = [*masonry_command(), "run", str(case), "-o", str(outdir), "--overwrite"]
     for item in (*NO_FIELDS, *overrides):
         argv += ["--set", item]
@@ -196,8 +195,6 @@ def check_cases(cases: Sequence[Path], outdir: Path, *, record_dir: Path = RECOR
                 echo: Callable[[str], None] = print) -> list[CaseCheck]:
     """Check (or record, ``write``) each case in turn; ``OUTDIR/check.csv`` is written again
     after each, so that an interrupted check keeps the cases done."""
-    from masonry_nscd.studies.bench import write_rows
-
     outdir.mkdir(parents=True, exist_ok=True)
     if write:
         record_dir.mkdir(parents=True, exist_ok=True)

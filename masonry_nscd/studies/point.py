@@ -47,7 +47,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from masonry_nscd.errors import RunFailure, RunInputError
 from masonry_nscd.io.summary_json import read_summary
+from masonry_nscd.nscd.integrator import Integrator
+from masonry_nscd.report import summarize_run
+from masonry_nscd.run import run_case
 
 OK, INVALID, FAILED, ERROR, TIMEOUT = "ok", "invalid", "failed", "error", "timeout"
 #: The statuses of a run, shared by every study (module docstring).
@@ -133,8 +137,6 @@ def timed_steps(durations: list[float], info: dict[str, Any]) -> Iterator[None]:
     """Inside the block, every ``Integrator.step`` appends its wall-clock time (s) to
     ``durations``; ``info`` gets the number of contact points and dofs of the first system
     stepped."""
-    from masonry_nscd.nscd.integrator import Integrator
-
     original = Integrator.step
 
     def step(self):
@@ -158,8 +160,6 @@ def summary_outputs(run_dir: Path) -> dict[str, Any]:
     try:
         summary = read_summary(run_dir)
     except (OSError, ValueError):
-        from masonry_nscd.report import summarize_run
-
         summary = summarize_run(run_dir)
     out = {k: summary.get(k) for k in SUMMARY_KEYS}
     for k in ("failure_mode_at_peak", "failure_mode"):  # the name of the mechanism
@@ -188,9 +188,6 @@ def run_point(case, run_dir: Path, *, name: str | None = None, overwrite: bool =
     of the solver; ``outputs``: read the summary's key numbers of a finished run (a run that
     finished without a readable summary is an ``error``).
     """
-    from masonry_nscd.errors import RunFailure, RunInputError
-    from masonry_nscd.run import run_case
-
     run_dir = Path(run_dir)
     rec = RunRecord(name or run_dir.name, OK, run_dir=str(run_dir))
     seen = {"step": 0, "timed_out": False}

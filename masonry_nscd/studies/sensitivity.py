@@ -50,6 +50,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from masonry_nscd.case import CaseError, case_from_dict, read_yaml
+from masonry_nscd.io.atomic import atomic_write
 from masonry_nscd.studies.batch import (
     RUNS_DIR,
     Point,
@@ -134,8 +136,6 @@ def sample_points(case_file: Path, params: Sequence[Param], rows, fixed: Sequenc
                   ) -> list[Point]:
     """A validated :class:`~masonry_nscd.studies.batch.Point` per sample row
     (``sample_NNNN``)."""
-    from masonry_nscd.case import CaseError
-
     width = max(4, len(str(len(rows) - 1)))
     points, problems = [], []
     for i, row in enumerate(rows):
@@ -153,8 +153,6 @@ def sample_points(case_file: Path, params: Sequence[Param], rows, fixed: Sequenc
 
 def check_numeric(case_file: Path, params: Sequence[Param], fixed: Sequence[str]) -> None:
     """Each parameter must be a numeric field that takes both of its bounds (SweepError)."""
-    from masonry_nscd.case import CaseError, case_from_dict, read_yaml
-
     problems = []
     for p in params:
         for bound in (p.low, p.high):
@@ -209,8 +207,6 @@ def analyse(prob: dict[str, Any], method: str, X, Y, seed: int) -> list[dict[str
 
 def write_indices(path: Path, method: str, rows: Sequence[dict[str, Any]]) -> Path:
     """``indices.csv``: ``parameter`` then the index columns of the method."""
-    from masonry_nscd.io.atomic import atomic_write
-
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     cols = ("parameter", *INDEX_COLUMNS[method])
@@ -244,8 +240,6 @@ def plot_indices(path: Path, method: str, rows: Sequence[dict[str, Any]], output
     ``S1`` and ``ST`` (with their intervals)."""
     import numpy as np
     from matplotlib.figure import Figure
-
-    from masonry_nscd.io.atomic import atomic_write
 
     names = [r["parameter"] for r in rows]
     y = np.arange(len(rows))

@@ -57,7 +57,14 @@ from pathlib import Path
 
 import numpy as np
 
+from masonry_nscd.case import CaseError, load_case
 from masonry_nscd.io import runfolder as rf
+from masonry_nscd.io.atomic import atomic_write
+from masonry_nscd.io.results_h5 import read_results, read_step_field
+from masonry_nscd.io.runfolder import read_curve_csv
+from masonry_nscd.model import body_mass, body_momentum, dof_offsets
+from masonry_nscd.scenes import build_scene
+from masonry_nscd.studies.point import ERROR, FAILED, TIMEOUT, as_error, run_point
 
 EQUILIBRIUM_TOLERANCE = 1e-2
 ACCEPTABLE = ("ok", "failed")
@@ -151,8 +158,6 @@ def select(quick: bool = False, names: list[str] | None = None) -> list[Variant]
 
 def _read_curve(path: Path) -> dict[str, np.ndarray]:
     """The CSV's columns, or none where the run wrote no row."""
-    from masonry_nscd.io.runfolder import read_curve_csv
-
     curve = read_curve_csv(path)
     return curve if len(curve.get("step", ())) else {}
 
@@ -165,8 +170,6 @@ def _non_finite_outputs(outdir: Path) -> str | None:
             return f"{rf.CSV} column {k}"
     h5 = outdir / rf.RESULTS
     if h5.exists():
-        from masonry_nscd.io.results_h5 import read_results
-
         res = read_results(h5)
         arrays = [("curve/" + k, v) for k, v in res["curve"].items()]
         arrays += [(f"steps/{s.step}/{k}", v) for s in res["steps"] for k, v in s.fields.items()]
@@ -178,8 +181,6 @@ def _non_finite_outputs(outdir: Path) -> str | None:
 
 def wall_weight_kN(scene, gravity_m_s2: float) -> float:
     """Weight of the structure of a scene (its units, kN)."""
-    from masonry_nscd.model import body_mass
-
     mass = sum(body_mass(scene.bodies[i]) for i in scene.structure)
     return mass * gravity_m_s2 / 1e3
 
@@ -207,9 +208,6 @@ def equilibrium_error(curve: dict[str, np.ndarray], weight_kN: float, h_s: float
 def wall_momentum(scene, outdir: Path) -> tuple[tuple[int, int], tuple[np.ndarray, ...]] | None:
     """The last two output steps of results.h5 and the momentum (x, y) of the scene's
     structure at each, N s; None without two output steps."""
-    from masonry_nscd.io.results_h5 import read_step_field
-    from masonry_nscd.model import body_momentum, dof_offsets
-
     last = read_step_field(outdir / rf.RESULTS, "v", last=2)
     if len(last) < 2:
         return None
@@ -225,9 +223,6 @@ def wall_momentum(scene, outdir: Path) -> tuple[tuple[int, int], tuple[np.ndarra
 def run_variant(base_path: Path, variant: Variant, outdir: Path,
                 time_limit_s: float = 600.0) -> StressResult:
     """Run one variant into ``outdir`` (replaced if it exists) and judge its outcome."""
-    from masonry_nscd.case import CaseError, load_case
-    from masonry_nscd.studies.point import ERROR, FAILED, TIMEOUT, as_error, run_point
-
     base = load_case(base_path)
     t0 = time.perf_counter()
 
@@ -250,8 +245,6 @@ def run_variant(base_path: Path, variant: Variant, outdir: Path,
         return result("error", message)
     curve = _read_curve(outdir / rf.CSV)
     worst = float(np.max(curve["residual"], initial=0.0)) if curve else math.nan
-    from masonry_nscd.scenes import build_scene
-
     scene = build_scene(case)
     mom = wall_momentum(scene, outdir) if case.output.hdf5 else None
     eq = (equilibrium_error(curve, wall_weight_kN(scene, case.loading.gravity.value_m_s2),
@@ -281,8 +274,6 @@ CSV_HEADER = [f.name for f in fields(StressResult)]
 
 def write_table(path: Path, results: list[StressResult]) -> None:
     """Write ``stress.csv`` atomically."""
-    from masonry_nscd.io.atomic import atomic_write
-
     buf = io.StringIO()
     w = csv.writer(buf)
     w.writerow(CSV_HEADER)

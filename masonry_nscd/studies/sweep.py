@@ -39,6 +39,9 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from masonry_nscd.case import CaseError, case_from_dict, read_yaml
+from masonry_nscd.io.runfolder import read_scene_info
+from masonry_nscd.plots import RunData, plot_curves
 from masonry_nscd.studies import batch
 from masonry_nscd.studies.batch import Point, SweepError, make_point, parse_set
 from masonry_nscd.studies.point import RunRecord
@@ -88,8 +91,6 @@ def sweep_points(case_file: Path, sets: Sequence[str]) -> tuple[list[Point], lis
     Raises :class:`SweepError` listing every problem (each combination is loaded; a message
     shared by several combinations is given once).
     """
-    from masonry_nscd.case import CaseError
-
     parsed = [parse_set(s) for s in sets]
     paths = [p for p, _ in parsed]
     twice = sorted({p for p in paths if paths.count(p) > 1})
@@ -120,10 +121,6 @@ def plot_overlay(points: Sequence[Point], records: Sequence[RunRecord], runs_dir
     """The force-displacement curves of the finished runs (with their curve) on one chart;
     None if there are none."""
     import numpy as np
-
-    from masonry_nscd.case import case_from_dict, read_yaml
-    from masonry_nscd.io.runfolder import read_scene_info
-    from masonry_nscd.plots import RunData, plot_curves
 
     runs = [RunData(runs_dir / p.name, case_from_dict(read_yaml(p.case_yaml)),
                     read_scene_info(runs_dir / p.name),

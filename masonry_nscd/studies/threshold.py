@@ -38,7 +38,12 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from masonry_nscd.errors import RunFailure
+from masonry_nscd.io.atomic import atomic_write
+from masonry_nscd.io.limit_files import read_limit
+from masonry_nscd.io.summary_json import read_summary
 from masonry_nscd.studies.calibrate import CalibrationError, parameter_value, parse_range
+from masonry_nscd.studies.point import run_point
 
 __all__ = ["THRESHOLD_COLUMNS", "Threshold", "ThresholdError", "ThresholdRun", "check_case",
            "find_threshold", "format_table", "parameter_value", "parse_range", "write_outputs"]
@@ -107,11 +112,6 @@ def evaluate(case, run_dir: Path, value: float, number: int,
     """Run ``case`` into ``run_dir`` and read what it ended in (a run that fails raises its
     exception, :meth:`~masonry_nscd.studies.point.RunRecord.raise_failure`; RunFailure when it
     ended neither standing nor in a collapse)."""
-    from masonry_nscd.errors import RunFailure
-    from masonry_nscd.io.limit_files import read_limit
-    from masonry_nscd.io.summary_json import read_summary
-    from masonry_nscd.studies.point import run_point
-
     rec = run_point(case, run_dir, overwrite=True, echo=echo or (lambda _m: None))
     rec.raise_failure()
     record = read_limit(run_dir) or {}
@@ -184,8 +184,6 @@ def table_rows(result: Threshold) -> list[list[str]]:
 
 def write_outputs(result: Threshold, outdir: Path) -> tuple[Path, Path]:
     """Write ``threshold.csv`` and ``threshold.json`` atomically."""
-    from masonry_nscd.io.atomic import atomic_write
-
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(THRESHOLD_COLUMNS)
