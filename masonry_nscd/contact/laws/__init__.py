@@ -17,7 +17,7 @@ A law module provides, besides its own documentation and checks:
 * ``normal_displacement(sigma, beta, P)``: the normal displacement that carries a normal
   traction (``masonry point joint --path sliding``).
 
-Adding a law: its module here, its section in ``case.Joint``, and a line in ``_MODULES`` and a
+Adding a law: its module here, its fields in ``case/joint.py``, and a line in ``_MODULES`` and a
 branch in the three dispatches below (``solve_joint``, ``solve_points``, ``tangent_points``).
 The Gauss-Seidel kernel calls ``solve`` of this module, the Newton solver ``solve_points`` for
 the residual and ``tangent_points`` for the matrix; glued points are solved here
