@@ -70,9 +70,8 @@ class Endo3d(Section):
     def _check_strengths(self) -> Endo3d:
         """``R_t < R_c``; ``beta <= delta``: the Drucker-Prager flow dissipates
         ``dlambda (C + (delta - beta) p)`` (J/m^3), negative at pressures
-        ``p > C/(beta - delta)`` when ``beta > delta``: the law then creates energy (issue 7:
-        a shear cycle with beta = 1.5, delta = 0 ratchets the effective pressure up to
-        100 R_c). ``materials.endo3d.endo3d_params`` only warns, for studies of the kernel."""
+        ``p > C/(beta - delta)`` when ``beta > delta``: the law then creates energy (a shear
+        cycle with beta = 1.5, delta = 0 ratchets the effective pressure up to 100 R_c). ``materials.endo3d.endo3d_params`` only warns, for studies of the kernel."""
         problems: list[tuple[str, str]] = []
         if not self.beta <= self.delta:
             problems.append(

@@ -288,7 +288,7 @@ class Loading(Section):
     ground_motion: GroundMotionStage | None = Field(
         None, description="acceleration record applied to the base (null: none)"
     )
-    # arches (issue 18): the loads of limit-state runs, declared below with the arch
+    # the loads of limit-state runs (an arch, a vault, an assembly; this module's top)
     body_force: BodyForce = Field(
         default_factory=BodyForce,
         description="arch: body force lambda(t) g m along a direction (the collapse multiplier)",
