@@ -22,6 +22,7 @@ from typer.testing import CliRunner
 
 from masonry_nscd.case import Case, CaseError, load_case
 from masonry_nscd.cli import app
+from masonry_nscd.scenes import check_case
 
 ROOT = Path(__file__).resolve().parents[1]
 CASES = sorted((ROOT / "cases").glob("*.yaml"))
@@ -84,7 +85,7 @@ def test_text_edits_of_shipped_cases(tmp_path_factory, path):
         case_file = work / "case.yaml"
         case_file.write_text(edited, encoding="utf-8")
         try:
-            load_case(case_file)
+            check_case(load_case(case_file))  # the schema, then the builder's checks
             valid = True
         except CaseError as exc:
             assert exc.messages and all(isinstance(m, str) and m for m in exc.messages)

@@ -13,8 +13,8 @@ import pytest
 from typer.testing import CliRunner
 
 from masonry_nscd.cli import app
-from masonry_nscd.io.runfolder import read_curve_csv
 from masonry_nscd.io.cycle_tables import CYCLE_COLUMNS, ENVELOPE_COLUMNS
+from masonry_nscd.io.runfolder import read_curve_csv
 from masonry_nscd.studies import bench as bm
 
 SMOKE = "cases/smoke.yaml"

@@ -95,12 +95,12 @@ def test_solver_exception_is_reported_cleanly(tmp_path, monkeypatch):
 
 
 def test_exception_outside_the_steps_is_an_error(tmp_path, monkeypatch):
-    import masonry_nscd.run as run_mod
+    import masonry_nscd.studies.point as point_mod
 
     def broken(*args, **kwargs):
         raise KeyError("oops")
 
-    monkeypatch.setattr(run_mod, "run_case", broken)
+    monkeypatch.setattr(point_mod, "run_case", broken)
     r = stress.run_variant(stress.DEFAULT_BASE, _variant("reference"), tmp_path / "v")
     assert r.outcome == "error" and not r.acceptable and "KeyError" in r.message
 
