@@ -160,6 +160,33 @@ def test_bad_meshes_exit_2_naming_the_block(tmp_path):
     res = _validate(_with_mesh(tmp_path, mod.pier_arches_mesh()))
     assert res.exit_code == 2 and "face each other" in res.output
     assert "'pier 4'" in res.output and "'left arch 1'" in res.output
+    assert "contact_point_rule: overlap" in res.output
+
+
+def test_faces_that_meet_in_part_make_a_joint_on_their_common_area(tmp_path):
+    """The pier of four 0.4 m blocks, its top block's face larger than the arches' crown faces
+    (refused with the default rule, above): with the rule ``overlap`` each crown joint has its
+    points on the crown face, their areas summing to it (0.16 x 0.3 m), and the structure
+    stands under its weight."""
+    mod = _script()
+    mod.PIER_LEVELS = (0.0, 0.4, 0.8, 1.2, 1.6)
+    path = _with_mesh(tmp_path, mod.pier_arches_mesh())
+    sets = ["assembly.contact_point_rule=overlap", "assembly.driven_block=pier 4",
+            "loading.body_force.rate_per_s=0", "collapse.end_time_s=0.4"]
+    res = CliRunner().invoke(app, ["validate", str(path), *[a for s in sets for a in
+                                                              ("--set", s)]])
+    assert res.exit_code == 0, res.output
+    scene = build_scene(load_case(path, sets))
+    names = [b.name for b in scene.bodies]
+    crown = [p for p in scene.points
+             if {names[b] for b in p.bodies} == {"pier 4", "left arch 1"}]
+    assert sum(p.area for p in crown) == pytest.approx(0.16 * 0.3, rel=1e-9)
+    res = CliRunner().invoke(app, ["run", str(path), "-o", str(tmp_path / "run"),
+                                   *[a for s in [*sets, "output.vtu=false"] for a in
+                                     ("--set", s)]])
+    assert res.exit_code == 0, res.output
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["status"] == "standing"
 
 
 def test_assembly_case_checks(tmp_path):
@@ -218,3 +245,20 @@ def test_a_mesh_made_by_gmsh_reads_and_stands(tmp_path):
     fx, fy = s["support_forces_last_kN"]["all supports"]
     assert fy == pytest.approx(1e-3 * 2000.0 * 9.81 * 1.0 * 0.5 * 0.3, rel=1e-6)
     assert abs(fx) < 1e-9
+
+
+def test_the_driven_block_and_a_loaded_block_must_be_blocks_of_the_structure():
+    """Named by the builder's check, before anything is built: a support is not one, nor a
+    name the mesh does not have."""
+    mesh_path = ROOT / "cases" / "pier_arches.msh"
+    base = {"assembly": {"mesh_file": str(mesh_path), "supports": [{"group": "ground"}]},
+            "blocks": {"material": "rigid"}, "joint": DRY}
+    with pytest.raises(CaseError, match=r"assembly.driven_block: got 'ground'; the blocks of "
+                                        r"the structure are 'pier 1'"):
+        check_case(case_from_dict({**base, "assembly": {**base["assembly"],
+                                                        "driven_block": "ground"}}))
+    with pytest.raises(CaseError, match=r"loading.point_load.block: got 'pier 9'"):
+        check_case(case_from_dict({**base, "loading": {"point_load": {"block": "pier 9"}}}))
+    res = CliRunner().invoke(app, ["validate", str(CASE), "--set",
+                                   "assembly.driven_block=left abutment"])
+    assert res.exit_code == 2 and "assembly.driven_block" in res.output

@@ -30,6 +30,14 @@ its area shared equally. A point that faces none (an open end) is dropped. The p
 antagonist's plane along the normal, and its frame (n, t, s) has ``n`` from the antagonist to
 the candidate (:func:`~masonry_nscd.model.points.joint_frame`).
 
+With the rule ``overlap`` the points sit on the common area of each candidate quad and each
+antagonist quad instead (:mod:`masonry_nscd.model.overlap`: the candidate quad clipped by the
+antagonist quad projected on its plane): at the corners of the common area between two rigid
+faces, with shares of the area that carry its area and centroid exactly, else at the degree-2
+points of its triangles. Faces that meet in part (a face inside a larger one, a block on two
+others, staggered voussoirs) then make a joint on exactly their common area, whichever face is
+the larger, and a uniform traction gives the same force however the area is split.
+
 Broad phase: the bounding boxes of the patches, enlarged by ``max_gap + gap_tol``, are hashed
 into a grid of cells the size of the median patch; only patches that share a cell are compared,
 so the cost grows with the number of patches, not with its square.
@@ -42,6 +50,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from masonry_nscd.model import overlap
 from masonry_nscd.model.bodies import RigidBody
 from masonry_nscd.model.faces import Patch, gauss_points, locate, planar_patches
 from masonry_nscd.model.points import (
@@ -164,12 +173,15 @@ def joint_points(bodies: Sequence, joints: Sequence[Joint],
                  n_gauss: int = 2, rule: str = "gauss",
                  dof0: np.ndarray | None = None) -> list[ContactPoint]:
     """The contact points of ``joints`` (module docstring), ``n_gauss`` per direction of each
-    face quad with the quadrature ``rule`` (``gauss`` or ``lobatto``).
+    face quad with the quadrature ``rule`` (``gauss`` or ``lobatto``), or on the common areas of
+    the faces (``overlap``: :func:`_overlap_points`).
 
     ``classify(joint, antagonist_patch)`` gives the ``(group, kind, law)`` of the points that
     the antagonist takes, or None to make none there.
     """
     dof0 = dof_offsets(bodies) if dof0 is None else dof0
+    if rule == "overlap":
+        return _overlap_points(bodies, joints, classify, dof0)
     out: list[ContactPoint] = []
     faces = 0  # element faces of the candidates, numbered joint after joint
     for jt in joints:
@@ -216,6 +228,82 @@ def joint_points(bodies: Sequence, joints: Sequence[Joint],
                     sides=[cand_side, ant_side], face=faces + q))
         faces += len(cand.quads)
     return out
+
+
+def _overlap_points(bodies: Sequence, joints: Sequence[Joint], classify, dof0: np.ndarray
+                    ) -> list[ContactPoint]:
+    """The contact points of ``joints`` on the common areas of their faces (rule ``overlap``,
+    :mod:`masonry_nscd.model.overlap`): each candidate quad clipped by each antagonist quad in
+    the candidate's plane; on two rigid faces a point at each corner of the common area (the
+    corners that adjacent common areas share made once, with the sum of their areas), else the
+    degree-2 points of its triangles."""
+    out: list[ContactPoint] = []
+    faces = 0
+    for jt in joints:
+        cand = jt.candidate
+        cb = bodies[cand.body]
+        frame = joint_frame(jt.normal)
+        n_out = cand.normal
+        basis = overlap.plane_basis(n_out)
+        Pc = cb.X[cand.quads]  # (nq, 4, 3)
+        origin = Pc[0, 0]
+        size = float(np.ptp(Pc.reshape(-1, 3), axis=0).max())
+        for ant in jt.antagonists:
+            tag = classify(jt, ant)
+            if tag is None:
+                continue
+            group, kind, law = tag
+            ab = bodies[ant.body]
+            Pa = ab.X[ant.quads]
+            rigid = isinstance(cb, RigidBody) and isinstance(ab, RigidBody)
+            found = []  # (candidate quad, antagonist quad, points in the plane, areas)
+            for q in range(len(Pc)):
+                sub = (Pc[q] - origin) @ basis.T
+                for m in range(len(Pa)):
+                    common = overlap.clip(sub, (Pa[m] - origin) @ basis.T, 1e-9 * size)
+                    if abs(overlap.signed_area(common)) <= 1e-12 * size * size:
+                        continue
+                    pts, areas = (overlap.vertex_points if rigid else
+                                  overlap.triangle_points)(common)
+                    found.append((q, m, pts, areas))
+            if rigid and found:
+                found = _merged_corners(found, 1e-9 * size)
+            for q, m, pts, areas in found:
+                for p2, area in zip(pts, areas, strict=True):
+                    x = origin + p2 @ basis
+                    gap = (ant.offset - x @ ant.normal) / (n_out @ ant.normal)
+                    xa = x + gap * n_out
+                    ref_c = _reference(Pc[q], x)
+                    ref_a = _reference(Pa[m], xa)
+                    out.append(ContactPoint(
+                        x=x, frame=frame, area=float(area), gap=float(gap), kind=kind,
+                        law=law, group=group, bodies=(cand.body, ant.body),
+                        sides=[_side(cb, int(dof0[cand.body]), cand.quads[q], x, frame, 1.0,
+                                     ref_c),
+                               _side(ab, int(dof0[ant.body]), ant.quads[m], xa, frame, -1.0,
+                                     ref_a)],
+                        face=faces + q))
+        faces += len(cand.quads)
+    return out
+
+
+def _merged_corners(found: list, tol: float) -> list:
+    """The corners of the common areas of one rigid pair, the ones that several common areas
+    share (within ``tol`` m) made once with the sum of their areas."""
+    pts = np.concatenate([f[2] for f in found])
+    areas = np.concatenate([f[3] for f in found])
+    owner = np.concatenate([[i] * len(f[2]) for i, f in enumerate(found)])
+    keys = np.round((pts - pts.min(axis=0)) / tol).astype(np.int64)
+    _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+    total = np.bincount(inverse.ravel(), weights=areas)
+    return [(found[owner[i]][0], found[owner[i]][1], pts[i:i + 1], total[k:k + 1])
+            for k, i in enumerate(first)]
+
+
+def _reference(quad: np.ndarray, x: np.ndarray) -> tuple[float, float]:
+    """The reference coordinates of point ``x`` (3,) in ``quad`` (4, 3)."""
+    xi, eta, _ = locate(quad[None], x[None])
+    return float(xi[0, 0]), float(eta[0, 0])
 
 
 def _merge_shared(xs: np.ndarray, areas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

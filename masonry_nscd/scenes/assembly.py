@@ -170,8 +170,9 @@ def read_assembly(a) -> AssemblyBlocks:
     if missed:
         raise AssemblyError("mesh_file", [
             f"{blocks.label(i)} and {blocks.label(k)} face each other, but no contact point of "
-            "the face that carries them falls on the other (a face inside a larger one: split "
-            "the larger face where the smaller ends, so that the faces meet corner to corner)"
+            "the face that carries them falls on the other (a face inside a larger one: give "
+            "assembly.contact_point_rule: overlap, or split the larger face where the smaller "
+            "ends, so that the faces meet corner to corner)"
             for i, k in missed])
     alone, floating = unheld_blocks(len(tags), pairs,
                                     [k for k, s in enumerate(support) if s is not None])
@@ -227,14 +228,7 @@ def build_assembly(case) -> Scene:
     structure = [k for k, s in enumerate(b.support) if s is None]
     supports = [k for k, s in enumerate(b.support) if s is not None]
     names = [bd.name for bd in bodies]
-    pl = case.loading.point_load
-    if pl is not None and pl.block not in [names[k] for k in structure]:
-        raise ValueError(f"loading.point_load.block: got {pl.block!r}; the blocks of the "
-                         f"structure are {', '.join(repr(names[k]) for k in structure)}")
-    if a.driven_block is not None:
-        if a.driven_block not in [names[k] for k in structure]:
-            raise ValueError(f"assembly.driven_block: got {a.driven_block!r}; the blocks of "
-                             f"the structure are {', '.join(repr(names[k]) for k in structure)}")
+    if a.driven_block is not None:  # a block of the structure (``check``)
         driven = names.index(a.driven_block)
     else:
         driven = max(structure, key=lambda k: bodies[k].X[:, 1].mean())
@@ -277,12 +271,19 @@ def build_assembly(case) -> Scene:
 
 def check(case) -> list[tuple[str, str]]:
     """The mesh file read and checked (``read_assembly``; nothing kept): its problems with
-    their fields (``assembly.mesh_file``, ``assembly.supports[0].group``, ...)."""
+    their fields (``assembly.mesh_file``, ``assembly.supports[0].group``, ...), then the
+    blocks that ``assembly.driven_block`` and ``loading.point_load.block`` name, which must be
+    blocks of the structure (not supports)."""
     try:
-        read_assembly(case.assembly)
+        b = read_assembly(case.assembly)
     except AssemblyError as exc:
         return [(f"assembly.{field}", text) for field, text in exc.problems]
-    return []
+    structure = [nm for nm, s in zip(b.names, b.support, strict=True) if s is None]
+    listed = ", ".join(repr(nm) for nm in structure)
+    named = (("loading.point_load.block", getattr(case.loading.point_load, "block", None)),
+             ("assembly.driven_block", case.assembly.driven_block))
+    return [(field, f"got {name!r}; the blocks of the structure are {listed}")
+            for field, name in named if name is not None and name not in structure]
 
 
 BUILDER = Builder("assembly", build_assembly, describe, check)

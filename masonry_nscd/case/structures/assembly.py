@@ -81,8 +81,10 @@ class Assembly(Section):
         2, ge=1, le=4,
         description="contact points per direction on each element face in contact (count)",
     )
-    contact_point_rule: Literal["auto", "gauss", "lobatto"] = Field(
-        "auto", description="gauss, lobatto or auto: lobatto with 2 or more points"
+    contact_point_rule: Literal["auto", "gauss", "lobatto", "overlap"] = Field(
+        "auto", description="gauss, lobatto, overlap (on the common area of two faces, at its "
+        "corners between rigid blocks: faces that meet in part, a block on two) or auto: "
+        "lobatto with 2 or more points"
     )
 
     @field_validator("mesh_file")
