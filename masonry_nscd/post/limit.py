@@ -184,6 +184,10 @@ def _arch_place(arch: Mapping[str, Any], name0: str, name1: str,
     return {"joint": j, "angle_from_crown_deg": angle, "side": side}
 
 
+#: Hinges named in the summary's line of the run log (the others: ``summary.json``)
+HINGES_SHOWN = 12
+
+
 def mechanism_name(joints: list[dict[str, Any]]) -> str:
     """``four-hinge``, ``sliding``, ``hinges and sliding``, ``none``... (module docstring)."""
     hinges = sum(1 for j in joints if j["kind"] == "hinge")
@@ -259,7 +263,9 @@ def format_limit(s: Mapping[str, Any]) -> list[str]:
             (f"joint {h['joint']} ({h['side']}, {h['angle_from_crown_deg']:.1f} deg from the "
              "crown)" if h.get("joint") is not None and h.get("angle_from_crown_deg") is not None
              else f"joint {h.get('joint')} ({h.get('side')})" if h.get("joint") is not None
-             else f"{h['bodies'][0]} / {h['bodies'][1]}") for h in hinges)
+             else f"{h['bodies'][0]} / {h['bodies'][1]}") for h in hinges[:HINGES_SHOWN])
+        if len(hinges) > HINGES_SHOWN:
+            where += f"; {len(hinges) - HINGES_SHOWN} more (summary.json lists every hinge)"
         lines.append(f"mechanism: {s['mechanism']}" + (f"; hinges at {where}" if hinges else "")
                      + (f"; {len(s['sliding_joints'])} joints sliding"
                         if s.get("sliding_joints") else ""))
