@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 
 from masonry_nscd.io.limit_files import read_limit
+from masonry_nscd.io.runfolder import SUMMARY
 
 #: A hinge is open over at least this fraction of its face.
 HINGE_FRACTION = 0.5
@@ -265,7 +266,7 @@ def format_limit(s: Mapping[str, Any]) -> list[str]:
              else f"joint {h.get('joint')} ({h.get('side')})" if h.get("joint") is not None
              else f"{h['bodies'][0]} / {h['bodies'][1]}") for h in hinges[:HINGES_SHOWN])
         if len(hinges) > HINGES_SHOWN:
-            where += f"; {len(hinges) - HINGES_SHOWN} more (summary.json lists every hinge)"
+            where += f"; {len(hinges) - HINGES_SHOWN} more ({SUMMARY} lists every hinge)"
         lines.append(f"mechanism: {s['mechanism']}" + (f"; hinges at {where}" if hinges else "")
                      + (f"; {len(s['sliding_joints'])} joints sliding"
                         if s.get("sliding_joints") else ""))
