@@ -70,7 +70,8 @@ def test_a_staggered_voussoir_rests_on_two_below_it(stagger):
 
 def test_the_dome_stands_on_its_ring_which_carries_its_weight(tmp_path):
     """Under its weight (0.5 m thick on a 5 m radius: ten times Heyman's minimum) the dome
-    stands, and the ring carries its weight to round-off, with no net horizontal force."""
+    stands, and the ring carries its weight to the solver's tolerance (the blocks' last
+    accelerations), with no net horizontal force."""
     case = _dome()
     path = tmp_path / "dome.yaml"
     from masonry_nscd.case import case_to_yaml
@@ -82,7 +83,7 @@ def test_the_dome_stands_on_its_ring_which_carries_its_weight(tmp_path):
     assert summary["status"] == "standing"
     weight_kN = sum(b.mass for b in build_scene(case).bodies[:-1]) * 9.81 / 1e3
     fx, fy = summary["support_forces_last_kN"]["base"]
-    assert fy == pytest.approx(weight_kN, rel=1e-9)
+    assert fy == pytest.approx(weight_kN, rel=1e-6)  # the solver's tolerance: a dynamic run
     assert abs(fx) <= 1e-9 * weight_kN
 
 

@@ -60,12 +60,22 @@ class PointLoad(Section):
     ramp_s: Real = Field(0.1, gt=0.0, le=1e6, description="duration of the ramp (s)")
 
 
-class Settlement(Section):
-    """A support that moves: the fixed body under one springing (the abutment, or the ground
-    under a block abutment) moves by ``displacement_m`` along a tanh ramp of ``duration_s``
-    from ``start_s``."""
+#: The names a support can have: an arch's springings, a cross vault's corners, and a cross
+#: vault's sides (the two corners on that side)
+SUPPORT_NAMES = ("left", "right", "north-east", "north-west", "south-east", "south-west",
+                 "north", "south", "east", "west")
 
-    support: Literal["left", "right"] = Field(..., description="the support that moves")
+
+class Settlement(Section):
+    """A support that moves: the fixed body under one springing of an arch or a barrel vault
+    (the abutment, or the ground under a block abutment), or the supports of a cross vault's
+    corner or side (``east``: the two corners at +x; the spreading of a bay whose piers lean),
+    moves by ``displacement_m`` along a tanh ramp of ``duration_s`` from ``start_s``."""
+
+    support: Literal[SUPPORT_NAMES] = Field(  # type: ignore[valid-type]
+        ..., description="the support that moves: left or right (arch, vault); a corner "
+        "(north-east, ...) or a side (north, south, east, west: its two corners) of a cross "
+        "vault")
     displacement_m: Vector3 = Field(..., description="its displacement (m): x, y, z")
     start_s: Real = Field(0.3, ge=0.0, le=1e6, description="time at which it starts (s)")
     duration_s: Real = Field(1.0, gt=0.0, le=1e6, description="duration of the motion (s)")
@@ -297,7 +307,7 @@ class Loading(Section):
         None, description="arch: a growing force on one block (null: none)"
     )
     settlement: Settlement | None = Field(
-        None, description="arch: the settlement of a support (null: none)"
+        None, description="arch, vault, cross vault: the settlement of supports (null: none)"
     )
 
     @property

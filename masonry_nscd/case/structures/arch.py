@@ -139,6 +139,24 @@ def _point_load_problems(case) -> list[tuple[str, str]]:
     return point_load_problems(a, load, names, f"voussoir 1 to voussoir {a.voussoirs}")
 
 
+def settlement_problems(case, names: tuple[str, ...]) -> list[tuple[str, str]]:
+    """``loading.settlement.support`` against the supports ``names`` of the case's structure
+    (none: the structure's supports do not move)."""
+    settle = case.loading.settlement
+    if settle is None or settle.support in names:
+        return []
+    what = case.structure.article
+    if not names:
+        return [("loading.settlement", f"given with {what} case, whose supports are fixed")]
+    return [("loading.settlement.support", (
+        f"got {settle.support!r}; the supports of {what} are " + ", ".join(names)))]
+
+
+def _arch_problems(case) -> list[tuple[str, str]]:
+    """A point load on a block the arch does not have, a support it does not have."""
+    return _point_load_problems(case) + settlement_problems(case, ("left", "right"))
+
+
 def point_load_problems(a: Arch, load, names: list[str], where: str) -> list[tuple[str, str]]:
     """``loading.point_load.block`` against the voussoirs ``names`` of the arch or vault ``a``
     (``where``: how a message names their range) and its abutments when they are blocks."""
@@ -160,4 +178,4 @@ LIMIT_STATE_OWNS = ("collapse", "loading.body_force", "loading.point_load",
 STRUCTURE = Structure(
     name="arch", model=Arch, article="an arch", order=10, limit_state=True,
     description="an arch of voussoirs instead of the wall (null: the wall)",
-    owns=("arch", *LIMIT_STATE_OWNS), checks=_point_load_problems)
+    owns=("arch", *LIMIT_STATE_OWNS), checks=_arch_problems)

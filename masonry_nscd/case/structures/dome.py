@@ -10,7 +10,7 @@ from pydantic import Field, model_validator
 from masonry_nscd.case.errors import raise_problems
 from masonry_nscd.case.fields import Real, Section, Whole
 from masonry_nscd.case.structures import Structure
-from masonry_nscd.case.structures.arch import LIMIT_STATE_OWNS
+from masonry_nscd.case.structures.arch import LIMIT_STATE_OWNS, settlement_problems
 
 
 class Dome(Section):
@@ -102,11 +102,12 @@ class Dome(Section):
 
 
 def _point_load_problems(case) -> list[tuple[str, str]]:
-    """A point load on a block the dome does not have."""
+    """A point load on a block the dome does not have; a settlement (its ring is fixed)."""
     d, load = case.dome, case.loading.point_load
+    fixed = settlement_problems(case, ())
     if load is None or load.block in d.voussoir_names():
-        return []
-    return [("loading.point_load.block", (
+        return fixed
+    return fixed + [("loading.point_load.block", (
         f"got {load.block!r}; the blocks are course 1 voussoir 1 to course {d.courses} "
         f"voussoir {d.voussoirs} (from the springing; voussoir 1 at azimuth 0)"))]
 

@@ -7,7 +7,12 @@ from pydantic import Field, model_validator
 from masonry_nscd.case.errors import raise_problems
 from masonry_nscd.case.fields import Real, Whole
 from masonry_nscd.case.structures import Structure
-from masonry_nscd.case.structures.arch import LIMIT_STATE_OWNS, Arch, point_load_problems
+from masonry_nscd.case.structures.arch import (
+    LIMIT_STATE_OWNS,
+    Arch,
+    point_load_problems,
+    settlement_problems,
+)
 
 
 class Vault(Arch):
@@ -58,11 +63,12 @@ class Vault(Arch):
 def _point_load_problems(case) -> list[tuple[str, str]]:
     """A point load on a block the vault does not have."""
     v, load = case.vault, case.loading.point_load
+    moved = settlement_problems(case, ("left", "right"))
     if load is None:
-        return []
+        return moved
     where = (f"ring 1 voussoir 1 to ring {v.rings} voussoir "
              f"{len(v.voussoir_names(v.rings))}")
-    return point_load_problems(v, load, v.voussoir_names(), where)
+    return point_load_problems(v, load, v.voussoir_names(), where) + moved
 
 
 STRUCTURE = Structure(
