@@ -19,11 +19,15 @@
     The interface points with the same fields (``force_N`` as a global vector).
 ``mechanism.png``
     The picture of the mechanism (:mod:`masonry_nscd.limit.picture`).
+
+``masonry threshold --method limit`` writes in its study folder ``threshold.json``: the
+parameter, its threshold, the bracket and each step (:mod:`masonry_nscd.limit.thickness`).
 """
 
 from __future__ import annotations
 
 import csv
+import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -39,6 +43,7 @@ MECHANISM_VTU = "mechanism.vtu"
 MECHANISM_PNG = "mechanism.png"
 JOINT_FORCES_CSV = "joint_forces.csv"
 JOINT_FORCES_VTU = "joint_forces.vtu"
+THRESHOLD_JSON = "threshold.json"
 #: Every file of the folder, for the CLI's report.
 FILES = (LIMIT_JSON, MECHANISM_VTU, JOINT_FORCES_CSV, JOINT_FORCES_VTU, MECHANISM_PNG)
 
@@ -112,3 +117,12 @@ def write_joint_forces(outdir: Path | str, rows: Mapping[str, Any]) -> tuple[Pat
         "force_N": force, "normal_force_N": f[:, 0] if len(f) else np.zeros(0),
         "opening_rate": u[:, 0] if len(u) else np.zeros(0), "slip_rate": slip})
     return csv_path, vtu_path
+
+
+def write_threshold(outdir: Path | str, record: Mapping[str, Any]) -> Path:
+    """``threshold.json`` of a threshold by limit analysis, in the folder ``outdir``."""
+    out = prepare(outdir)
+    text = json.dumps(dict(record), indent=2, allow_nan=False) + "\n"
+    path = out / THRESHOLD_JSON
+    atomic_write(path, lambda p: Path(p).write_text(text))
+    return path
