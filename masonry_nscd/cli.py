@@ -512,7 +512,7 @@ def limit_cmd(
         typer.echo(line)
     paths = write_outputs(result, outdir)
     typer.echo(f"wrote {', '.join(p.name for p in paths)} in {outdir}")
-    if result.solution.multiplier is None:
+    if result.solution.status != "optimal":  # no admissible forces: not a valid analysis
         raise typer.Exit(1)
 
 

@@ -137,7 +137,10 @@ def format_result(record: dict[str, Any]) -> list[str]:
              f"{c['points']} interface points, {c['joints']} joints; friction pyramid of "
              f"{record['friction']['facets']} facets (error bound "
              f"{100 * record['friction']['cone_error_bound']:.2f} %)")]
-    if mult["value"] is None:
+    if mult["name"] is None:
+        carried = "carried" if record["status"] == "optimal" else "not carried"
+        lines.append(f"dead loads: {carried} ({record['status']})")
+    elif mult["value"] is None:
         lines.append(f"status: {record['status']} ({record['lp_message']})")
     else:
         unit = f" {mult['unit']}" if mult["unit"] else ""
