@@ -95,11 +95,14 @@ def chord_voussoirs(n: int, radius: float, thickness: float):
     return a, b, normal, area, centroid
 
 
-def four_hinge_multiplier(n: int, radius: float, thickness: float):
+def four_hinge_multiplier(n: int, radius: float, thickness: float,
+                          point_load: int | None = None):
     """The kinematic theorem: the least horizontal multiplier of the weight over every
     admissible four-hinge mechanism (hinges at joints i < j < k < l, each at the intrados or
     the extrados, the three bodies between them turning about A, the intersection of AB and
-    DC, and D; hinges must open). Returns (lambda, ((joint, face) * 4))."""
+    DC, and D; hinges must open). With ``point_load`` (a voussoir's 0-based index), the least
+    downward force at the middle of its extrados chord instead, per unit of the weight of a
+    unit of area. Returns (lambda, ((joint, face) * 4))."""
     a, b, normal, W, c = chord_voussoirs(n, radius, thickness)
     # prefix sums per voussoir: W, W c_x, W c_y
     S = np.vstack([np.zeros(3), np.cumsum(np.column_stack([W, W * c[:, 0], W * c[:, 1]]),
@@ -129,7 +132,14 @@ def four_hinge_multiplier(n: int, radius: float, thickness: float):
             # power of the weight (0, -W) and of the horizontal force (W, 0), per unit g:
             # v = w (-(y - O_y), x - O_x)
             dead = sum(-w * (s[1] - P[0] * s[0]) for w, P, s in bodies)
-            live = sum(-w * (s[2] - P[1] * s[0]) for w, P, s in bodies)
+            if point_load is None:
+                live = sum(-w * (s[2] - P[1] * s[0]) for w, P, s in bodies)
+            else:  # the force (0, -1) at Q, carried by the body that holds the voussoir
+                Q = 0.5 * (b[point_load] + b[point_load + 1])
+                live = 0.0
+                for (w, P, _), lo, hi in zip(bodies, (i, j, k), (j, k, l)):
+                    if lo <= point_load < hi:
+                        live = -w * (Q[0] - P[0])
             if abs(live) < 1e-15:
                 continue
             sign = 1.0 if live > 0 else -1.0
@@ -147,6 +157,30 @@ def four_hinge_multiplier(n: int, radius: float, thickness: float):
                 best = (lam, tuple((q, ("intrados", "extrados")[f])
                                    for q, f in zip((i, j, k, l), faces)))
     return best
+
+
+def test_collapse_load_of_a_point_load():
+    """A downward force on the extrados of voussoir 7 of the shipped arch: the programme's
+    force is the kinematic theorem's least over the four-hinge mechanisms, with its hinges."""
+    sets = ["loading.body_force.rate_per_s=0",
+            "loading.point_load={block: voussoir 7, rate_N_s: 200}"]
+    result = analyse(load_case(ARCH, sets))
+    per_area = 2000.0 * 9.81 * 0.25  # N per m^2 of the chord trapezoids (density, g, depth)
+    expected, hinges = four_hinge_multiplier(24, 1.0, 0.15, point_load=6)
+    assert result.record["multiplier"]["name"] == "point_load_N"
+    assert result.solution.multiplier == pytest.approx(expected * per_area, rel=1e-6)
+    assert sorted((h["joint"], h["side"]) for h in result.record["hinges"]) == sorted(hinges)
+
+
+def test_deformable_blocks_are_taken_as_the_rigid_bodies_of_their_meshes():
+    """Elastic voussoirs of 2 x 2 x 1 hexahedra: the same multiplier and hinges as rigid ones
+    (their nodal weights reduced to the rigid body of the mesh)."""
+    rigid = analyse(load_case(ARCH))
+    elastic = analyse(load_case(ARCH, ["blocks.material=elastic",
+                                       "arch.elements_per_voussoir=[2,2,1]"]))
+    assert elastic.solution.multiplier == pytest.approx(rigid.solution.multiplier, rel=1e-6)
+    assert [h["joint"] for h in elastic.record["hinges"]] == \
+        [h["joint"] for h in rigid.record["hinges"]]
 
 
 def thrust_line_stands(n: int, radius: float, thickness: float) -> bool:
