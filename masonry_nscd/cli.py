@@ -472,6 +472,50 @@ def calibrate_cmd(
     typer.echo(f"wrote {result.case_file} and {outdir / 'calibration.json'}")
 
 
+@app.command("limit")
+def limit_cmd(
+    case_file: Annotated[Path, typer.Argument(metavar="CASE.yaml", help="The case file (YAML).")],
+    output: Annotated[Path | None, typer.Option(
+        "-o", "--out", "--output", metavar="OUTDIR",
+        help="Folder of limit.json, the mechanism and the joint forces "
+        "(default results/\\<case name>_limit/).")] = None,
+    facets: Annotated[int, typer.Option(
+        "--facets", help="Facets of the friction pyramid (error bound 1 - cos(pi/facets)).")
+    ] = 16,
+    tension: Annotated[bool, typer.Option(
+        "--tension", help="The joints carry the tensile strength and cohesion of the case's "
+        "joint law (as built); without it, no tension and no cohesion.")] = False,
+    flow: Annotated[str, typer.Option(
+        "--flow", help="associative (the normality rule) or non-associative (the iteration of "
+        "fixed friction capacities).")] = "associative",
+    overrides: SetOption = None,
+    overwrite: OverwriteOption = False,
+) -> None:
+    """Rigid-block limit analysis: the collapse multiplier of the case's growing load and its
+    mechanism, in seconds.
+
+    Every body is taken as rigid and the scene's contact points as the joints' interface
+    points, with no tension and Coulomb friction; the largest multiplier of the growing load
+    (body force, point load) that admissible joint forces equilibrate, with the other loads
+    dead, by a linear programme (HiGHS); the mechanism from its dual. Writes limit.json,
+    mechanism.vtu, joint_forces.csv, joint_forces.vtu and mechanism.png (docs/limit.md)."""
+    case = _load_case_or_exit(case_file, overrides)
+    from masonry_nscd.limit.analysis import FLOWS, analyse, format_result, write_outputs
+
+    if flow not in FLOWS:
+        _fail(f"--flow: one of {', '.join(FLOWS)}, got {flow!r}", 2)
+    if not 3 <= facets <= 1024:
+        _fail(f"--facets: from 3 to 1024, got {facets}", 2)
+    outdir = _study_outdir(output, Path("results") / f"{case.name}_limit", overwrite)
+    result = analyse(case, facets=facets, tension=tension, flow=flow)
+    for line in format_result(result.record):
+        typer.echo(line)
+    paths = write_outputs(result, outdir)
+    typer.echo(f"wrote {', '.join(p.name for p in paths)} in {outdir}")
+    if result.solution.status != "optimal":  # no admissible forces: not a valid analysis
+        raise typer.Exit(1)
+
+
 @app.command("threshold")
 def threshold_cmd(
     case_file: Annotated[Path, typer.Argument(metavar="CASE.yaml", help="The case file (YAML).")],
@@ -489,13 +533,23 @@ def threshold_cmd(
         help="Study folder (default results/\\<case name>_threshold/).")] = None,
     overrides: SetOption = None,
     overwrite: OverwriteOption = False,
+    method: Annotated[str, typer.Option(
+        "--method", help="nscd (a run per value) or limit (rigid-block limit analysis: whether "
+        "the dead loads can be carried, the growing load at zero).")] = "nscd",
 ) -> None:
     """Find the value of a parameter between standing and collapse, by bisection on runs.
 
     The parameter of a limit-state case (its minimum thickness, its critical multiplier) is
     bisected between a value where the structure stands and one where it collapses; writes
-    threshold.csv and threshold.json."""
+    threshold.csv and threshold.json. With --method limit each value is one linear programme
+    on the rigid blocks (docs/limit.md) and only threshold.json is written."""
     case = _load_case_or_exit(case_file, overrides)
+    if method not in ("nscd", "limit"):
+        _fail(f"--method: nscd or limit, got {method!r}", 2)
+    if method == "limit":
+        _threshold_by_limit(case_file, case, param, bounds, rtol, max_runs, output, overrides,
+                            overwrite)
+        return
     from masonry_nscd.case import load_case
     from masonry_nscd.studies import threshold as th
 
@@ -522,6 +576,43 @@ def threshold_cmd(
     for line in th.format_table(result):
         typer.echo(line)
     typer.echo(f"wrote {paths[0]} and {paths[1]}")
+
+
+def _threshold_by_limit(case_file: Path, case, param: str, bounds: str, rtol: float,
+                        max_runs: int, output: Path | None, overrides: list[str] | None,
+                        overwrite: bool) -> None:
+    """``masonry threshold --method limit``: bisection on the static programme's feasibility
+    (:mod:`masonry_nscd.limit.thickness`)."""
+    from masonry_nscd.case import CaseError, load_case
+    from masonry_nscd.io.limit_analysis import write_threshold
+    from masonry_nscd.limit.thickness import BracketError, threshold
+    from masonry_nscd.studies import threshold as th
+
+    try:
+        lo_hi = th.parse_range(bounds, "--bounds")
+        th.parameter_value(case, param)
+    except th.CalibrationError as exc:
+        _fail(str(exc), 2)
+    if not (rtol > 0.0 and max_runs >= 2):
+        _fail("--rtol must be > 0 and --max-runs at least 2", 2)
+    outdir = _study_outdir(output, Path("results") / f"{case.name}_threshold", overwrite)
+
+    def load(value: float):
+        return load_case(case_file, [*(overrides or ()), f"{param}={float(value)!r}"])
+
+    try:
+        result = threshold(load, lo_hi, rtol=rtol, max_steps=max_runs)
+    except BracketError as exc:
+        _fail(str(exc), 2)
+    except CaseError as exc:
+        _fail(f"invalid value of {param}: {'; '.join(exc.messages)}", 2)
+    typer.echo(f"threshold of {param} of {case.name} by limit analysis: {result['value']:.6g} "
+               f"+- {result['uncertainty']:.2g} (stands at {result['standing']:.6g}, falls at "
+               f"{result['falling']:.6g}; {len(result['steps'])} programmes, "
+               f"{result['time_s']:.2f} s)")
+    path = write_threshold(outdir, {"case": case.name, "param": param, "method": "limit",
+                                    **result})
+    typer.echo(f"wrote {path}")
 
 
 @app.command("stress-test")

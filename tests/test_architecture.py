@@ -35,7 +35,8 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("files", ("io",)),
     ("builders", ("scenes",)),
     ("post", ("post",)),
-    ("run", ("report", "collapse", "figure_files", "plots", "plots_limit", "run", "warmup")),
+    ("run", ("report", "collapse", "figure_files", "plots", "plots_limit", "run", "warmup",
+             "limit")),
     ("studies", ("studies",)),
     ("cli", ("cli",)),
 ]
@@ -227,10 +228,12 @@ def _strings(tree: ast.Module) -> list[ast.Constant]:
 
 def test_only_io_names_the_run_folder_files():
     """The names of the run folder's files are the constants of ``io/runfolder.py``."""
+    from masonry_nscd.io import limit_analysis as la
     from masonry_nscd.io import runfolder as rf
 
     names = [rf.CASE, rf.SCENE, rf.CSV, rf.ENERGY, rf.RESULTS, rf.PVD, rf.CHECKPOINT, rf.SUMMARY,
-             rf.CYCLES, rf.ENVELOPE, rf.LOG, rf.LIMIT_CSV, rf.LIMIT_JSON, rf.SWEEP_MARKER]
+             rf.CYCLES, rf.ENVELOPE, rf.LOG, rf.LIMIT_CSV, rf.LIMIT_JSON, rf.SWEEP_MARKER,
+             la.MECHANISM_VTU, la.MECHANISM_PNG, la.JOINT_FORCES_CSV, la.JOINT_FORCES_VTU]
     found = []
     for path in sorted(PKG.rglob("*.py")):
         module = _module_name(path)

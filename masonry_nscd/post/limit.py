@@ -148,13 +148,13 @@ def joint_states(fields, scene: Mapping[str, Any], opening_m: float) -> list[dic
             "pivot_m": [float(v) for v in pivot] if kind == "hinge" else None,
             "centre_m": [float(v) for v in j["centre"]]}
         if arch is not None:
-            entry.update(_arch_place(arch, names[b0], names[b1], pivot if kind == "hinge"
+            entry.update(arch_place(arch, names[b0], names[b1], pivot if kind == "hinge"
                                      else None))
         out.append(entry)
     return out
 
 
-def _arch_place(arch: Mapping[str, Any], name0: str, name1: str,
+def arch_place(arch: Mapping[str, Any], name0: str, name1: str,
                 pivot: np.ndarray | None) -> dict[str, Any]:
     """The joint number of an arch's joint, the angle of its line from the crown, and on which
     face its pivot is."""

@@ -1,0 +1,165 @@
+"""``masonry limit``: a case's scene taken as rigid blocks, its collapse multiplier and
+mechanism, and the files that say them.
+
+:func:`analyse` builds the scene with the case's builder (:func:`masonry_nscd.scenes.build_scene`),
+takes it as rigid blocks (:mod:`.statics`), solves the static programme (:mod:`.lp`; with
+``flow="non-associative"`` its iteration of fixed friction capacities), and reads the
+mechanism joint by joint (:mod:`.mechanism`). :func:`write_outputs` writes the folder
+(:mod:`masonry_nscd.io.limit_analysis`). :func:`stands` says whether the dead loads alone can
+be carried (the feasibility that :mod:`.thickness` bisects on).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from masonry_nscd.io import limit_analysis as files
+from masonry_nscd.limit import friction, mechanism
+from masonry_nscd.limit.lp import LimitSolution, solve_limit, solve_non_associative
+from masonry_nscd.limit.picture import draw_mechanism
+from masonry_nscd.limit.statics import RigidModel, rigid_model
+from masonry_nscd.scenes import build_scene
+
+FLOWS = ("associative", "non-associative")
+METHOD = "rigid-block limit analysis: static linear programme (HiGHS), mechanism from its dual"
+
+
+@dataclass
+class LimitResult:
+    """What :func:`analyse` found: the model, the solution, the joints and the record of
+    ``limit.json``."""
+
+    model: RigidModel
+    solution: LimitSolution
+    joints: list[dict[str, Any]]
+    record: dict[str, Any]
+    groups: tuple[str, ...]  # the scene's joint group names, by id
+
+
+def _kind(flow: str, iteration: dict | None) -> str:
+    if flow == "associative":
+        return ("associative: the collapse multiplier of the normality rule (a sliding joint "
+                "dilates); an upper bound of the non-associative one where sliding matters")
+    done = "converged" if iteration and iteration.get("converged") else "not converged"
+    return ("non-associative: fixed friction capacities iterated from the associative "
+            f"solution (Gilbert, Casapulla and Ahmed 2006), {done}")
+
+
+def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = False,
+            flow: str = "associative") -> LimitResult:
+    """The limit analysis of ``case`` (module docstring)."""
+    if flow not in FLOWS:
+        raise ValueError(f"flow: one of {', '.join(FLOWS)}, got {flow!r}")
+    t0 = time.perf_counter()
+    scene = build_scene(case)
+    t1 = time.perf_counter()
+    model = rigid_model(scene)
+    t2 = time.perf_counter()
+    iteration = None
+    if flow == "associative":
+        sol = solve_limit(model, facets, tension=tension)
+    else:
+        sol, iteration = solve_non_associative(model, facets, tension=tension)
+    found = mechanism.joints(model, sol.point_velocity, scene.info()) \
+        if sol.multiplier is not None else []
+    named = mechanism.summary(found)
+    if sol.multiplier is None:
+        named["mechanism"] = None
+    record: dict[str, Any] = {
+        "method": METHOD,
+        "case": case.name,
+        "status": sol.status,
+        "lp_message": sol.message,
+        "multiplier": {"name": model.factor, "unit": model.factor_unit,
+                       "value": sol.multiplier, "kind": _kind(flow, iteration)},
+        "flow": flow,
+        "friction": {"facets": facets, "pyramid": "inscribed",
+                     "cone_error_bound": friction.cone_error_bound(facets)},
+        "tension": tension,
+        **named,
+        "counts": {**sol.counts, "joints": len(found)},
+        "times_s": {"scene": t1 - t0, "model": t2 - t1, **sol.times_s},
+    }
+    if model.factor is None:
+        record["note"] = ("the case has no growing load (a load factor with a rate): "
+                          "the programme says only whether the dead loads can be carried")
+    if iteration is not None:
+        record["non_associative"] = iteration
+    return LimitResult(model, sol, found, record, tuple(scene.groups))
+
+
+def stands(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = False) -> bool:
+    """Whether admissible forces carry the dead loads of ``case`` alone (its growing load at
+    zero): the static programme is feasible."""
+    model = rigid_model(build_scene(case))
+    return solve_limit(model, facets, tension=tension, dead_only=True).status == "optimal"
+
+
+def node_velocities(m: RigidModel, velocity: np.ndarray) -> list[np.ndarray]:
+    """Per body, the velocity (k, 3) of each node of its mesh."""
+    return [velocity[b, :3] + np.cross(velocity[b, 3:], X - m.reference[b])
+            for b, (X, _) in enumerate(m.meshes)]
+
+
+def write_outputs(result: LimitResult, outdir: Path | str) -> list[Path]:
+    """The folder of :mod:`masonry_nscd.io.limit_analysis`; returns the paths written."""
+    out = files.prepare(outdir)
+    m, sol = result.model, result.solution
+    nodes = node_velocities(m, sol.velocity)
+    paths = [files.write_result(out, result.record),
+             files.write_mechanism_vtu(out, m.meshes, nodes, m.support)]
+    group_names = [result.groups[g] for g in m.group]
+    paths += files.write_joint_forces(out, {
+        "candidate": [m.names[a] for a in m.pair[:, 0]],
+        "antagonist": [m.names[b] for b in m.pair[:, 1]],
+        "group": group_names, "x": m.x, "frame": m.frame, "area": m.area,
+        "forces": sol.forces, "velocity": sol.point_velocity})
+    value = sol.multiplier
+    rec = result.record
+    title = (f"{rec['case']}: {m.factor or 'multiplier'} = {value:.5g} "
+             f"({rec['flow']}), {rec['mechanism']}" if value is not None
+             else f"{rec['case']}: {rec['status']}")
+    paths.append(draw_mechanism(out / files.MECHANISM_PNG, m.meshes, nodes, m.support, rec,
+                                title))
+    return paths
+
+
+def format_result(record: dict[str, Any]) -> list[str]:
+    """The lines that ``masonry limit`` prints."""
+    mult = record["multiplier"]
+    c, t = record["counts"], record["times_s"]
+    lines = [(f"{record['case']}: {c['bodies']} bodies ({c['free_bodies']} free), "
+             f"{c['points']} interface points, {c['joints']} joints; friction pyramid of "
+             f"{record['friction']['facets']} facets (error bound "
+             f"{100 * record['friction']['cone_error_bound']:.2f} %)")]
+    if mult["name"] is None:
+        carried = "carried" if record["status"] == "optimal" else "not carried"
+        lines.append(f"dead loads: {carried} ({record['status']})")
+    elif mult["value"] is None:
+        lines.append(f"status: {record['status']} ({record['lp_message']})")
+    else:
+        unit = f" {mult['unit']}" if mult["unit"] else ""
+        lines.append(f"collapse multiplier: {mult['name']} = {mult['value']:.6g}{unit} "
+                     f"({record['flow']})")
+        hinges = "; ".join(mechanism.describe_hinge(h) for h in record["hinges"])
+        lines.append(f"mechanism: {record['mechanism']}" + (f"; hinges at {hinges}" if hinges
+                                                            else "")
+                     + (f"; {len(record['sliding_joints'])} joints sliding"
+                        if record["sliding_joints"] else ""))
+    if record.get("note"):
+        lines.append(f"note: {record['note']}")
+    if "non_associative" in record:
+        it = record["non_associative"]
+        lines.append(f"non-associative iteration: {it['iterations']} steps, "
+                     f"{'converged' if it['converged'] else 'not converged'}"
+                     + (f" ({it['stopped_by']})" if it.get("stopped_by") else "")
+                     + (f"; associative multiplier {it['associative']:.6g}"
+                        if it.get("associative") is not None else ""))
+    lines.append(f"times: scene {t['scene']:.3f} s, programme {t['assemble']:.3f} s, "
+                 f"solve {t['solve']:.3f} s")
+    return lines
