@@ -733,6 +733,26 @@ def bench_cmd(
         _fail("the reference run did not finish: no errors measured", 1)
 
 
+@app.command("bench-detection")
+def bench_detection_cmd(
+    case_file: Annotated[Path, typer.Argument(metavar="CASE.yaml", help="The case file (YAML).")],
+    repeats: Annotated[int, typer.Option(
+        "--repeats", metavar="N", min=1, max=20,
+        help="Times each step is repeated (median taken).")] = 3,
+    overrides: SetOption = None,
+) -> None:
+    """Time the contact detection of a case's blocks: joints, then contact points.
+
+    The scene is built once; its joints are found and their points made N times; prints the
+    counts and the median times (for example a dome of 10,000 voussoirs: --set
+    dome.courses=100 --set dome.voussoirs=100)."""
+    from masonry_nscd.studies.detection_bench import detection_times
+
+    case = _load_case_or_exit(case_file, overrides)
+    for line in detection_times(case, repeats).lines():
+        typer.echo(line)
+
+
 @app.command("bench-scaling")
 def bench_scaling_cmd(
     case_file: Annotated[Path, typer.Argument(metavar="CASE.yaml", help="The case file (YAML).")],

@@ -1,12 +1,16 @@
 """Contact detection (model/detection.py) on shapes other than axis-aligned boxes, its broad
 phase against brute force, and what each contact point must satisfy on the study's walls."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from typer.testing import CliRunner
 
 from masonry_nscd.case import load_case
+from masonry_nscd.cli import app
 from masonry_nscd.contact.laws import KIND_JOINT
 from masonry_nscd.fe.hex8 import box_mesh
 from masonry_nscd.model import Block, RigidBody
@@ -264,3 +268,16 @@ def test_detection_does_not_depend_on_the_orientation(seed, gap, rule):
         assert p.area == pytest.approx(b.area, rel=1e-12)
         assert p.gap == pytest.approx(b.gap, abs=1e-12)
         assert abs(p.frame[0] @ (Q @ b.frame[0])) == pytest.approx(1.0, abs=1e-12)
+
+
+
+def test_bench_detection_counts_the_scenes_joints_and_points():
+    """``masonry bench-detection`` finds again the joints and points that the builder made."""
+    case_file = Path(__file__).resolve().parents[1] / "cases" / "dome_hemispherical.yaml"
+    sets = ["dome.courses=3", "dome.voussoirs=8", "dome.contact_point_rule=overlap"]
+    res = CliRunner().invoke(app, ["bench-detection", str(case_file), "--repeats", "1",
+                                   *[a for s in sets for a in ("--set", s)]])
+    assert res.exit_code == 0, res.output
+    scene = build_scene(load_case(case_file, sets))
+    assert "blocks 24, joints" in res.output
+    assert f"contact points {len(scene.points)}" in res.output

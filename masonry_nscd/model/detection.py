@@ -273,8 +273,8 @@ def _overlap_points(bodies: Sequence, joints: Sequence[Joint], classify, dof0: n
                     x = origin + p2 @ basis
                     gap = (ant.offset - x @ ant.normal) / (n_out @ ant.normal)
                     xa = x + gap * n_out
-                    ref_c = _reference(Pc[q], x)
-                    ref_a = _reference(Pa[m], xa)
+                    ref_c = None if isinstance(cb, RigidBody) else _reference(Pc[q], x)
+                    ref_a = None if isinstance(ab, RigidBody) else _reference(Pa[m], xa)
                     out.append(ContactPoint(
                         x=x, frame=frame, area=float(area), gap=float(gap), kind=kind,
                         law=law, group=group, bodies=(cand.body, ant.body),
@@ -326,7 +326,7 @@ def _merge_shared(xs: np.ndarray, areas: np.ndarray) -> tuple[np.ndarray, np.nda
 def _side(body, dof0: int, quad: np.ndarray, x: np.ndarray, frame: np.ndarray, sign: float,
           ref) -> tuple[np.ndarray, np.ndarray]:
     """Velocity map of point ``x`` of ``body``, at reference coordinates ``ref`` of its face
-    ``quad``."""
+    ``quad`` (None on a rigid body, which needs none)."""
     if isinstance(body, RigidBody):
         return rigid_side(dof0, body, x, frame, sign)
     return deformable_side(dof0, quad, float(ref[0]), float(ref[1]), frame, sign)

@@ -94,11 +94,15 @@ def vertex_points(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     first (a rectangle's four corners a quarter each): ``(points (k, 2), areas (k,))``, the
     areas summing to the polygon's."""
     k = len(P)
-    areas = np.zeros(k)
-    for start in range(k):
-        order = np.roll(np.arange(k), -start)
-        for t in fan(P[order]):
-            areas[order[t]] += abs(signed_area(P[order[t]])) / (3.0 * k)
+    if k < 3:
+        return P.copy(), np.zeros(k)
+    # the triangles (a, b, c) of the fans from every corner a: b = a + i, c = a + i + 1 (mod k)
+    a = np.repeat(np.arange(k), k - 2)
+    b = (a + np.tile(np.arange(1, k - 1), k)) % k
+    c = (b + 1) % k
+    u, v = P[b] - P[a], P[c] - P[a]
+    share = np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]) / (6.0 * k)  # a third of each area
+    areas = np.bincount(np.concatenate([a, b, c]), weights=np.tile(share, 3), minlength=k)
     return P.copy(), areas
 
 

@@ -76,12 +76,11 @@ def deformable_side(dof0: int, nodes, xi: float, eta: float, frame, sign: float)
 
 def rigid_side(dof0: int, body: RigidBody, x: np.ndarray, frame, sign: float):
     """Velocity map of a material point x of a rigid body: ``v = v_0 + omega x (x - x_ref)``."""
-    r = np.asarray(x) - body.reference
+    r0, r1, r2 = np.asarray(x) - body.reference
     dofs = dof0 + np.arange(6, dtype=np.int64)
     coef = np.empty((6, 3))
-    for d in range(3):
-        coef[d] = sign * frame[:, d]
-        e = np.zeros(3)
-        e[d] = 1.0
-        coef[3 + d] = sign * frame @ np.cross(e, r)
+    coef[:3] = sign * frame.T
+    # e_d x r for the unit vectors e_0, e_1, e_2
+    for d, arm in enumerate(((0.0, -r2, r1), (r2, 0.0, -r0), (-r1, r0, 0.0))):
+        coef[3 + d] = sign * frame @ np.array(arm)
     return dofs, coef
