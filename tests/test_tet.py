@@ -215,3 +215,44 @@ def test_a_wall_of_rigid_blocks_collapses_at_the_same_multiplier_with_tetrahedra
     step = 0.5 * 25 * 0.002  # rate x output interval
     assert lam["tet4"] == pytest.approx(lam["hex8"], abs=step)
     assert lam["hex8"] == pytest.approx(0.5, rel=0.1)
+
+
+def test_an_endo3d_tetrahedral_block_softens_as_a_hexahedral_one():
+    """A 0.1 m cube of ENDO3D as one hexahedron and as its six tetrahedra, side by side in one
+    batch (two runs of element types), stretched along x (uniform strain, the lateral
+    contraction of a uniaxial stress): the force on the x = 0.1 m face over its area peaks at
+    the tensile strength R_t and softens the same way for both (each tetrahedron spans the cube
+    along x, so the Hillerborg length is the cube's side for both)."""
+    from masonry_nscd.materials.blocks import Endo3dBlocks
+    from masonry_nscd.materials.endo3d import endo3d_params
+    from masonry_nscd.model import MAT_ENDO3D, Block
+
+    E, nu, R_t = 11.1e9, 0.2, 1.0e6
+    prm = endo3d_params(E=E, nu=nu, R_t=R_t, eps_pic_t=R_t / E, G_ft=60.0, R_c=9.46e6,
+                        eps_pic_c=0.13e-1, delta=0.4, beta=0.2, eps_kdc=0.18e-1, DCPK=1.0,
+                        REF=0.3e6, GFR=4.5)
+    blocks = []
+    for kind in ("hex8", "tet4"):
+        X, conn, _ = _box((0, 0, 0), (0.1, 0.1, 0.1), (1, 1, 1), kind)
+        blocks.append(Block(X=X, conn=conn, E=E, nu=nu, density=2000.0, material=MAT_ENDO3D))
+    dof0 = np.cumsum([0] + [b.ndof for b in blocks])
+    mat = Endo3dBlocks(blocks, dof0, prm)
+    assert len(mat.runs) == 2
+    stress = {0: [], 1: []}
+    fint = np.zeros(dof0[-1])
+    for eps in np.linspace(0.0, 3.0, 61)[1:] * R_t / E:
+        u = np.concatenate([(b.X * [eps, -nu * eps, -nu * eps]).ravel() for b in blocks])
+        mat.internal_forces(u, fint)
+        assert mat.failures == 0
+        mat.commit()
+        for k, b in enumerate(blocks):
+            face = np.flatnonzero(np.abs(b.X[:, 0] - 0.1) < 1e-12)
+            stress[k].append(fint[dof0[k] + 3 * face].sum() / 0.01)
+    hexa, tets = np.array(stress[0]), np.array(stress[1])
+    print(f"peak stress: hexahedron {hexa.max():.4g} Pa, tetrahedra {tets.max():.4g} Pa")
+    assert hexa.max() == pytest.approx(R_t, rel=0.02)
+    assert tets.max() == pytest.approx(hexa.max(), rel=1e-3)
+    assert tets[-1] < 0.9 * tets.max()  # softened
+    assert np.allclose(tets, hexa, rtol=0, atol=1e-3 * R_t)
+    K = mat.tangent_stiffness()
+    assert [k.shape for k in K] == [(24, 24), (24, 24)]
