@@ -138,17 +138,22 @@ def test_inverted_and_flat_tetrahedra_are_found():
 
 def _wall_mesh(kind: str) -> BlockMesh:
     """Two columns of two blocks (0.2 m cubes) on a base slab, each block meshed with one
-    hexahedron or its six tetrahedra; the slab with a hexahedron."""
-    pts, sets, tags, names = [], {"hexahedron": [], "tetra": []}, {"hexahedron": [],
-                                                                   "tetra": []}, {}
+    hexahedron or its six tetrahedra (of 4 or 10 nodes); the slab with a hexahedron."""
+    types = ("hexahedron", "tetra", "tetra10")
+    pts, names = [], {}
+    sets: dict[str, list] = {t: [] for t in types}
+    tags: dict[str, list] = {t: [] for t in types}
     boxes = [((-0.1, -0.1, 0.0), (0.6, 0.1, 0.2), "base")]
     boxes += [((0.2 * i, 0.2 * j, 0.0), (0.2, 0.2, 0.2), f"block {i} {j}")
               for j in range(2) for i in range(2)]
     for k, (o, s, name) in enumerate(boxes):
         X, c = hex8.box_mesh(np.array(o), np.array(s), (1, 1, 1))
         t = "hexahedron"
-        if kind == "tet4" and name != "base":
+        if kind != "hex8" and name != "base":
             c, t = tet4.split_hexahedra(X, c), "tetra"
+            if kind == "tet10":
+                X, c = tet10.quadratic(X, c)
+                t = "tetra10"
         n0 = sum(len(p) for p in pts)
         pts.append(X)
         sets[t].append(c + n0)
@@ -156,8 +161,8 @@ def _wall_mesh(kind: str) -> BlockMesh:
         names[k + 1] = name
     return BlockMesh(np.concatenate(pts), np.concatenate(sets["hexahedron"]),
                      np.concatenate(tags["hexahedron"]), names,
-                     {"tetra": (np.concatenate(sets["tetra"]), np.concatenate(tags["tetra"]))}
-                     if sets["tetra"] else {})
+                     {t: (np.concatenate(sets[t]), np.concatenate(tags[t]))
+                      for t in types[1:] if sets[t]})
 
 
 def test_mixed_mesh_files_read_back(tmp_path):
@@ -256,3 +261,52 @@ def test_an_endo3d_tetrahedral_block_softens_as_a_hexahedral_one():
     assert np.allclose(tets, hexa, rtol=0, atol=1e-3 * R_t)
     K = mat.tangent_stiffness()
     assert [k.shape for k in K] == [(24, 24), (24, 24)]
+
+
+def _column_compliance(kind: str, divisions) -> float:
+    """Static top displacement (m) per N of horizontal body force of one column of the wall
+    (0.2 x 0.4 x 0.2 m, E = 1e8 Pa, nu = 0, clamped at its base, the force spread as the lumped
+    masses), at the node the wall's curve measures (0, 0.2, 0)."""
+    X, conn, el = _box((0, 0, 0), (0.2, 0.4, 0.2), divisions, kind)
+    K, m = solid.assemble_block(X, conn, solid.elastic_matrix(1e8, 0.0), 2000.0, el)
+    f = np.zeros(3 * len(X))
+    f[0::3] = m[0::3] / m[0::3].sum()
+    free = np.repeat(X[:, 1] > 1e-9, 3)
+    u = np.zeros_like(f)
+    u[free] = scipy.linalg.solve(K[np.ix_(free, free)], f[free], assume_a="pos")
+    return u[3 * np.flatnonzero(np.all(np.abs(X - [0.0, 0.2, 0.0]) < 1e-9, axis=1))[0]]
+
+
+def test_an_elastic_wall_has_the_stiffness_its_elements_predict(tmp_path):
+    """The wall of ``_wall_mesh`` with elastic blocks (E = 1e8 Pa, nu = 0: the blocks, not the
+    stiff joints, deform), pushed by a horizontal body force growing slowly to 0.1 g: the
+    compliance ``d U_x / d F_x`` of each mesh is that of a static solve of one of its columns
+    with the same elements (the dry head joint carries no shear without compression, so the
+    columns bend side by side, each with half the force) within 5 %. Against the converged
+    column (10-node tetrahedra, 4 x 8 x 4 cubes), one hexahedron per block is 1.5 times too
+    stiff (its parasitic shear in bending, one element through the depth: the module
+    docstring's ``1 + a^2 / (2 b^2)``), six 10-node tetrahedra per block within 10 %, six
+    4-node ones stiffer than the hexahedron."""
+    from masonry_nscd.run import run_case
+
+    run, static = {}, {}
+    converged = _column_compliance("tet10", (4, 8, 4))
+    for kind in ("hex8", "tet4", "tet10"):
+        data = _wall_case(tmp_path, kind)
+        data["blocks"] = {"material": "elastic", "density_kg_m3": 2000.0, "E_Pa": 1e8,
+                          "nu": 0.0}
+        data["collapse"]["end_time_s"] = 0.45
+        run_case(case_from_dict(data, check_files=True), tmp_path / kind,
+                 echo=lambda _m: None)
+        rows = np.genfromtxt(tmp_path / kind / "force_displacement.csv", delimiter=",",
+                             names=True)
+        late = rows["time_s"] >= 0.3 - 1e-9  # the push, past the load's ramp
+        slope = np.polyfit(-rows["fx_kN"][late] * 1e3, rows["ux_mm"][late] * 1e-3, 1)[0]
+        run[kind] = slope
+        static[kind] = _column_compliance(kind, (1, 2, 1)) / 2  # two columns share the force
+        assert run[kind] == pytest.approx(static[kind], rel=0.05), kind
+    print("wall stiffness over the converged column's:",
+          {k: round(converged / 2 / v, 3) for k, v in run.items()})
+    assert converged / 2 / run["hex8"] == pytest.approx(1.5, rel=0.05)
+    assert converged / 2 / run["tet10"] == pytest.approx(1.0, abs=0.1)
+    assert run["tet4"] < run["hex8"]
