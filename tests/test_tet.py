@@ -310,3 +310,19 @@ def test_an_elastic_wall_has_the_stiffness_its_elements_predict(tmp_path):
     assert converged / 2 / run["hex8"] == pytest.approx(1.5, rel=0.05)
     assert converged / 2 / run["tet10"] == pytest.approx(1.0, abs=0.1)
     assert run["tet4"] < run["hex8"]
+
+
+def test_tetrahedra_are_written_to_vtu_as_tetrahedra(tmp_path):
+    """Drawn as collapsed hexahedra, tetrahedra are read back from the blocks' VTU (by meshio)
+    as VTK tetrahedra of their four corners, the hexahedra as they were."""
+    import meshio
+
+    from masonry_nscd.io.vtu import write_blocks_vtu
+
+    X, hexes = hex8.box_mesh(np.zeros(3), np.ones(3), (1, 1, 1))
+    tets = tet4.split_hexahedra(X, hexes)
+    write_blocks_vtu(tmp_path / "b.vtu", X, np.concatenate([hexes, tets[:, tet4.DRAWN_AS]]),
+                     cell_data={"id": np.arange(7.0)})
+    m = meshio.read(tmp_path / "b.vtu")
+    assert [b.type for b in m.cells] == ["hexahedron", "tetra"]
+    assert (m.cells[0].data == hexes).all() and (m.cells[1].data == tets).all()
