@@ -179,6 +179,8 @@ def _wall_case(tmp_path: Path, kind: str):
     data = read_yaml((ROOT / "cases" / "pier_arches.yaml").read_text())
     data["assembly"] = {"mesh_file": str(tmp_path / f"{kind}.msh"),
                         "supports": [{"group": "base"}], "contact_point_rule": "overlap"}
+    if kind != "hex8":  # auto: overlap for tetrahedral blocks
+        del data["assembly"]["contact_point_rule"]
     data["loading"]["body_force"].update(rate_per_s=0.5)
     data["collapse"]["end_time_s"] = 1.6
     data["output"]["vtu"] = False
@@ -199,6 +201,17 @@ def test_an_inverted_tetrahedron_exits_2_naming_its_block(tmp_path):
     res = CliRunner().invoke(app, ["validate", str(tmp_path / "case.yaml")])
     assert res.exit_code == 2
     assert "'block 1 0'" in res.output and "tetrahedra inverted" in res.output
+
+
+def test_triangular_faces_take_the_overlap_rule_only(tmp_path):
+    """A tetrahedral block with ``contact_point_rule: lobatto``: exit 2 naming the blocks and
+    the field."""
+    data = _wall_case(tmp_path, "tet4")
+    data["assembly"]["contact_point_rule"] = "lobatto"
+    (tmp_path / "case.yaml").write_text(json.dumps(data))
+    res = CliRunner().invoke(app, ["validate", str(tmp_path / "case.yaml")])
+    assert res.exit_code == 2
+    assert "contact_point_rule" in res.output and "'block 0 0'" in res.output
 
 
 def test_a_wall_of_rigid_blocks_collapses_at_the_same_multiplier_with_tetrahedra(tmp_path):

@@ -14,7 +14,8 @@ are in the order of their tags. y is up: gravity acts along -y. SI units.
 * Joints: the generic contact detection (:mod:`masonry_nscd.model.detection`) between facing
   planar faces at most ``assembly.joint_thickness_m`` apart (group ``joint`` between two blocks
   of the structure), points by ``contact_point_rule`` (``auto``: Gauss-Lobatto, the corners of
-  the faces, where blocks hinge; a tetrahedral block's triangular faces take ``overlap``).
+  the faces, where blocks hinge; ``overlap`` when a block is meshed with tetrahedra, whose
+  triangular faces take no other rule).
 
 Before anything is built the assembly is checked (:mod:`masonry_nscd.model.mesh_checks`):
 inverted or flat elements, blocks that overlap (more than ``OVERLAP_TOL`` times the median
@@ -66,7 +67,7 @@ class AssemblyError(ValueError):
 
 @dataclass
 class AssemblyBlocks:
-    """The blocks of a checked mesh: per block its tag, name, nodes (m) and hexahedra, its
+    """The blocks of a checked mesh: per block its tag, name, nodes (m) and elements, its
     support kind (None: a block of the structure) and its material entry (None: ``blocks``)."""
 
     tags: list[int]
@@ -109,6 +110,21 @@ def _faces_overlap(bodies, a, b) -> bool:
     xs = xs.reshape(-1, 3)
     xs = xs - np.outer(xs @ b.normal - b.offset, b.normal)
     return bool(locate(bodies[b.body].X[b.quads], xs)[2].any())
+
+
+def _points_rule(a, blocks: AssemblyBlocks, rule: str) -> str:
+    """The contact-point rule of the assembly's joints: ``rule`` (the case's, ``auto``
+    resolved), or ``overlap`` when a block is meshed with tetrahedra (their triangular faces
+    take no other) and the case left it to ``auto``; AssemblyError when it named another."""
+    tets = [blocks.label(k) for k, (_, c) in enumerate(blocks.meshes) if c.shape[1] != 8]
+    if not tets or rule == "overlap":
+        return rule
+    if a.contact_point_rule == "auto":
+        return "overlap"
+    verb = "is" if len(tets) == 1 else "are"
+    raise AssemblyError("contact_point_rule", [
+        (f"{', '.join(tets)} {verb} meshed with tetrahedra, whose triangular faces take the "
+         f"rule overlap, not {rule!r}")])
 
 
 def read_assembly(a) -> AssemblyBlocks:
@@ -169,8 +185,8 @@ def read_assembly(a) -> AssemblyBlocks:
                                           for i, j in over])
     bodies = _geometry_bodies(blocks)
     joints = find_joints(bodies, max_gap=a.joint_thickness_m).joints
-    rule = a.contact_point_rule if a.contact_point_rule != "auto" else \
-        ("lobatto" if a.contact_points_per_face >= 2 else "gauss")
+    rule = _points_rule(a, blocks, a.contact_point_rule if a.contact_point_rule != "auto" else
+                        ("lobatto" if a.contact_points_per_face >= 2 else "gauss"))
     points = joint_points(bodies, joints, lambda _j, _a: (0, laws.KIND_JOINT, 0),
                           n_gauss=a.contact_points_per_face, rule=rule)
     pairs = {tuple(sorted(p.bodies)) for p in points}
@@ -252,7 +268,7 @@ def build_assembly(case) -> Scene:
         return GROUPS.index("support" if held else "joint"), laws.KIND_JOINT, 0
 
     points = joint_points(bodies, b.joints, classify, n_gauss=a.contact_points_per_face,
-                          rule=case.contact_point_rule)
+                          rule=_points_rule(a, b, case.contact_point_rule))
     params = np.atleast_2d(laws.params_from_case(case.joint))
 
     def top_middle(k: int) -> np.ndarray:
@@ -270,7 +286,8 @@ def build_assembly(case) -> Scene:
         stages=stages, push_stage="gravity", target_m=None, expected_end_s=col.end_time_s,
         time_limit_s=col.end_time_s, history={"kind": "monotonic", "cycles": []},
         collapse=rule,
-        meta={"contact_point_rule": case.contact_point_rule, "limit_state": True,
+        meta={"contact_point_rule": _points_rule(a, b, case.contact_point_rule),
+              "limit_state": True,
               "reaction_names": ["all supports", names[supports[0]]],
               "assembly": {"mesh_file": a.mesh_file, "blocks": len(structure),
                            "supports": {names[k]: b.support[k] for k in supports},
