@@ -54,11 +54,11 @@ GROUPS: dict[str, tuple[str, ...]] = {
                "masonry_nscd.nscd.newton._jacobian_entries",
                "masonry_nscd.nscd.newton.scatter_add"),
     # the ENDO3D blocks: the trial and its tangent share the material's update
-    "endo3d": ("masonry_nscd.fe.hex8.forces_from_gradients",
+    "endo3d": ("masonry_nscd.fe.element.forces_from_gradients",
                "masonry_nscd.materials.blocks.trial_forces",
                "masonry_nscd.materials.blocks.gather_element_vectors",
                "masonry_nscd.materials.endo3d.endo3d_tangent_elements",
-               "masonry_nscd.fe.hex8.stiffness_from_gradients"),
+               "masonry_nscd.fe.element.stiffness_from_gradients"),
 }
 
 #: Seconds a run waits for the second process before it goes on without it.

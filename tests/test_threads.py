@@ -108,7 +108,7 @@ def test_an_endo3d_run_on_three_threads_is_the_run_on_one(monkeypatch):
         threads.set_count(k)
         integ = build_scene(load_case("cases/smoke.yaml", sets)).integrator()
         assert len(threads.ranges(len(integ.sys.area))) == k  # the joint law split
-        nel = len(integ.material.dN)  # and the ENDO3D trial, by elements
+        nel = integ.material.nel  # and the ENDO3D trial, by elements
         assert len(threads.ranges(nel, min_size=threads.MIN_POINTS // 8)) == k
         T, its = [], 0
         for _ in range(80):

@@ -11,7 +11,9 @@ What is written
 ``write_blocks_vtu``
     an UnstructuredGrid of VTK_HEXAHEDRON cells (VTK type 12). The node order of a cell is the
     VTK one, which is also the order of ``masonry_nscd.fe.hex8``: the bottom face
-    (``zeta = -1``) counter-clockwise seen from above, then the top face in the same order.
+    (``zeta = -1``) counter-clockwise seen from above, then the top face in the same order. A
+    tetrahedron, which the outputs draw as a collapsed hexahedron (``fe.tet4.DRAWN_AS``), is
+    written as a VTK_TETRA (type 10) of its four corners.
     Point data are nodal fields (displacement, velocity, ...), cell data element fields
     (block id, damage per Gauss point as ``(ne, 8)``, ...).
 ``write_points_vtu``
@@ -55,6 +57,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from masonry_nscd.fe import tet4
 from masonry_nscd.io.atomic import PathLike, atomic_write
 
 _NUMERIC_KINDS = "biuf"
@@ -113,6 +116,10 @@ _VTK_TYPES = {np.dtype(t): n for t, n in (
     (np.int16, "Int16"), (np.uint16, "UInt16"), (np.int32, "Int32"), (np.uint32, "UInt32"),
     (np.int64, "Int64"), (np.uint64, "UInt64"))}
 _CELL_TYPES = {"hexahedron": 12, "vertex": 1}  # VTK_HEXAHEDRON, VTK_VERTEX
+VTK_TETRA = tet4.TET4.vtk_type
+#: the positions in a collapsed hexahedron of a tetrahedron's four corners (the first of each
+#: in ``fe.tet4.DRAWN_AS``)
+_TET_CORNERS = np.array([0, 1, 2, 4])
 #: bytes per compressed block (VTK's own default is 32 KiB; any size is valid)
 BLOCK_BYTES = 1 << 16
 #: zlib's level: 1 compresses the study's fields to about the size level 6 gives, in a third
@@ -195,6 +202,13 @@ def _compressed(raw: bytes, compression: str) -> bytes:
     return header.tobytes() + b"".join(blocks)
 
 
+def _collapsed_tetrahedra(cells: NDArray[np.int64]) -> NDArray[np.bool_]:
+    """Which rows of hexahedral cells (nc, 8) are tetrahedra drawn as collapsed hexahedra
+    (``fe.tet4.DRAWN_AS``: nodes ``a, b, c, c, d, d, d, d``)."""
+    same = np.all(cells == cells[:, _TET_CORNERS][:, tet4.DRAWN_AS], axis=1)
+    return same & (cells[:, 2] != cells[:, 4])
+
+
 def _write_mesh(
     path: PathLike,
     points: NDArray[np.float64],
@@ -209,11 +223,22 @@ def _write_mesh(
     if len(points) == 0 or len(cells) == 0:
         compression = None  # empty arrays: no blocks to compress (and meshio reads them so)
     nc, per = cells.shape
+    connectivity, offsets = cells.ravel(), np.arange(per, per * nc + 1, per, dtype=np.int64)
+    types = np.full(nc, _CELL_TYPES[cell_type], dtype=np.uint8)
+    if cell_type == "hexahedron":
+        tet = _collapsed_tetrahedra(cells)
+        if tet.any():  # each as a VTK_TETRA of its four corners
+            per_cell = np.where(tet, 4, 8)
+            offsets = np.cumsum(per_cell).astype(np.int64)
+            keep = np.ones(cells.shape, dtype=bool)
+            keep[tet] = np.isin(np.arange(8), _TET_CORNERS)
+            connectivity = cells[keep]
+            types[tet] = VTK_TETRA
     arrays: list[tuple[str, NDArray]] = [
         ('NumberOfComponents="3"', points),
-        ('Name="connectivity"', cells.ravel()),
-        ('Name="offsets"', np.arange(per, per * nc + 1, per, dtype=np.int64)),
-        ('Name="types"', np.full(nc, _CELL_TYPES[cell_type], dtype=np.uint8)),
+        ('Name="connectivity"', connectivity),
+        ('Name="offsets"', offsets),
+        ('Name="types"', types),
     ]
     for data in (point_data, cell_data):
         for name, a in data.items():

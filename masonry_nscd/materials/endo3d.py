@@ -825,14 +825,16 @@ def _trial_basis(s, Q, epsR, state_in, xe, open_tol):
 
 @njit(cache=True)
 def _edge_tensor(xe, Et):
-    """``Et = a1 a1^T + 2 a2 a2^T + 3 a3 a3^T`` (m^2) from three edges of the hexahedron, node
-    0 to nodes 1, 3 and 4 (hex8 order): a tensor of the element with distinct eigenvalues
-    (also for a cube), the last tie-break of :func:`_refine_basis`."""
+    """``Et = a1 a1^T + 2 a2 a2^T + 3 a3 a3^T`` (m^2) from three edges of the element, node
+    0 to nodes 1, 3 and 4 of a hexahedron (hex8 order), to nodes 1, 2 and 3 of a tetrahedron
+    (the three edges at its corner 0): a tensor of the element with distinct eigenvalues (also
+    for a cube), the last tie-break of :func:`_refine_basis`."""
     for i in range(3):
         for j in range(3):
             Et[i, j] = 0.0
+    hexahedron = xe.shape[0] == 8
     for k in range(3):
-        nk = 1 if k == 0 else (3 if k == 1 else 4)
+        nk = k + 1 if not hexahedron else (1 if k == 0 else (3 if k == 1 else 4))
         c = float(k + 1)
         for i in range(3):
             for j in range(3):
@@ -1979,7 +1981,8 @@ def endo3d_update(eps, state_in, params, xe, state_out, sigma):
     ``eps`` (6,): total strain, Voigt [xx, yy, zz, yz, xz, xy], engineering shear (-).
     ``state_in`` (N_STATE,): converged state of the previous step (read only).
     ``params`` (N_PARAMS,): from :func:`endo3d_params`.
-    ``xe`` (8, 3): node coordinates (m) of the hexahedron, for the Hillerborg lengths.
+    ``xe`` (nodes, 3): node coordinates (m) of the element (a hexahedron or a tetrahedron),
+    for the Hillerborg lengths.
     ``state_out`` (N_STATE,): written. ``sigma`` (6,): apparent stress (Pa), true shear, written.
     Returns 0 (the written state satisfies the Kuhn-Tucker conditions of the return mapping),
     or 1 when no active set satisfies them (cutting-plane passes not converged or cycling,

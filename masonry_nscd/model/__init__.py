@@ -1,5 +1,6 @@
-"""The block assembly: bodies with hexahedral meshes, their faces, the joints found between
-them and the contact points that sample the joints. Nothing here integrates in time.
+"""The block assembly: bodies with meshes (hexahedra or tetrahedra), their faces, the joints
+found between them and the contact points that sample the joints. Nothing here integrates in
+time.
 
 Scene builders (:mod:`masonry_nscd.scenes`) make the bodies; :mod:`~masonry_nscd.model.detection`
 finds the joints and places their contact points; ``nscd.system.build_system`` numbers the dofs

@@ -1,14 +1,16 @@
-r"""Bodies of a block assembly: deformable blocks and rigid bodies, each with a hexahedral mesh.
+r"""Bodies of a block assembly: deformable blocks and rigid bodies, each with a mesh.
 
-A **block** (:class:`Block`) is a hexahedral mesh of any 8-node shape (the elements of
-:mod:`masonry_nscd.fe.hex8` are isoparametric), with a material (linear elastic or ENDO3D), E,
-nu and density. Its degrees of freedom are three translations per node (m).
+A **block** (:class:`Block`) is a mesh of one element type (8-node hexahedra, 4- or 10-node
+tetrahedra: :mod:`masonry_nscd.fe.catalog`, found by the cells' node count; the elements are
+isoparametric), with a material (linear elastic or ENDO3D), E, nu and density. Its degrees of
+freedom are three translations per node (m).
 
 A **rigid body** (:class:`RigidBody`) has six degrees of freedom ``(u_x, u_y, u_z, rot_x, rot_y,
 rot_z)`` (m, rad; small rotations) about its reference point ``reference`` (m). Its mesh, if it
 has one, is geometry only: the faces that contact detection sees and the cells that the outputs
-draw. A box or any body meshed with hexahedra (a wedge, a voussoir) has its mass, centre of
-mass and inertia tensor from its mesh (:meth:`RigidBody.from_mesh`) or in closed form
+draw. A box or any body meshed with hexahedra or tetrahedra (a wedge, a voussoir, a stone of
+any polyhedral shape) has its mass, centre of mass and inertia tensor from its mesh
+(:meth:`RigidBody.from_mesh`: exact for parallelepipeds and for any tetrahedral mesh) or in closed form
 (:meth:`RigidBody.box`). With the centre of mass ``c`` and ``d = c - reference``, the velocity of
 a material point is ``v = v_0 + omega x (x - reference)`` and the mass matrix
 
@@ -28,7 +30,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from masonry_nscd.fe import element as solid
 from masonry_nscd.fe import hex8
+from masonry_nscd.fe.catalog import element_of
 from masonry_nscd.loading import History, at_rest
 
 DOF_FREE = 0
@@ -48,7 +52,8 @@ def cross_matrix(d: np.ndarray) -> np.ndarray:
 
 @dataclass
 class Block:
-    """A deformable block: a hexahedral mesh (nodes ``X`` (n, 3) m, cells ``conn`` (ne, 8))."""
+    """A deformable block: a mesh of one element type (nodes ``X`` (n, 3) m, cells ``conn``
+    (ne, nodes): 8 for hexahedra, 4 or 10 for tetrahedra)."""
 
     X: np.ndarray
     conn: np.ndarray
@@ -74,9 +79,14 @@ class Block:
     def ndof(self) -> int:
         return 3 * len(self.X)
 
+    @property
+    def element(self) -> solid.Element:
+        """The element type of the block's cells."""
+        return element_of(self.conn)
+
     def lumped_mass(self) -> np.ndarray:
         """Lumped mass per dof (3n,), kg."""
-        return hex8.lumped_mass(self.X, self.conn, self.density)
+        return solid.lumped_mass(self.X, self.conn, self.density, self.element)
 
 
 @dataclass
@@ -155,22 +165,14 @@ class RigidBody:
 
     @staticmethod
     def from_mesh(X, conn, density: float, **kw) -> RigidBody:
-        """A rigid body of uniform density (kg/m^3) with the shape of a hexahedral mesh: mass,
-        centre of mass and inertia tensor by the 2x2x2 Gauss rule of the elements (exact for
-        parallelepipeds)."""
+        """A rigid body of uniform density (kg/m^3) with the shape of a mesh of hexahedra or
+        tetrahedra: mass, centre of mass and inertia tensor by the element's ``mass_rule``
+        (:func:`masonry_nscd.fe.element.mass_properties`: the 2x2x2 Gauss rule of hexahedra,
+        exact for parallelepipeds; the degree-2 rule of tetrahedra, exact for any tetrahedral
+        mesh with straight edges, the sum over its tetrahedra)."""
         X = np.asarray(X, dtype=float)
         conn = np.asarray(conn, dtype=np.int64)
-        mass, first, second = 0.0, np.zeros(3), np.zeros((3, 3))
-        for cell in conn:
-            xe = X[cell]
-            for g in range(8):
-                N, _ = hex8.shape(*hex8.GAUSS_POINTS[g])
-                _, detJ = hex8.b_matrix(xe, *hex8.GAUSS_POINTS[g])
-                x = N @ xe
-                w = density * detJ
-                mass += w
-                first += w * x
-                second += w * np.outer(x, x)
+        mass, first, second = solid.mass_properties(X, conn, density, element_of(conn))
         if not mass > 0.0:
             raise ValueError("a rigid body's mesh has no volume")
         c = first / mass

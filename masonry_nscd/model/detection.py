@@ -52,7 +52,14 @@ import numpy as np
 
 from masonry_nscd.model import overlap
 from masonry_nscd.model.bodies import RigidBody
-from masonry_nscd.model.faces import Patch, gauss_points, locate, planar_patches
+from masonry_nscd.model.faces import (
+    Patch,
+    corner_count,
+    gauss_points,
+    locate,
+    planar_patches,
+    triangle_coordinates,
+)
 from masonry_nscd.model.points import (
     ContactPoint,
     deformable_side,
@@ -182,6 +189,14 @@ def joint_points(bodies: Sequence, joints: Sequence[Joint],
     dof0 = dof_offsets(bodies) if dof0 is None else dof0
     if rule == "overlap":
         return _overlap_points(bodies, joints, classify, dof0)
+    for jt in joints:
+        for patch in (jt.candidate, *jt.antagonists):
+            if corner_count(patch.faces) != 4:
+                b = bodies[patch.body]
+                raise ValueError(
+                    f"body {patch.body}{f' ({b.name!r})' if b.name else ''} has triangular "
+                    f"faces (a tetrahedral mesh): its joints take the contact-point rule "
+                    f"'overlap', not {rule!r}")
     out: list[ContactPoint] = []
     faces = 0  # element faces of the candidates, numbered joint after joint
     for jt in joints:
@@ -233,10 +248,10 @@ def joint_points(bodies: Sequence, joints: Sequence[Joint],
 def _overlap_points(bodies: Sequence, joints: Sequence[Joint], classify, dof0: np.ndarray
                     ) -> list[ContactPoint]:
     """The contact points of ``joints`` on the common areas of their faces (rule ``overlap``,
-    :mod:`masonry_nscd.model.overlap`): each candidate quad clipped by each antagonist quad in
-    the candidate's plane; on two rigid faces a point at each corner of the common area (the
-    corners that adjacent common areas share made once, with the sum of their areas), else the
-    degree-2 points of its triangles."""
+    :mod:`masonry_nscd.model.overlap`): each candidate face clipped by each antagonist face in
+    the candidate's plane (quadrilaterals or triangles, by their corners); on two rigid faces a
+    point at each corner of the common area (the corners that adjacent common areas share made
+    once, with the sum of their areas), else the degree-2 points of its triangles."""
     out: list[ContactPoint] = []
     faces = 0
     for jt in joints:
@@ -245,7 +260,7 @@ def _overlap_points(bodies: Sequence, joints: Sequence[Joint], classify, dof0: n
         frame = joint_frame(jt.normal)
         n_out = cand.normal
         basis = overlap.plane_basis(n_out)
-        Pc = cb.X[cand.quads]  # (nq, 4, 3)
+        Pc = cb.X[cand.corners]  # (nq, 4 or 3, 3)
         origin = Pc[0, 0]
         size = float(np.ptp(Pc.reshape(-1, 3), axis=0).max())
         for ant in jt.antagonists:
@@ -254,7 +269,7 @@ def _overlap_points(bodies: Sequence, joints: Sequence[Joint], classify, dof0: n
                 continue
             group, kind, law = tag
             ab = bodies[ant.body]
-            Pa = ab.X[ant.quads]
+            Pa = ab.X[ant.corners]
             rigid = isinstance(cb, RigidBody) and isinstance(ab, RigidBody)
             found = []  # (candidate quad, antagonist quad, points in the plane, areas)
             for q in range(len(Pc)):
@@ -300,9 +315,13 @@ def _merged_corners(found: list, tol: float) -> list:
             for k, i in enumerate(first)]
 
 
-def _reference(quad: np.ndarray, x: np.ndarray) -> tuple[float, float]:
-    """The reference coordinates of point ``x`` (3,) in ``quad`` (4, 3)."""
-    xi, eta, _ = locate(quad[None], x[None])
+def _reference(face: np.ndarray, x: np.ndarray) -> tuple[float, float]:
+    """The reference coordinates of point ``x`` (3,) in the face with corners ``face`` (4 or
+    3, 3): of the bilinear map of a quadrilateral, or of a triangle
+    (:func:`~masonry_nscd.model.faces.triangle_coordinates`)."""
+    if len(face) == 3:
+        return triangle_coordinates(face, x)
+    xi, eta, _ = locate(face[None], x[None])
     return float(xi[0, 0]), float(eta[0, 0])
 
 

@@ -1,10 +1,16 @@
-r"""Faces of hexahedral meshes: boundary quads, planar patches, points on and in quads.
+r"""Faces of block meshes: boundary faces, planar patches, points on and in faces.
 
 The boundary of a mesh is the set of element faces that belong to one element only. Each face
-quad is ordered so that the right-hand rule gives its outward normal (``HEX_FACES``). Boundary
-quads that lie in one plane with the same outward normal form a **patch** (the six sides of a
-box; the joint faces of a voussoir): contact detection pairs patches, and sits contact points on
-the quads of a patch.
+is ordered so that the right-hand rule gives its outward normal (the element's ``faces``,
+:mod:`masonry_nscd.fe.element`): quadrilaterals of hexahedra, triangles of 4-node tetrahedra,
+six-node triangles (corners first) of 10-node tetrahedra. Boundary faces that lie in one plane
+with the same outward normal form a **patch** (the six sides of a box; the joint faces of a
+voussoir): contact detection pairs patches, and sits contact points on the faces of a patch.
+
+A point of a triangle with corners ``P_0, P_1, P_2`` has the reference coordinates ``(r, s)``
+of ``x = (1 - r - s) P_0 + r P_1 + s P_2``; its shape functions are the linear ones on a
+three-node triangle, ``L_i (2 L_i - 1)`` at the corners and ``4 L_i L_j`` at the edge nodes of a
+six-node one (``L = (1 - r - s, r, s)``, straight edges).
 
 Bilinear map of a quad with nodes ``P_0..P_3``::
 
@@ -21,20 +27,64 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: Local node numbers of the six faces of the 8-node hexahedron (VTK order), each ordered
-#: counter-clockwise seen from outside: x-min, x-max, y-min, y-max, z-min, z-max.
-HEX_FACES = np.array([[0, 4, 7, 3], [1, 2, 6, 5], [0, 1, 5, 4], [3, 7, 6, 2], [0, 3, 2, 1],
-                      [4, 5, 6, 7]], dtype=np.int64)
+from masonry_nscd.fe import hex8
+from masonry_nscd.fe.catalog import element_of
+
+#: Local node numbers of the six faces of the 8-node hexahedron (``fe.hex8.FACES``)
+HEX_FACES = hex8.FACES
 _CORNERS = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
 
 
-def boundary_quads(conn: np.ndarray) -> np.ndarray:
-    """Node numbers (nq, 4) of the element faces that belong to one element only, each ordered
-    so that its outward normal follows the right-hand rule; in element order, then face order."""
-    faces = conn[:, HEX_FACES].reshape(-1, 4)
+def boundary_faces(conn: np.ndarray) -> np.ndarray:
+    """Node numbers (nf, face nodes) of the element faces that belong to one element only,
+    each ordered so that its outward normal follows the right-hand rule; in element order, then
+    face order. The cells' element type is found by their node count."""
+    local = element_of(conn).faces
+    faces = conn[:, local].reshape(-1, local.shape[1])
     _, inverse, counts = np.unique(np.sort(faces, axis=1), axis=0, return_inverse=True,
                                    return_counts=True)
     return faces[counts[inverse.ravel()] == 1]
+
+
+def boundary_quads(conn: np.ndarray) -> np.ndarray:
+    """The boundary faces (nq, 4) of a hexahedral mesh (:func:`boundary_faces`)."""
+    return boundary_faces(conn)
+
+
+def corner_count(faces: np.ndarray) -> int:
+    """The corners of faces (nf, face nodes): 4 for quadrilaterals, 3 for triangles (of 3 or
+    6 nodes)."""
+    return 4 if faces.shape[1] == 4 else 3
+
+
+def face_shape(nodes: int, r: float, s: float) -> np.ndarray:
+    """Shape functions (nodes,) of a face of ``nodes`` nodes at its reference coordinates:
+    bilinear on a quadrilateral (``(r, s) = (xi, eta)`` in [-1, 1]^2), linear or quadratic on a
+    triangle (module docstring)."""
+    if nodes == 4:
+        return shape4(r, s)
+    L = np.array([1.0 - r - s, r, s])
+    if nodes == 3:
+        return L
+    return np.concatenate([L * (2.0 * L - 1.0), 4.0 * L * L[[1, 2, 0]]])
+
+
+def triangle_coordinates(P: np.ndarray, x: np.ndarray) -> tuple[float, float]:
+    """The reference coordinates ``(r, s)`` of point ``x`` (3,) projected on the plane of the
+    triangle with corners ``P`` (3, 3)."""
+    a, b = P[1] - P[0], P[2] - P[0]
+    G = np.array([[a @ a, a @ b], [a @ b, b @ b]])
+    r, s = np.linalg.solve(G, np.array([a @ (x - P[0]), b @ (x - P[0])]))
+    return float(r), float(s)
+
+
+def face_frame(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit outward normal and centre of faces ``P`` (..., corners, 3): :func:`quad_frame` for
+    quadrilaterals, ``(P_1 - P_0) x (P_2 - P_0)`` and the mean of the corners for triangles."""
+    if P.shape[-2] == 4:
+        return quad_frame(P)
+    n = np.cross(P[..., 1, :] - P[..., 0, :], P[..., 2, :] - P[..., 0, :])
+    return n / np.linalg.norm(n, axis=-1, keepdims=True), P.mean(axis=-2)
 
 
 def shape4(xi, eta) -> np.ndarray:
@@ -118,34 +168,46 @@ def locate(P: np.ndarray, x: np.ndarray, tol: float = 1e-9, iterations: int = 8)
 
 @dataclass
 class Patch:
-    """A planar set of boundary quads of one body with one outward normal."""
+    """A planar set of boundary faces of one body with one outward normal."""
 
     body: int
     normal: np.ndarray  # (3,) outward unit normal
     offset: float  # m, ``normal . x`` on the plane
-    quads: np.ndarray  # (k, 4) node numbers of the body's mesh
+    faces: np.ndarray  # (k, face nodes) node numbers of the body's mesh, corners first
     lo: np.ndarray  # (3,) bounding box, m
     hi: np.ndarray
+
+    @property
+    def quads(self) -> np.ndarray:
+        """The faces (named for the quadrilaterals of hexahedral meshes)."""
+        return self.faces
+
+    @property
+    def corners(self) -> np.ndarray:
+        """The corner nodes of the faces (k, 4 or 3)."""
+        return self.faces[:, :corner_count(self.faces)]
 
 
 def planar_patches(body_index: int, X: np.ndarray, conn: np.ndarray, *,
                    angle_tol: float = 1e-6, dist_tol: float = 1e-9) -> list[Patch]:
-    """The boundary quads of a mesh grouped by plane (outward normals within ``angle_tol``
-    rad, plane offsets within ``dist_tol`` m); patches in order of their first quad.
+    """The boundary faces of a mesh grouped by plane (outward normals within ``angle_tol``
+    rad, plane offsets within ``dist_tol`` m); patches in order of their first face.
 
-    Raises ValueError for a warped boundary quad (a corner more than ``1e-6`` of the quad's size
+    Raises ValueError for a warped boundary face (a node more than ``1e-6`` of the face's size
     off its mean plane), which no planar joint can be built on.
     """
     if not len(conn):
         return []
-    quads = boundary_quads(conn)
+    quads = boundary_faces(conn)
+    nc = corner_count(quads)
     P = X[quads]
-    n, c = quad_frame(P)
-    size = np.linalg.norm(P[:, 2] - P[:, 0], axis=-1)
+    n, c = face_frame(P[:, :nc])
+    size = np.linalg.norm(P[:, 2] - P[:, 0], axis=-1) if nc == 4 else \
+        np.linalg.norm(P[:, :nc] - P[:, [1, 2, 0]], axis=-1).max(axis=1)
     warp = np.abs(np.einsum("qid,qd->qi", P - c[:, None, :], n)).max(axis=1)
     if np.any(warp > 1e-6 * size):
         q = int(np.argmax(warp / size))
-        raise ValueError(f"a boundary face of body {body_index} is not planar (a corner "
+        raise ValueError(f"a boundary face of body {body_index} is not planar (a node "
                          f"{warp[q]:.3g} m off its plane)")
     offset = np.einsum("qd,qd->q", n, c)
     label = np.full(len(quads), -1)

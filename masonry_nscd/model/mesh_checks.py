@@ -2,15 +2,18 @@ r"""Checks of a block assembly read from a mesh: inverted elements, overlapping 
 that nothing holds. Kernels on plain arrays (m); :mod:`masonry_nscd.scenes.assembly` names the
 blocks in its messages.
 
-* **Inverted or flat element**: the Jacobian ``J = dx / dxi`` of the trilinear map of an 8-node
-  hexahedron (:mod:`masonry_nscd.fe.hex8`, VTK node order) at its eight corners,
-  ``det J = (dx/dxi x dx/deta) . dx/dzeta``; an element whose smallest corner determinant is
-  at most ``1e-12`` times its volume / 8 (the mean determinant) is inverted (nodes listed
-  clockwise), flat or tangled.
+* **Inverted or flat element**: the Jacobian ``J = dx / dxi`` of the element's map
+  (:mod:`masonry_nscd.fe.element`, VTK node order) at its corners,
+  ``det J = (dx/dxi x dx/deta) . dx/dzeta``: at the eight corners of an 8-node hexahedron, at
+  the four of a tetrahedron (``6 V`` for a 4-node one); an element whose smallest corner
+  determinant is at most ``1e-12`` times its mean determinant, or times the cube of its
+  largest extent, is inverted (nodes listed clockwise), flat (four corners in a plane) or
+  tangled.
 * **Overlap**: a point of block A strictly inside an element of block B. The points tried are
   A's nodes, the centres of its elements, of their faces and of their edges; "strictly inside"
-  is more than ``tol`` (m) inside each of the six face planes of B's element (planes through
-  the face centres, normals from the face diagonals: exact for planar faces). Two blocks that
+  is more than ``tol`` (m) inside each of the face planes of B's element (planes through
+  the face centres, normals from the face diagonals or a triangle's edges: exact for planar
+  faces). Two blocks that
   only touch (a joint) have no point inside each other. Overlaps in which none of those points
   of either block lies inside the other (two long bars crossing mid-edge) are not seen.
 * **Held**: the graph whose nodes are the blocks and whose edges are the joints found by the
@@ -24,49 +27,49 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-from masonry_nscd.fe.hex8 import NODE_SIGNS, shape_at
-from masonry_nscd.model.faces import HEX_FACES
+from masonry_nscd.fe.catalog import element_of
+from masonry_nscd.model.faces import face_frame
 
 #: An element whose smallest corner determinant is at most this times its mean is inverted.
 FLAT_RATIO = 1e-12
-_EDGES = np.array([[0, 1], [1, 2], [2, 3], [3, 0], [4, 5], [5, 6], [6, 7], [7, 4], [0, 4],
-                   [1, 5], [2, 6], [3, 7]])
 
 
 def corner_jacobians(X: np.ndarray, conn: np.ndarray) -> np.ndarray:
-    """``det J`` (e, 8) of each hexahedron at its eight corners (m^3 per unit reference
+    """``det J`` (e, corners) of each element at its corners (m^3 per unit reference
     volume)."""
-    _, dN = shape_at(NODE_SIGNS)  # (8 corners, 8 nodes, 3)
+    el = element_of(conn)
+    _, dN = el.shape_at(el.corners)  # (corners, nodes, 3)
     J = np.einsum("eai,gak->egik", X[conn], dN)
     return np.linalg.det(J)
 
 
 def inverted_elements(X: np.ndarray, conn: np.ndarray) -> np.ndarray:
-    """Indices of the inverted, flat or tangled hexahedra (module docstring)."""
+    """Indices of the inverted, flat or tangled elements (module docstring)."""
     det = corner_jacobians(X, conn)
-    scale = np.abs(det).mean(axis=1)
+    extent = np.ptp(X[conn], axis=1).max(axis=1)
+    scale = np.maximum(np.abs(det).mean(axis=1), extent ** 3)
     return np.flatnonzero(det.min(axis=1) <= FLAT_RATIO * scale)
 
 
 def probe_points(X: np.ndarray, conn: np.ndarray) -> np.ndarray:
     """The points of a block tried against the others (module docstring), (p, 3)."""
+    el = element_of(conn)
     xe = X[conn]
-    faces = xe[:, HEX_FACES].mean(axis=2).reshape(-1, 3)
-    edges = xe[:, _EDGES].mean(axis=2).reshape(-1, 3)
+    faces = xe[:, el.faces[:, :el.face_corners]].mean(axis=2).reshape(-1, 3)
+    edges = xe[:, el.edges].mean(axis=2).reshape(-1, 3)
     return np.concatenate([X[np.unique(conn)], xe.mean(axis=1), faces, edges])
 
 
 def _face_planes(X: np.ndarray, conn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Outward unit normals and centres (e, 6, 3) of the faces of each hexahedron."""
-    P = X[conn][:, HEX_FACES]  # (e, 6, 4, 3)
-    n = np.cross(P[..., 2, :] - P[..., 0, :], P[..., 3, :] - P[..., 1, :])
-    n /= np.linalg.norm(n, axis=-1, keepdims=True)
-    return n, P.mean(axis=2)
+    """Outward unit normals and centres (e, faces, 3) of the faces of each element."""
+    el = element_of(conn)
+    P = X[conn][:, el.faces[:, :el.face_corners]]  # (e, faces, corners, 3)
+    return face_frame(P)
 
 
 def points_inside(points: np.ndarray, X: np.ndarray, conn: np.ndarray,
                   tol: float) -> np.ndarray:
-    """Whether each point (p, 3) lies more than ``tol`` (m) inside some hexahedron of the mesh
+    """Whether each point (p, 3) lies more than ``tol`` (m) inside some element of the mesh
     ``(X, conn)``, (p,) bool."""
     if not len(points):
         return np.zeros(0, dtype=bool)

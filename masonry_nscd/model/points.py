@@ -4,7 +4,8 @@ A contact point sits on the candidate face of a joint. It carries a tributary ar
 (n, t, s) with ``n`` from the antagonist to the candidate (so that ``u_n > 0`` opens the joint)
 and ``s = n x t``, the initial gap (m), the kind and law row of the joint and its group, and per
 side the map from the body's dof velocities to the point's local relative velocity: bilinear
-shape functions of the face quad on a block, lever arms on a rigid body.
+shape functions of the face (quadrilateral or triangle) on a block, lever arms on a rigid
+body.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from masonry_nscd.model.bodies import RigidBody
+from masonry_nscd.model.faces import face_shape
 
 
 @dataclass
@@ -62,15 +64,21 @@ def dof_offsets(bodies) -> np.ndarray:
 
 
 def deformable_side(dof0: int, nodes, xi: float, eta: float, frame, sign: float):
-    """Velocity map of a point at (xi, eta) of a bilinear face quad of a block.
+    """Velocity map of a point at reference coordinates (xi, eta) of a face of a block.
 
-    ``v(x) = sum_i N_i(xi, eta) v_i`` with the quad's bilinear shape functions (nodes in the
-    quad's order); the local relative velocity picks ``sign * frame @ v(x)``.
+    ``v(x) = sum_i N_i(xi, eta) v_i`` with the face's shape functions (nodes in the face's
+    order): bilinear on a four-node quadrilateral, linear or quadratic on a three- or six-node
+    triangle (:func:`masonry_nscd.model.faces.face_shape`); the local relative velocity picks
+    ``sign * frame @ v(x)``.
     """
-    Nq = 0.25 * np.array([(1 - xi) * (1 - eta), (1 + xi) * (1 - eta),
-                          (1 + xi) * (1 + eta), (1 - xi) * (1 + eta)])
-    dofs = (dof0 + 3 * np.asarray(nodes, dtype=np.int64)[:, None] + np.arange(3)).ravel()
-    coef = sign * (Nq[:, None, None] * np.asarray(frame).T[None, :, :]).reshape(12, 3)
+    nodes = np.asarray(nodes, dtype=np.int64)
+    if len(nodes) == 4:
+        Nq = 0.25 * np.array([(1 - xi) * (1 - eta), (1 + xi) * (1 - eta),
+                              (1 + xi) * (1 + eta), (1 - xi) * (1 + eta)])
+    else:
+        Nq = face_shape(len(nodes), xi, eta)
+    dofs = (dof0 + 3 * nodes[:, None] + np.arange(3)).ravel()
+    coef = sign * (Nq[:, None, None] * np.asarray(frame).T[None, :, :]).reshape(3 * len(nodes), 3)
     return dofs, coef
 
 

@@ -31,10 +31,12 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from masonry_nscd.fe import hex8
+from masonry_nscd.fe import element as solid
 from masonry_nscd.model import DOF_IMPOSED, Block, ContactPoint, RigidBody
 from masonry_nscd.nscd.block_diagonal import BlockDiagonal, grouped_offsets
 
+#: The dofs of a side of a contact point: 12 for a bilinear face (4 nodes) or a rigid body (6);
+#: a point on a six-node triangle (a 10-node tetrahedron's face) widens the arrays to 18
 MAX_SIDE_DOFS = 12
 
 
@@ -59,8 +61,8 @@ class DofLayout:
     law: np.ndarray  # (npt,)
     area: np.ndarray  # (npt,) m^2
     frame: np.ndarray  # (npt, 3, 3)
-    side_dofs: np.ndarray  # (npt, 2, 12), -1 padded
-    side_coef: np.ndarray  # (npt, 2, 12, 3)
+    side_dofs: np.ndarray  # (npt, 2, MAX_SIDE_DOFS or more), -1 padded
+    side_coef: np.ndarray  # (npt, 2, MAX_SIDE_DOFS or more, 3)
     side_body: np.ndarray  # (npt, 2), -1 for none
 
     @property
@@ -83,8 +85,8 @@ class DofLayout:
         imposed = []
         for i, b in enumerate(bodies):
             if isinstance(b, Block):
-                K, m = hex8.assemble_block(b.X, b.conn, hex8.elastic_matrix(b.E, b.nu),
-                                           b.density)
+                K, m = solid.assemble_block(b.X, b.conn, solid.elastic_matrix(b.E, b.nu),
+                                            b.density, b.element)
                 k[k_off[i]:k_off[i] + K.size] = K.ravel()
             else:
                 assert isinstance(b, RigidBody)
@@ -92,8 +94,9 @@ class DofLayout:
                 imposed += [body_dof0[i] + d for d in range(6) if b.dof_mode[d] == DOF_IMPOSED]
             mass[body_dof0[i]:body_dof0[i + 1]] = m
         npt = len(points)
-        side_dofs = np.full((npt, 2, MAX_SIDE_DOFS), -1, dtype=np.int64)
-        side_coef = np.zeros((npt, 2, MAX_SIDE_DOFS, 3))
+        width = max([MAX_SIDE_DOFS] + [len(d) for p in points for d, _ in p.sides])
+        side_dofs = np.full((npt, 2, width), -1, dtype=np.int64)
+        side_coef = np.zeros((npt, 2, width, 3))
         side_body = np.full((npt, 2), -1, dtype=np.int64)
         for a, p in enumerate(points):
             for s, ((dofs, coef), bi) in enumerate(zip(p.sides, p.bodies)):

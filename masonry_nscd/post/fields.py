@@ -1,12 +1,13 @@
 r"""Fields of one step, from the integrator's state: what the recorders write (SI units).
 
 The output mesh is the structure of the scene (its units, not the supports): every body's
-hexahedra, nodes numbered body after body, ``block_of_element`` the position of the element's
+elements drawn as hexahedra (a tetrahedron as a collapsed one: ``Element.drawn_as``; a 10-node
+one by its corners, its edge nodes among the nodes), nodes numbered body after body, ``block_of_element`` the position of the element's
 body in ``scene.structure``. Per step:
 
 * nodal displacements (m): the dofs of a block; ``q_0 + theta x (x - x_ref)`` on a rigid body
   (small rotations about its reference point);
-* per element: the mean stress over the 8 Gauss points (Pa, Voigt ``[xx, yy, zz, yz, xz, xy]``):
+* per element: the mean stress over its Gauss points (Pa, Voigt ``[xx, yy, zz, yz, xz, xy]``):
   ``C0 eps`` for linear elastic blocks, the apparent (damaged) stress for ENDO3D blocks, zero on
   rigid bodies; its von Mises equivalent ``sqrt(3 J2)``; the ENDO3D damages ``d_c``, ``d_cpp``,
   the largest ``d_t`` and crack opening (m), zero elsewhere;
@@ -23,14 +24,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from masonry_nscd.contact import laws
-from masonry_nscd.fe import hex8
+from masonry_nscd.fe import element as solid
+from masonry_nscd.fe.catalog import element_of
 from masonry_nscd.model import Block, RigidBody
 from masonry_nscd.post.limit import classify_joints, state_codes
 
 
 @dataclass
 class OutputMesh:
-    """The hexahedra of the scene's structure (reference coordinates, m)."""
+    """The elements of the scene's structure drawn as hexahedra (reference coordinates, m)."""
 
     bodies: list[int]  # scene body index of each structure body
     nodes: np.ndarray  # (nn, 3)
@@ -45,10 +47,17 @@ class OutputMesh:
         n_off = np.cumsum([0] + [len(g.X) for g in geoms])
         e_off = np.cumsum([0] + [len(g.conn) for g in geoms])
         nodes = np.concatenate([g.X for g in geoms]) if geoms else np.zeros((0, 3))
-        hexes = np.concatenate([g.conn + n_off[k] for k, g in enumerate(geoms)]) if geoms \
-            else np.zeros((0, 8), dtype=np.int64)
+        hexes = np.concatenate([_drawn(g.conn) + n_off[k] for k, g in enumerate(geoms)]) \
+            if geoms else np.zeros((0, 8), dtype=np.int64)
         owner = np.repeat(np.arange(len(geoms)), np.diff(e_off))
         return cls(list(scene.structure), nodes, hexes, owner, n_off, e_off)
+
+
+def _drawn(conn: np.ndarray) -> np.ndarray:
+    """Cells (ne, 8) of the hexahedra that draw the elements ``conn`` (module docstring)."""
+    if not len(conn) or conn.shape[1] == 8:
+        return conn.reshape(-1, 8)
+    return conn[:, element_of(conn).drawn_as]
 
 
 def point_initial_damage(params: np.ndarray, kind: np.ndarray, law: np.ndarray) -> np.ndarray:
@@ -91,11 +100,11 @@ class StepFields:
 
     def _stress_map(self, i: int) -> np.ndarray:
         """The map from the nodal displacements of elastic block ``i`` to its elements' mean
-        stresses (``hex8.mean_stress_map``), built once."""
+        stresses (``fe.element.mean_stress_map``), built once."""
         if i not in self._stress_maps:
             body = self.integ.bodies[i]
-            self._stress_maps[i] = hex8.mean_stress_map(
-                body.X, body.conn, hex8.elastic_matrix(body.E, body.nu))
+            self._stress_maps[i] = solid.mean_stress_map(
+                body.X, body.conn, solid.elastic_matrix(body.E, body.nu), body.element)
         return self._stress_maps[i]
 
     def joint_damage(self) -> np.ndarray:

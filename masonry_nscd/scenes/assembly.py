@@ -1,20 +1,21 @@
 r"""A block assembly read from a mesh file: the builder of an ``assembly:`` case (issue 18).
 
-The mesh (:func:`masonry_nscd.io.mesh_file.read_block_mesh`) is a set of 8-node hexahedra,
-each tagged with its block (Gmsh: its physical volume); the hexahedra of one tag are one
-block, named by its physical name (or ``block <tag>``), its nodes renumbered from 0. Blocks
+The mesh (:func:`masonry_nscd.io.mesh_file.read_block_mesh`) is a set of 8-node hexahedra
+and 4- or 10-node tetrahedra, each tagged with its block (Gmsh: its physical volume); the
+elements of one tag are one block (of one element type), named by its physical name (or ``block <tag>``), its nodes renumbered from 0. Blocks
 are in the order of their tags. y is up: gravity acts along -y. SI units.
 
 * A block named in ``assembly.supports`` is a fixed support (a rigid body whose six dofs are
   held at rest); its joints with the structure follow the joint law (``kind: fixed``, group
   ``support``) or are glued (``kind: glued``, group ``glue``: no opening, no slip).
 * Every other block is the structure's: rigid (:meth:`RigidBody.from_mesh`: mass, centre and
-  inertia of its hexahedra) or elastic, its material from ``assembly.materials`` (by name or
+  inertia of its elements) or elastic, its material from ``assembly.materials`` (by name or
   tag) or from ``blocks``.
 * Joints: the generic contact detection (:mod:`masonry_nscd.model.detection`) between facing
   planar faces at most ``assembly.joint_thickness_m`` apart (group ``joint`` between two blocks
   of the structure), points by ``contact_point_rule`` (``auto``: Gauss-Lobatto, the corners of
-  the faces, where blocks hinge).
+  the faces, where blocks hinge; ``overlap`` when a block is meshed with tetrahedra, whose
+  triangular faces take no other rule).
 
 Before anything is built the assembly is checked (:mod:`masonry_nscd.model.mesh_checks`):
 inverted or flat elements, blocks that overlap (more than ``OVERLAP_TOL`` times the median
@@ -39,7 +40,7 @@ import numpy as np
 from masonry_nscd.contact import laws
 from masonry_nscd.io.mesh_file import MeshFileError, read_block_mesh
 from masonry_nscd.loading import at_rest
-from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody
+from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody, overlap
 from masonry_nscd.model.detection import find_joints, joint_points
 from masonry_nscd.model.faces import gauss_points, locate
 from masonry_nscd.model.mesh_checks import inverted_elements, overlapping_pairs, unheld_blocks
@@ -66,7 +67,7 @@ class AssemblyError(ValueError):
 
 @dataclass
 class AssemblyBlocks:
-    """The blocks of a checked mesh: per block its tag, name, nodes (m) and hexahedra, its
+    """The blocks of a checked mesh: per block its tag, name, nodes (m) and elements, its
     support kind (None: a block of the structure) and its material entry (None: ``blocks``)."""
 
     tags: list[int]
@@ -97,11 +98,33 @@ def _geometry_bodies(blocks: AssemblyBlocks) -> list[RigidBody]:
 
 def _faces_overlap(bodies, a, b) -> bool:
     """Whether an inner Gauss point of patch ``a``, projected along ``b``'s normal, falls in
-    patch ``b`` (the two faces share some area, not only an edge)."""
+    patch ``b`` (the two faces share some area, not only an edge); for triangular faces,
+    whether a face of ``a`` clipped by one of ``b`` has an area."""
+    if a.faces.shape[1] != 4 or b.faces.shape[1] != 4:
+        basis = overlap.plane_basis(b.normal)
+        Pa, Pb = bodies[a.body].X[a.corners] @ basis.T, bodies[b.body].X[b.corners] @ basis.T
+        size = float(np.ptp(Pb.reshape(-1, 2), axis=0).max())
+        return any(abs(overlap.signed_area(overlap.clip(p, q, 1e-9 * size)))
+                   > 1e-12 * size * size for p in Pa for q in Pb)
     xs, _, _ = gauss_points(bodies[a.body].X[a.quads], 2, "gauss")
     xs = xs.reshape(-1, 3)
     xs = xs - np.outer(xs @ b.normal - b.offset, b.normal)
     return bool(locate(bodies[b.body].X[b.quads], xs)[2].any())
+
+
+def _points_rule(a, blocks: AssemblyBlocks, rule: str) -> str:
+    """The contact-point rule of the assembly's joints: ``rule`` (the case's, ``auto``
+    resolved), or ``overlap`` when a block is meshed with tetrahedra (their triangular faces
+    take no other) and the case left it to ``auto``; AssemblyError when it named another."""
+    tets = [blocks.label(k) for k, (_, c) in enumerate(blocks.meshes) if c.shape[1] != 8]
+    if not tets or rule == "overlap":
+        return rule
+    if a.contact_point_rule == "auto":
+        return "overlap"
+    verb = "is" if len(tets) == 1 else "are"
+    raise AssemblyError("contact_point_rule", [
+        (f"{', '.join(tets)} {verb} meshed with tetrahedra, whose triangular faces take the "
+         f"rule overlap, not {rule!r}")])
 
 
 def read_assembly(a) -> AssemblyBlocks:
@@ -111,11 +134,14 @@ def read_assembly(a) -> AssemblyBlocks:
         mesh = read_block_mesh(a.mesh_file, a.tag_field)
     except MeshFileError as exc:
         raise AssemblyError("mesh_file", [str(exc)]) from None
-    tags = [int(t) for t in np.unique(mesh.tags)]
+    tags = [int(t) for t in mesh.block_tags()]
     names = [mesh.block_name(t) for t in tags]
     meshes = []
     for t in tags:
-        cells = mesh.hexes[mesh.tags == t]
+        try:
+            cells = mesh.block_cells(t)
+        except MeshFileError as exc:
+            raise AssemblyError("mesh_file", [str(exc)]) from None
         used, local = np.unique(cells, return_inverse=True)
         meshes.append((mesh.points[used], local.reshape(cells.shape)))
     shown = ", ".join(f"{nm!r} ({t})" for nm, t in zip(names, tags, strict=True))
@@ -144,7 +170,8 @@ def read_assembly(a) -> AssemblyBlocks:
     for k, (X, c) in enumerate(meshes):
         inv = inverted_elements(X, c)
         if len(inv):
-            bad.append(f"{blocks.label(k)}: {len(inv)} of its {len(c)} hexahedra inverted or "
+            kind = "hexahedra" if c.shape[1] == 8 else "tetrahedra"
+            bad.append(f"{blocks.label(k)}: {len(inv)} of its {len(c)} {kind} inverted or "
                        f"flat (a corner Jacobian <= 0: nodes in the wrong order, or "
                        f"degenerate), the first ones {inv[:5].tolist()}")
     if bad:
@@ -158,8 +185,8 @@ def read_assembly(a) -> AssemblyBlocks:
                                           for i, j in over])
     bodies = _geometry_bodies(blocks)
     joints = find_joints(bodies, max_gap=a.joint_thickness_m).joints
-    rule = a.contact_point_rule if a.contact_point_rule != "auto" else \
-        ("lobatto" if a.contact_points_per_face >= 2 else "gauss")
+    rule = _points_rule(a, blocks, a.contact_point_rule if a.contact_point_rule != "auto" else
+                        ("lobatto" if a.contact_points_per_face >= 2 else "gauss"))
     points = joint_points(bodies, joints, lambda _j, _a: (0, laws.KIND_JOINT, 0),
                           n_gauss=a.contact_points_per_face, rule=rule)
     pairs = {tuple(sorted(p.bodies)) for p in points}
@@ -194,7 +221,7 @@ def describe(case) -> str:
     b = read_assembly(a)
     n_sup = sum(s is not None for s in b.support)
     return (f"{case.name}: assembly of {len(b.tags) - n_sup} blocks and {n_sup} supports from "
-            f"{a.mesh_file} ({sum(len(c) for _, c in b.meshes)} hexahedra, "
+            f"{a.mesh_file} ({sum(len(c) for _, c in b.meshes)} elements, "
             f"{len(b.pairs)} joints), joints {case.joint.law}; until collapse or "
             f"{case.collapse.end_time_s:g} s, about {case.step_count} steps of "
             f"{case.solver.time_step_s:g} s")
@@ -241,7 +268,7 @@ def build_assembly(case) -> Scene:
         return GROUPS.index("support" if held else "joint"), laws.KIND_JOINT, 0
 
     points = joint_points(bodies, b.joints, classify, n_gauss=a.contact_points_per_face,
-                          rule=case.contact_point_rule)
+                          rule=_points_rule(a, b, case.contact_point_rule))
     params = np.atleast_2d(laws.params_from_case(case.joint))
 
     def top_middle(k: int) -> np.ndarray:
@@ -259,7 +286,8 @@ def build_assembly(case) -> Scene:
         stages=stages, push_stage="gravity", target_m=None, expected_end_s=col.end_time_s,
         time_limit_s=col.end_time_s, history={"kind": "monotonic", "cycles": []},
         collapse=rule,
-        meta={"contact_point_rule": case.contact_point_rule, "limit_state": True,
+        meta={"contact_point_rule": _points_rule(a, b, case.contact_point_rule),
+              "limit_state": True,
               "reaction_names": ["all supports", names[supports[0]]],
               "assembly": {"mesh_file": a.mesh_file, "blocks": len(structure),
                            "supports": {names[k]: b.support[k] for k in supports},
