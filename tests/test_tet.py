@@ -339,3 +339,4 @@ def test_tetrahedra_are_written_to_vtu_as_tetrahedra(tmp_path):
     m = meshio.read(tmp_path / "b.vtu")
     assert [b.type for b in m.cells] == ["hexahedron", "tetra"]
     assert (m.cells[0].data == hexes).all() and (m.cells[1].data == tets).all()
+

@@ -77,11 +77,19 @@ FACES = np.array([[0, 4, 7, 3], [1, 2, 6, 5], [0, 1, 5, 4], [3, 7, 6, 2], [0, 3,
 EDGES = np.array([[0, 1], [1, 2], [2, 3], [3, 0], [4, 5], [5, 6], [6, 7], [7, 4], [0, 4],
                   [1, 5], [2, 6], [3, 7]], dtype=np.int64)
 
+#: The 3x3x3 Gauss rule (points, weights): exact for polynomials of degree 5 in each reference
+#: coordinate, so for the mass, first and second moments of any trilinear hexahedron (its
+#: ``det J`` is of degree 2 in each, ``x x^T det J`` of degree 4): a hexahedron with flat faces is
+#: the trilinear image of the cube, so a rigid block's mass, centre and inertia are exact
+_G3, _W3 = np.polynomial.legendre.leggauss(3)
+MASS_POINTS = np.array([[a, b, c] for a in _G3 for b in _G3 for c in _G3])
+MASS_WEIGHTS = np.array([a * b * c for a in _W3 for b in _W3 for c in _W3])
+
 #: The 8-node hexahedron: 2x2x2 Gauss rule of unit weights, row-sum lumped mass, VTK type 12
 HEX8 = Element(name="hex8", nodes=8, gauss_points=GAUSS_POINTS, gauss_weights=np.ones(8),
                shape_at=shape_at, faces=FACES, face_corners=4, corners=NODE_SIGNS,
                edges=EDGES, vtk_type=12, meshio_type="hexahedron",
-               drawn_as=np.arange(8), mass_rule=(GAUSS_POINTS, np.ones(8)))
+               drawn_as=np.arange(8), mass_rule=(MASS_POINTS, MASS_WEIGHTS))
 
 _N_GAUSS, _DN_GAUSS = shape_at(GAUSS_POINTS)
 _b_from_dndx = b_from_dndx

@@ -10,7 +10,8 @@ rot_z)`` (m, rad; small rotations) about its reference point ``reference`` (m). 
 has one, is geometry only: the faces that contact detection sees and the cells that the outputs
 draw. A box or any body meshed with hexahedra or tetrahedra (a wedge, a voussoir, a stone of
 any polyhedral shape) has its mass, centre of mass and inertia tensor from its mesh
-(:meth:`RigidBody.from_mesh`: exact for parallelepipeds and for any tetrahedral mesh) or in closed form
+(:meth:`RigidBody.from_mesh`: exact for hexahedra with flat faces and for tetrahedra), from the
+hull of its vertices (:meth:`RigidBody.polyhedron`) or in closed form
 (:meth:`RigidBody.box`). With the centre of mass ``c`` and ``d = c - reference``, the velocity of
 a material point is ``v = v_0 + omega x (x - reference)`` and the mass matrix
 
@@ -29,6 +30,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.spatial import ConvexHull, QhullError
 
 from masonry_nscd.fe import element as solid
 from masonry_nscd.fe import hex8
@@ -167,9 +169,9 @@ class RigidBody:
     def from_mesh(X, conn, density: float, **kw) -> RigidBody:
         """A rigid body of uniform density (kg/m^3) with the shape of a mesh of hexahedra or
         tetrahedra: mass, centre of mass and inertia tensor by the element's ``mass_rule``
-        (:func:`masonry_nscd.fe.element.mass_properties`: the 2x2x2 Gauss rule of hexahedra,
-        exact for parallelepipeds; the degree-2 rule of tetrahedra, exact for any tetrahedral
-        mesh with straight edges, the sum over its tetrahedra)."""
+        (:func:`masonry_nscd.fe.element.mass_properties`: the 3x3x3 Gauss rule of hexahedra,
+        exact for any hexahedron with flat faces; the degree-2 rule of tetrahedra, exact for
+        any tetrahedral mesh with straight edges, the sum over its tetrahedra)."""
         X = np.asarray(X, dtype=float)
         conn = np.asarray(conn, dtype=np.int64)
         mass, first, second = solid.mass_properties(X, conn, density, element_of(conn))
@@ -179,6 +181,53 @@ class RigidBody:
         S = second - mass * np.outer(c, c)  # second moment about the centre of mass
         inertia = np.trace(S) * np.eye(3) - S
         return RigidBody(center=c, mass=mass, inertia=inertia, X=X, conn=conn, **kw)
+
+    @staticmethod
+    def polyhedron(vertices, density: float, **kw) -> RigidBody:
+        """A rigid convex polyhedron of uniform density (kg/m^3) from its vertices (m): the
+        tetrahedra of its hull (:func:`convex_hull_mesh`), so its mass, centre and inertia are
+        exact; ValueError if it is flat or not convex."""
+        X, conn = convex_hull_mesh(vertices, kw.get("name", ""))
+        return RigidBody.from_mesh(X, conn, density, **kw)
+
+
+def convex_hull_mesh(vertices, name: str = "", tol: float = 1e-9
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """The tetrahedra of the convex polyhedron of ``vertices`` (k, 3) (m): one per triangle of
+    its hull, to the mean of the hull's vertices (inside a convex body); nodes: the vertices,
+    then that mean. Faces of the hull that lie in one plane make one planar patch for contact
+    detection, whatever their triangles.
+
+    Raises ValueError naming the body when the polyhedron is flat or not convex: a vertex
+    farther than ``tol`` times the body's size inside the hull of the others (split such a
+    stone into convex blocks, or mesh it)."""
+    V = np.asarray(vertices, dtype=float)
+    label = f"block {name!r}" if name else "a polyhedral block"
+    if V.ndim != 2 or V.shape[1] != 3 or len(V) < 4:
+        raise ValueError(f"{label}: a polyhedron needs at least 4 vertices (k, 3), got "
+                         f"{V.shape}")
+    size = float(np.ptp(V, axis=0).max())
+    try:
+        hull = ConvexHull(V)
+    except QhullError:
+        raise ValueError(f"{label} is flat: its vertices lie in one plane") from None
+    # a vertex that is not the hull's: how far inside the hull's planes it lies
+    depth = -(hull.equations[:, :3] @ V.T + hull.equations[:, 3:]).max(axis=0)
+    inside = [k for k in range(len(V)) if k not in set(hull.vertices)
+              and depth[k] > tol * size]
+    if inside:
+        k = inside[0]
+        raise ValueError(f"{label} is not convex: vertex {k} lies {depth[k]:.3g} m inside the "
+                         "hull of the others (split it into convex blocks, or mesh it)")
+    used = np.unique(hull.simplices)
+    center = V[used].mean(axis=0)
+    X = np.vstack([V, center])
+    conn = np.column_stack([hull.simplices, np.full(len(hull.simplices), len(V))])
+    # the right-hand rule of each base seen from its apex: positive volumes
+    a, b, c, d = (X[conn[:, i]] for i in range(4))
+    negative = np.einsum("ij,ij->i", np.cross(b - a, c - a), d - a) < 0.0
+    conn[negative, 1], conn[negative, 2] = conn[negative, 2], conn[negative, 1].copy()
+    return X, conn
 
 
 def body_mass(body) -> float:

@@ -337,7 +337,7 @@ def tilting_block(*, width=0.1, height=0.4, depth=0.15, mu=0.6, rate_per_s=0.05,
                   multiplier=0.0, start_s=0.1, ramp_s=0.1, gravity=9.81, h=2e-3,
                   law: str = "coulomb", method: str = "nlgs", tolerance=1e-8,
                   rule: str = "lobatto", displacement_m=0.01, onset_velocity_m_s=1e-4,
-                  end_s=10.0, joint_kw=None):
+                  end_s=10.0, joint_kw=None, vertices=None):
     """A rigid block (2000 kg/m^3; ``width`` along x, ``height`` along y) free on a fixed base,
     under gravity (ramped over [0, 0.05] s) and a horizontal body force ``lambda(t) g m``
     along +x that rises to ``multiplier`` and grows at ``rate_per_s``
@@ -345,11 +345,15 @@ def tilting_block(*, width=0.1, height=0.4, depth=0.15, mu=0.6, rate_per_s=0.05,
     tilted by ``atan(lambda)``. A limit-state scene (:mod:`masonry_nscd.collapse`): it topples
     about its toe at ``lambda = width / height`` if ``mu`` is larger, and slides at
     ``lambda = mu`` otherwise, with its contact points at the corners of its base (``rule``
-    ``lobatto``). Returns the :class:`~masonry_nscd.scenes.scene.Scene`."""
+    ``lobatto``). With ``vertices`` (k, 3) the block is the convex polyhedron of those
+    vertices instead (:meth:`RigidBody.polyhedron`, standing on ``y = 0``; ``rule`` must then
+    be ``overlap``, the rule of triangular faces). Returns the
+    :class:`~masonry_nscd.scenes.scene.Scene`."""
     P = np.atleast_2d(fczm.joint_params(law=law, mu=mu, **dict(joint_kw or {})))
     base = _fixed_plate((width / 2, -0.05, depth / 2), (4 * width, 0.1, 2 * depth))
     base.name = "base"
-    block = RigidBody.box((0, 0, 0), (width, height, depth), 2000.0, (1, 1, 1), name="block")
+    block = (RigidBody.box((0, 0, 0), (width, height, depth), 2000.0, (1, 1, 1), name="block")
+             if vertices is None else RigidBody.polyhedron(vertices, 2000.0, name="block"))
     bodies = [block, base]
     n = int(dof_offsets(bodies)[-1])
     pts = contact_points(bodies, _all_joints(), max_gap=0.0, rule=rule)
