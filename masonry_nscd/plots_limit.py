@@ -33,6 +33,9 @@ from masonry_nscd.post.limit import limit_summary
 
 #: The largest displacement is drawn as this fraction of the structure's width by default.
 AUTO_MAGNIFY_FRACTION = 0.04
+#: The faces of a drawn hexahedron (VTK order)
+_HEX_FACES = np.array([[0, 1, 2, 3], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6],
+                       [3, 0, 4, 7]])
 
 
 def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
@@ -54,7 +57,7 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
     tol = 1e-9 * (1.0 + float(np.ptp(z)))
     at_front = np.abs(z[fields.hexes[:, :4]] - z.min()).max(axis=1) <= tol
     front = fields.hexes[at_front, :4]
-    z_back = float(z[fields.hexes[at_front]].max())
+    z_back = float(z[fields.hexes[at_front]].max(initial=z.min()))
 
     def in_front(joint) -> bool:  # not the joints on the back plane (a vault's next ring)
         return joint["centre_m"][2] < z_back - tol
@@ -65,6 +68,13 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
         magnify = AUTO_MAGNIFY_FRACTION * width / largest if largest > 0.0 else 1.0
     moved = ref + magnify * disp[:, :2]
     fig = Figure(figsize=(14, 6), layout="constrained")
+    if not len(front):  # no front plane (a dome, a cross vault): the blocks in perspective
+        grid = fig.add_gridspec(1, 2, width_ratios=(1.4, 1.0))
+        ax = fig.add_subplot(grid[0], projection="3d")
+        bx = fig.add_subplot(grid[1])
+        magnify = _draw_in_perspective(ax, fields, disp, summary, magnify)
+        _draw_load_panel(fig, ax, bx, run, summary, fields, magnify)
+        return save_png(fig, path)
     ax, bx = fig.subplots(1, 2, width_ratios=(1.4, 1.0))
     builder = run.scene.get(run.scene.get("builder", "arch")) or {}
     for box in builder.get("supports_xy_m", []):
@@ -107,6 +117,56 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
+    _draw_load_panel(fig, ax, bx, run, summary, fields, magnify)
+    return save_png(fig, path)
+
+
+def _draw_in_perspective(ax, fields, disp: np.ndarray, summary: dict, magnify: float) -> float:
+    """Every element's faces, moved by ``magnify`` times their displacements (the largest drawn
+    as AUTO_MAGNIFY_FRACTION of the structure's size when ``magnify`` is 0) and coloured by
+    it, in perspective (y up), with the hinges (red) and sliding joints (blue) at their places;
+    returns the magnification drawn."""
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    X = fields.nodes_m
+    size = float(np.ptp(X, axis=0).max()) or 1.0
+    largest = float(np.linalg.norm(disp, axis=1).max(initial=0.0))
+    if magnify <= 0.0:
+        magnify = AUTO_MAGNIFY_FRACTION * size / largest if largest > 0.0 else 1.0
+    moved = X + magnify * disp
+    faces = fields.hexes[:, _HEX_FACES].reshape(-1, 4)
+    shown = moved[:, [0, 2, 1]]  # x, z on the ground, y up
+    value = 1e3 * np.linalg.norm(disp, axis=1)[faces].mean(axis=1)
+    norm = Normalize(0.0, float(value.max(initial=0.0)) or 1.0)
+    mappable = ScalarMappable(norm=norm, cmap="viridis")
+    ax.add_collection3d(Poly3DCollection(shown[faces], facecolors=mappable.to_rgba(value),
+                                         edgecolors="0.25", linewidths=0.2))
+    ax.figure.colorbar(mappable, ax=ax, shrink=0.6, label="displacement (mm)")
+
+    def placed(point) -> np.ndarray:
+        p = np.asarray(point, dtype=float)
+        k = int(np.argmin(np.linalg.norm(X - p, axis=1)))
+        return (p + magnify * disp[k])[[0, 2, 1]]
+
+    for h in summary["hinges"]:
+        ax.scatter(*placed(h["pivot_m"]), color="red", s=30, edgecolors="k", depthshade=False)
+    for j in summary["sliding_joints"]:
+        ax.scatter(*placed(j["centre_m"]), color="blue", marker="x", s=30, depthshade=False)
+    lo, hi = shown.min(axis=0), shown.max(axis=0)
+    half = 0.5 * float((hi - lo).max())
+    for set_lim, c in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), 0.5 * (lo + hi), strict=True):
+        set_lim(c - half, c + half)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("z (m)")
+    ax.set_zlabel("y (m)")
+    ax.view_init(elev=25.0, azim=-60.0)
+    return magnify
+
+
+def _draw_load_panel(fig, ax, bx, run, summary: dict, fields, magnify: float) -> None:
+    """The mechanism's title, and the load against the motion in ``bx``."""
     c = summary.get("collapse")
     loads = (c or {}).get("loads_at_onset") or {}
     ax.set_title(f"{summary['status']}: {summary['mechanism']} mechanism"
@@ -145,7 +205,6 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
         bx.set_title("load against motion" if factors else "motion")
     fig.suptitle(f"{run.label}: {run.scene.get('builder', '')} "
                  f"({run.case.blocks.material} blocks, joints {run.case.joint.law})")
-    return save_png(fig, path)
 
 
 def plot_limit_runs(runs: Sequence, plot_dir: Path,

@@ -123,7 +123,8 @@ def test_the_webs_meet_on_the_groins_and_rest_on_the_springers():
 def test_the_vault_stands_and_its_four_supports_share_its_weight(tmp_path):
     """Under its weight the vault (0.5 m thick over 4 m) stands; its supports carry the weight
     to the solver's tolerance (the blocks' last accelerations), with no net horizontal force,
-    and each corner a quarter of it (the bay's symmetry; 1e-4: looser than the tolerance)."""
+    and each corner a quarter of it (the bay's symmetry; 1e-4: looser than the tolerance); its
+    mechanism figure draws it in perspective."""
     case = _vault()
     path = tmp_path / "vault.yaml"
     path.write_text(case_to_yaml(case))
@@ -137,6 +138,11 @@ def test_the_vault_stands_and_its_four_supports_share_its_weight(tmp_path):
     assert fy == pytest.approx(weight_kN, rel=1e-6)  # the solver's tolerance: a dynamic run
     assert abs(fx) <= 1e-8 * weight_kN
     assert forces["support north-east"][1] == pytest.approx(weight_kN / 4, rel=1e-4)
+    # the mechanism figure of a structure without a front plane: its blocks in perspective
+    res = CliRunner().invoke(app, ["plot", str(tmp_path / "run")])
+    assert res.exit_code == 0, res.output
+    (figure,) = (tmp_path / "run" / "plots").glob("mechanism_*.png")
+    assert figure.stat().st_size > 10_000
 
 
 def test_a_side_that_spreads_moves_its_two_supports():
