@@ -149,6 +149,18 @@ def test_bad_meshes_exit_2_naming_the_block(tmp_path):
     res = _validate(_with_mesh(tmp_path, _moved(mesh, "pier 5", (0.0, 0.5, 0.0))))
     assert res.exit_code == 2 and "'pier 5'" in res.output
     assert "no neighbour and no support" in res.output
+    # faces that touch at an angle: pier 5 turned by half a degree about its bottom face's edge
+    tag = next(t for t, nm in mesh.names.items() if nm == "pier 5")
+    nodes = np.unique(mesh.hexes[mesh.tags == tag])
+    P = mesh.points[nodes]
+    pivot = P[np.argmin(P[:, 0] + 1e-3 * P[:, 1])]  # a corner of its bottom face, at x min
+    c, s_ = math.cos(math.radians(0.5)), math.sin(math.radians(0.5))
+    turned = mesh.points.copy()
+    d = P - pivot
+    turned[nodes, 0] = pivot[0] + c * d[:, 0] - s_ * d[:, 1]
+    turned[nodes, 1] = pivot[1] + s_ * d[:, 0] + c * d[:, 1]
+    res = _validate(_with_mesh(tmp_path, BlockMesh(turned, mesh.hexes, mesh.tags, mesh.names)))
+    assert res.exit_code == 2 and "'pier 4' (tag 5) and block 'pier 5' (tag 6) touch on faces 0.5 degrees" in res.output
     # the run refuses it too, with the same exit code
     res = CliRunner().invoke(app, ["run", str(tmp_path / "case.yaml"), "-o",
                                    str(tmp_path / "out")])

@@ -46,7 +46,7 @@ so the cost grows with the number of patches, not with its square.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -78,12 +78,25 @@ class Joint:
     normal: np.ndarray  # (3,) from the antagonists to the candidate (minus its outward normal)
 
 
+#: Two faces make a joint when their outward normals are opposite within this angle (rad)
+JOINT_ANGLE_TOL = 1e-3
+#: Faces of two bodies that touch at an angle up to this (rad) beyond the joints' tolerance
+#: are reported as skewed (:attr:`Detection.skewed`): faces meant to meet that a mesh left
+#: slightly turned. Blocks that meet on an edge, their faces opening at a larger angle (a
+#: voussoir beside a pier), are not.
+SKEW_REPORTED = np.radians(1.0)
+
+
 @dataclass
 class Detection:
-    """The patches of every body and the joints between them."""
+    """The patches of every body and the joints between them; ``skewed``: the pairs of
+    patches of two bodies that touch (a corner of one within the joint's gap of the other's
+    plane) but face each other at an angle between the joints' tolerance and
+    :data:`SKEW_REPORTED`, with that angle (rad): no joint is made there."""
 
     patches: list[Patch]
     joints: list[Joint]
+    skewed: list[tuple[Patch, Patch, float]] = field(default_factory=list)
 
 
 def candidate_pairs(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -145,7 +158,7 @@ def _support(body) -> bool:
 
 
 def find_joints(bodies: Sequence, *, max_gap: float, gap_tol: float = 1e-6,
-                angle_tol: float = 1e-3) -> Detection:
+                angle_tol: float = JOINT_ANGLE_TOL) -> Detection:
     """The facing patches of ``bodies`` (module docstring), one :class:`Joint` per candidate
     patch, in body order, then from the bottom up (by the outward normal's ``n_y``, ``n_x``,
     ``n_z``: a unit's bed joint, then its head joints, then the glue on its top)."""
@@ -157,9 +170,16 @@ def find_joints(bodies: Sequence, *, max_gap: float, gap_tol: float = 1e-6,
     hi = np.array([p.hi for p in patches]) + pad
     cos_tol = np.cos(angle_tol)
     facing: dict[int, list[int]] = {}
+    skewed = []
     for i, j in candidate_pairs(lo, hi):
         a, b = patches[i], patches[j]
-        if a.body == b.body or not a.normal @ b.normal <= -cos_tol:
+        if a.body == b.body:
+            continue
+        if not a.normal @ b.normal <= -cos_tol:
+            if a.normal @ b.normal <= -np.cos(SKEW_REPORTED):
+                gaps = (bodies[b.body].X[b.quads].reshape(-1, 3) @ a.normal) - a.offset
+                if np.any((gaps >= -gap_tol) & (gaps <= max_gap + gap_tol)):
+                    skewed.append((a, b, float(np.arccos(min(1.0, -a.normal @ b.normal)))))
             continue
         if not _is_candidate(a, b, bodies):
             i, j, a, b = j, i, b, a
@@ -172,7 +192,7 @@ def find_joints(bodies: Sequence, *, max_gap: float, gap_tol: float = 1e-6,
     for i in sorted(facing, key=lambda i: (patches[i].body, *patches[i].normal[[1, 0, 2]], i)):
         ants = sorted(facing[i], key=lambda j: (patches[j].body, j))
         joints.append(Joint(patches[i], [patches[j] for j in ants], -patches[i].normal))
-    return Detection(patches, joints)
+    return Detection(patches, joints, skewed)
 
 
 def joint_points(bodies: Sequence, joints: Sequence[Joint],
@@ -353,7 +373,8 @@ def _side(body, dof0: int, quad: np.ndarray, x: np.ndarray, frame: np.ndarray, s
 
 def contact_points(bodies: Sequence, classify: Callable[[Joint, Patch], tuple[int, int, int] | None],
                    *, max_gap: float, n_gauss: int = 2, rule: str = "gauss",
-                   gap_tol: float = 1e-6, angle_tol: float = 1e-3) -> list[ContactPoint]:
+                   gap_tol: float = 1e-6, angle_tol: float = JOINT_ANGLE_TOL
+                   ) -> list[ContactPoint]:
     """The contact points of every joint of ``bodies``: :func:`find_joints`, then
     :func:`joint_points` with ``classify``."""
     found = find_joints(bodies, max_gap=max_gap, gap_tol=gap_tol, angle_tol=angle_tol)

@@ -41,7 +41,7 @@ from masonry_nscd.contact import laws
 from masonry_nscd.io.mesh_file import MeshFileError, read_block_mesh
 from masonry_nscd.loading import at_rest
 from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody, overlap
-from masonry_nscd.model.detection import find_joints, joint_points
+from masonry_nscd.model.detection import JOINT_ANGLE_TOL, find_joints, joint_points
 from masonry_nscd.model.faces import gauss_points, locate
 from masonry_nscd.model.mesh_checks import inverted_elements, overlapping_pairs, unheld_blocks
 from masonry_nscd.scenes import Builder
@@ -184,7 +184,16 @@ def read_assembly(a) -> AssemblyBlocks:
                                           "(a point of one inside the other)"
                                           for i, j in over])
     bodies = _geometry_bodies(blocks)
-    joints = find_joints(bodies, max_gap=a.joint_thickness_m).joints
+    detection = find_joints(bodies, max_gap=a.joint_thickness_m)
+    joints = detection.joints
+    skewed = sorted({(min(p.body, q.body), max(p.body, q.body)): angle
+                     for p, q, angle in detection.skewed}.items())
+    if skewed:
+        raise AssemblyError("mesh_file", [
+            f"{blocks.label(i)} and {blocks.label(k)} touch on faces {np.degrees(angle):.3g} "
+            f"degrees from facing each other, beyond the joints' tolerance "
+            f"({np.degrees(JOINT_ANGLE_TOL):.3g} degrees): no joint is made there (make the "
+            "faces parallel)" for (i, k), angle in skewed])
     rule = _points_rule(a, blocks, a.contact_point_rule if a.contact_point_rule != "auto" else
                         ("lobatto" if a.contact_points_per_face >= 2 else "gauss"))
     points = joint_points(bodies, joints, lambda _j, _a: (0, laws.KIND_JOINT, 0),
