@@ -59,14 +59,6 @@ _HALVES = {"east": ("north", "south"), "west": ("north", "south"),
 _SIGN = {"north": 1.0, "south": -1.0, "east": 1.0, "west": -1.0}
 
 
-class CrossVaultError(ValueError):
-    """A cross vault whose geometry cannot be built: ``(field, message)`` problems."""
-
-    def __init__(self, problems: list[tuple[str, str]]):
-        self.problems = problems
-        super().__init__("; ".join(f"cross_vault.{f}: {m}" for f, m in problems))
-
-
 class ArchSection:
     """The arch across z of a cross vault ``v`` (module docstring): the horizontal distance
     ``w`` (in half spans) and the height ``y`` (m) of its level ``j`` (0 at the springing,
