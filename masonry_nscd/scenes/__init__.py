@@ -20,6 +20,7 @@ from typing import Any
 from masonry_nscd.case import CaseError
 from masonry_nscd.case.structures import structures
 from masonry_nscd.nscd import linear
+from masonry_nscd.scenes.removal import removal_of
 
 
 @dataclass(frozen=True)
@@ -73,5 +74,8 @@ def check_case(case):
 
 
 def build_scene(case):
-    """The scene of a validated case (CaseError when its builder refuses it)."""
-    return builder_of(check_case(case)).build(case)
+    """The scene of a validated case (CaseError when its builder refuses it), with the removal
+    of blocks the case asks for (``loading.removal``, :mod:`masonry_nscd.scenes.removal`)."""
+    scene = builder_of(check_case(case)).build(case)
+    scene.removal = removal_of(case, scene.bodies)
+    return scene
