@@ -126,6 +126,26 @@ def test_removal_before_any_step_and_between_steps(tmp_path):
     assert not mid.removed_at(0.198) and mid.removed_at(0.2)
 
 
+def test_elastic_blocks_the_lower_one_stands_the_removed_one_moves_on_untouched(tmp_path):
+    """Elastic boxes: the upper one out at 0.2 s (it keeps moving, with no contact and no
+    load); the lower one, compressed by it until then, springs back and stands on the ground,
+    which carries its weight alone. (The Newton solver once took a step in which no point
+    carried a force for converged at its first iterate: the lower box, launched by its own
+    spring-back, flew off 0.3 m.)"""
+    d = stack_case(tmp_path, {"removal": {"blocks": ["upper"], "time_s": 0.2}})
+    d["blocks"] = {"material": "elastic", "density_kg_m3": RHO, "E_Pa": 1e9, "nu": 0.2}
+    scene = build_scene(case_from_dict(d))
+    integ = scene.integrator(0.0)
+    while integ.t < 0.3 - 1e-9:
+        integ = scene.next_integrator(integ)
+        assert integ.step().converged
+    fy = scene.reaction_weights(integ.sys.side_body)["top"] @ integ.point_forces()
+    assert fy[1] == pytest.approx(_weight("lower"), rel=1e-6)
+    d0 = integ.sys.body_dof0
+    lower = [b.name for b in scene.bodies].index("lower")
+    assert np.abs(integ.u[d0[lower]:d0[lower + 1]]).max() < 1e-5  # m: no flight
+
+
 def test_a_resumed_run_across_the_removal_gives_the_same_curve(tmp_path, monkeypatch):
     """Interrupted before the step after the removal (its checkpoint at the removal's time)
     and resumed: the same curve as the run made at once."""
