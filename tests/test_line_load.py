@@ -1,4 +1,4 @@
-"""Line loads on named blocks (``loading.line_loads``): a force per metre along a segment.
+"""Line loads and block loads on named blocks (``loading.line_loads``, ``loading.block_loads``).
 
 References: a uniform load ``q`` on a segment of length ``L`` has the resultant ``q L``, acting
 at the segment's middle; the part over a block, of length ``l``, puts ``q l`` on it at the
@@ -100,3 +100,29 @@ def test_a_line_load_on_a_block_that_is_not_there_exits_2_naming_the_field(tmp_p
     assert res.exit_code == 2, res.output
     assert "loading.line_loads[0].blocks[1]: got 'middle'" in res.output
     assert "'left', 'right'" in res.output  # the blocks of the structure listed
+
+
+def test_block_loads_put_the_force_on_each_named_block_and_the_ground_carries_them(tmp_path):
+    """``block_loads``: 3 kN down on each of the two boxes, dead with gravity: each box's
+    pattern is the force, and the ground carries both weights and 6 kN."""
+    d = _case(tmp_path)
+    d["loading"].pop("line_loads")
+    d["loading"]["block_loads"] = [{"blocks": ["left", "right"], "force_N": [0.0, -3000.0, 0.0]}]
+    scene = build_scene(case_from_dict(d))
+    pattern = scene.loads.patterns[-1]
+    d0 = np.cumsum([0] + [b.ndof for b in scene.bodies])
+    for i, b in enumerate(scene.bodies):
+        expect = [0.0, -3000.0, 0.0] if b.name in ("left", "right") else [0.0, 0.0, 0.0]
+        assert pattern[d0[i]:d0[i] + 3] == pytest.approx(expect, abs=1e-9)
+    integ = scene.integrator(0.0)
+    for _ in range(150):
+        integ.step()
+    fy = scene.reaction_weights(integ.sys.side_body)["top"] @ integ.point_forces()
+    weights = sum(RHO * G * (x1 - x0) * (y1 - y0) * DEPTH for n, x0, x1, y0, y1 in BOXES
+                  if n != "ground")
+    assert fy[1] == pytest.approx(weights + 6000.0, rel=1e-6)
+    path = tmp_path / "bad.yaml"
+    d["loading"]["block_loads"][0]["blocks"] = ["left", "centre"]
+    path.write_text(json.dumps(d))
+    res = CliRunner().invoke(app, ["validate", str(path)])
+    assert res.exit_code == 2 and "loading.block_loads[0].blocks[1]: got 'centre'" in res.output

@@ -113,6 +113,17 @@ class LineLoad(Section):
         return sum((b - a) ** 2 for a, b in zip(self.from_m, self.to_m)) ** 0.5
 
 
+class BlockLoad(Section):
+    """A dead force on each of the named blocks (a column, a statue, a lantern's legs):
+    ``force_N`` on every one of ``blocks``, where ``loading.point_load`` acts (the middle of
+    the block's top or extrados face, the builder's), ramped with gravity."""
+
+    blocks: list[Annotated[str, Field(min_length=1, max_length=200)]] = Field(
+        ..., min_length=1, max_length=100000, description="names of the blocks loaded")
+    force_N: Vector3 = Field(
+        ..., description="force on each block (N): x, y, z (y up: a weight is [0, -W, 0])")
+
+
 #: The names a support can have: an arch's springings, a cross vault's corners, and a cross
 #: vault's sides (the two corners on that side)
 SUPPORT_NAMES = ("left", "right", "north-east", "north-west", "south-east", "south-west",
@@ -369,18 +380,24 @@ class Loading(Section):
         default_factory=list, max_length=1000,
         description="limit states: dead loads per metre along segments over named blocks"
     )
+    block_loads: list[BlockLoad] = Field(
+        default_factory=list, max_length=1000,
+        description="limit states: dead forces on named blocks, the same on each"
+    )
 
     def named_blocks(self) -> list[tuple[str, str]]:
         """Every block a limit-state load names, as ``(dotted path, name)``: the point load's,
-        the removed blocks, the line loads' blocks (the builders check them against theirs)."""
+        the removed blocks, the line and block loads' blocks (the builders check them against
+        theirs)."""
         out = []
         if self.point_load is not None:
             out.append(("loading.point_load.block", self.point_load.block))
         if self.removal is not None:
             out += [(f"loading.removal.blocks[{i}]", b) for i, b in enumerate(self.removal.blocks)]
-        for k, load in enumerate(self.line_loads):
-            out += [(f"loading.line_loads[{k}].blocks[{i}]", b)
-                    for i, b in enumerate(load.blocks)]
+        for field in ("line_loads", "block_loads"):
+            for k, load in enumerate(getattr(self, field)):
+                out += [(f"loading.{field}[{k}].blocks[{i}]", b)
+                        for i, b in enumerate(load.blocks)]
         return out
 
     @property

@@ -14,7 +14,9 @@ Loads on the structure's blocks (SI units):
 
 * line loads (``loading.line_loads``), dead loads ramped with gravity: a force ``q`` (N/m) per
   metre along a segment from ``a`` to ``b`` (m) over named blocks, resultant ``q |b - a|``
-  (:func:`line_load_pattern`).
+  (:func:`line_load_pattern`);
+* block loads (``loading.block_loads``), dead loads ramped with gravity: a force (N) on each
+  named block, where the point load would act on it.
 
 Each growing load is a :class:`~masonry_nscd.collapse.LoadFactor` whose value at collapse the
 summary reports; the stages are ``gravity``, ``body force``, ``point load`` by start time.
@@ -81,11 +83,17 @@ def limit_loads(case, bodies: list, structure: list[int],
         loads.add(F, P)
         stages.append(Stage("point load", pl.start_s))
         factors.append(LoadFactor("point_load_N", "N", P, f"force on {pl.block}"))
+    index = {b.name: i for i, b in enumerate(bodies) if b.name}
+    dead = Ramp(1.0, grav.start_s, grav.ramp_s)  # the dead loads come with gravity
     for line in ld.line_loads:
-        index = {b.name: i for i, b in enumerate(bodies) if b.name}
         loads.add(line_load_pattern(bodies, [index[name] for name in line.blocks],
-                                    line.force_N_m, line.from_m, line.to_m),
-                  Ramp(1.0, grav.start_s, grav.ramp_s))
+                                    line.force_N_m, line.from_m, line.to_m), dead)
+    for each in ld.block_loads:
+        F = np.zeros(ndof)
+        for name in each.blocks:
+            k = index[name]
+            add_force(F, bodies[k], int(dof0[k]), point_at(k), np.asarray(each.force_N, float))
+        loads.add(F, dead)
     return loads, stages, factors
 
 

@@ -180,7 +180,8 @@ def point_load_problems(a: Arch, loading, names: list[str], where: str
 #: The parts of a case that only a limit-state structure reads: its collapse rule and its
 #: growing loads
 LIMIT_STATE_OWNS = ("collapse", "loading.body_force", "loading.point_load",
-                    "loading.settlement", "loading.removal", "loading.line_loads")
+                    "loading.settlement", "loading.removal", "loading.line_loads",
+                    "loading.block_loads")
 
 STRUCTURE = Structure(
     name="arch", model=Arch, article="an arch", order=10, limit_state=True,
