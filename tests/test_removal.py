@@ -21,6 +21,7 @@ from masonry_nscd.case import case_from_dict, load_case
 from masonry_nscd.cli import app
 from masonry_nscd.collapse import watch
 from masonry_nscd.io.mesh_file import BlockMesh, write_block_mesh
+from masonry_nscd.limit.analysis import analyse
 from masonry_nscd.run import run_case
 from masonry_nscd.scenes import build_scene
 
@@ -189,3 +190,18 @@ def test_bad_names_exit_2_naming_the_field():
     res = CliRunner().invoke(app, ["validate", str(ROOT / "cases" / "smoke.yaml"), "--set",
                                    "loading.removal={blocks: [a], time_s: 1}"])
     assert res.exit_code == 2 and "loading.removal" in res.output
+
+
+def test_limit_analysis_takes_the_structure_with_the_hole(tmp_path):
+    """The stack under a horizontal body force ``lambda g m`` (friction 2: no sliding): whole,
+    it overturns about its toe at ``lambda = (b / 2) / (h / 2) = 0.2 / 0.25 = 0.8``; with the
+    upper box out, the lower one alone at ``0.2 / 0.15 = 4 / 3``."""
+    loading = {"body_force": {"direction": [1.0, 0.0, 0.0], "rate_per_s": 0.1}}
+    whole = stack_case(tmp_path, loading)
+    whole["joint"]["mu"] = 2.0
+    holed = stack_case(tmp_path, {**loading, "removal": {"blocks": ["upper"], "time_s": 0.2}})
+    holed["joint"]["mu"] = 2.0
+    assert analyse(case_from_dict(whole)).record["multiplier"]["value"] == pytest.approx(
+        0.8, rel=1e-6)
+    assert analyse(case_from_dict(holed)).record["multiplier"]["value"] == pytest.approx(
+        4.0 / 3.0, rel=1e-6)
