@@ -205,3 +205,10 @@ def test_limit_analysis_takes_the_structure_with_the_hole(tmp_path):
         0.8, rel=1e-6)
     assert analyse(case_from_dict(holed)).record["multiplier"]["value"] == pytest.approx(
         4.0 / 3.0, rel=1e-6)
+
+
+def test_validate_says_what_is_removed_and_when():
+    res = CliRunner().invoke(app, ["validate", str(ARCH), "--set",
+                                   "loading.removal={blocks: [voussoir 12], time_s: 1.5}"])
+    assert res.exit_code == 0, res.output
+    assert res.output.strip().endswith("voussoir 12 removed at 1.5 s")

@@ -53,6 +53,19 @@ def _builder(name: str) -> Builder:
     return builder
 
 
+def describe_case(case) -> str:
+    """The one line of ``masonry validate``: the builder's, and the loads on named blocks and
+    the removal that every limit-state structure takes."""
+    line = builder_of(case).describe(case)
+    ld = case.loading
+    extra = [f"a line load of {load.length_m:.4g} m on {', '.join(load.blocks)}"
+             for load in ld.line_loads]
+    extra += [f"a force on each of {', '.join(load.blocks)}" for load in ld.block_loads]
+    if ld.removal is not None:
+        extra.append(f"{', '.join(ld.removal.blocks)} removed at {ld.removal.time_s:g} s")
+    return line + "".join(f"; {e}" for e in extra)
+
+
 def problems(case) -> list[str]:
     """What the schema does not see wrong with a valid case: its builder's checks, and a
     linear solver this machine does not have. One message per problem, naming the field."""
