@@ -101,10 +101,10 @@ def validate(
     """Check a case file: exit 0 with a one-line summary, or exit 2 listing every problem."""
     case = _load_case_or_exit(case_file, overrides)
     from masonry_nscd.case import case_to_yaml
-    from masonry_nscd.scenes import builder_of
+    from masonry_nscd.scenes import describe_case
 
     try:
-        summary = builder_of(case).describe(case)
+        summary = describe_case(case)
     except ValueError as exc:
         _fail(f"invalid case {case_file}: {exc}", 2)
     if case.step_growth_note:

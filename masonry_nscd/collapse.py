@@ -92,6 +92,14 @@ class CollapseMonitor:
         self.names = [scene.bodies[i].name or f"body {i}" for i in scene.structure]
         self.B, self.owner = point_map(scene.bodies, scene.structure, s.body_dof0, s.ndof)
         self.starts = np.flatnonzero(np.r_[True, self.owner[1:] != self.owner[:-1]])
+        # the removed blocks' points and dofs, left out once they are out (scenes/removal.py)
+        self.scene = scene
+        self.removed_points = np.zeros(len(self.owner), dtype=bool)
+        self.kept_dofs = np.ones(s.ndof, dtype=bool)
+        if scene.removal is not None:
+            out = [k for k, i in enumerate(scene.structure) if i in scene.removal.bodies]
+            self.removed_points = np.isin(self.owner, out)
+            self.kept_dofs[scene.removal.dofs(scene.bodies)] = False
         self.onset: dict[str, Any] | None = None
         self.detected: dict[str, Any] | None = None
         self.stop_at = math.inf
@@ -115,8 +123,13 @@ class CollapseMonitor:
         (the collapse was detected, and ``after_s`` has passed since)."""
         disp = np.linalg.norm((self.B @ integ.u).reshape(-1, 3), axis=1)
         speed = np.linalg.norm((self.B @ integ.v).reshape(-1, 3), axis=1)
+        v = integ.v
+        if self.scene.removed_at(t - self.scene.solver.h):  # the step ending at t had them out
+            disp[self.removed_points] = 0.0
+            speed[self.removed_points] = 0.0
+            v = np.where(self.kept_dofs, v, 0.0)
         d_max, v_max = float(disp.max(initial=0.0)), float(speed.max(initial=0.0))
-        kinetic = 0.5 * float(integ.v @ (integ.sys.mass * integ.v))  # lumped (diagonal) mass
+        kinetic = 0.5 * float(v @ (integ.sys.mass * v))  # lumped (diagonal) mass
         loads = self.loads(t)
         self.last = {"step": step, "time_s": t, "loads": loads, "max_displacement_m": d_max,
                      "max_speed_m_s": v_max}
@@ -202,6 +215,7 @@ def watch(scene, end_s: float, log: Callable[..., None] = lambda *_a, **_k: None
     mon = CollapseMonitor(scene, integ, None, log)
     h = scene.solver.h
     while integ.t < end_s - 1e-6 * h:
+        integ = scene.next_integrator(integ)  # a hold or the removal begins
         rep = integ.step()
         if mon.observe(integ, rep.step, rep.time):
             break

@@ -9,7 +9,8 @@
   structure's width), over the outline of the undeformed structure and the supports; the hinges
   of the summary (:mod:`masonry_nscd.post.limit`) marked at their pivots (a red dot, labelled
   with the joint and the face), sliding joints with a blue cross, joints open over their whole
-  face (separated) with an orange square at their centre;
+  face (separated) with an orange square at their centre; blocks removed by then
+  (``loading.removal``) as red dotted outlines where they were, not drawn deformed;
 * the growing load (the first of the scene's load factors: the body-force multiplier ``lambda``,
   the force on a block) against the largest displacement of a block point (``limit.csv``), with
   the onset of the mechanism and its detection marked; without a growing load, the largest
@@ -56,6 +57,15 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
     z = fields.nodes_m[:, 2]
     tol = 1e-9 * (1.0 + float(np.ptp(z)))
     at_front = np.abs(z[fields.hexes[:, :4]] - z.min()).max(axis=1) <= tol
+    # the blocks removed by then are drawn apart, as outlines where they were
+    removal = run.scene.get("removal")
+    gone = np.zeros(len(fields.hexes), dtype=bool)
+    if removal and fields.time_s > removal["at_s"] + 1e-9:
+        names = [b.get("name") for b in run.scene.get("structure", [])]
+        out = [k for k, name in enumerate(names) if name in removal["blocks"]]
+        gone = np.isin(fields.block_of_element, out)
+    removed = fields.hexes[at_front & gone, :4]
+    at_front &= ~gone
     front = fields.hexes[at_front, :4]
     z_back = float(z[fields.hexes[at_front]].max(initial=z.min()))
 
@@ -83,6 +93,9 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
                                hatch="//", linewidth=0.5))
     ax.add_collection(PolyCollection(ref[front], facecolors="none", edgecolors="0.75",
                                      linewidths=0.6, linestyles="--"))
+    if len(removed):
+        ax.add_collection(PolyCollection(ref[removed], facecolors="none", edgecolors="red",
+                                         linewidths=0.8, linestyles=":"))
     node_disp = np.linalg.norm(disp[:, :2], axis=1)
     pc = PolyCollection(moved[front], array=1e3 * node_disp[front].mean(axis=1), cmap="viridis",
                         edgecolors="0.2", linewidths=0.5)
@@ -174,7 +187,8 @@ def _draw_load_panel(fig, ax, bx, run, summary: dict, fields, magnify: float) ->
                     if loads else "")
                  + f"\nstep {fields.step}, t = {fields.time_s:.3f} s, displacements x "
                  f"{magnify:.3g}; hinges (red) at their pivots, sliding (blue x), open "
-                 "(orange)")
+                 "(orange)" + (f"\n{', '.join(removal['blocks'])} removed at t = "
+                               f"{removal['at_s']:.4g} s (red dotted)" if len(removed) else ""))
 
     table = read_limit_table(run.outdir)
     factors = [f["name"] for f in summary.get("load_factors", []) if f["name"] in table]

@@ -35,7 +35,7 @@ from masonry_nscd.io.recorder import Recorder, StepOutput, read_resume_point
 from masonry_nscd.io.run_log import RunLog
 from masonry_nscd.io.runfolder import CSV_COLUMNS
 from masonry_nscd.nscd import mpi
-from masonry_nscd.nscd.checkpoint import CheckpointError, integrator_state, restore_integrator
+from masonry_nscd.nscd.checkpoint import CheckpointError, restore_integrator
 from masonry_nscd.nscd.energy import energy_row
 from masonry_nscd.nscd.integrator import DivergenceError
 from masonry_nscd.nscd.newton import CYCLE_VISITS
@@ -298,14 +298,20 @@ def _write_output_step(rec, scene, integ, fields, mesh, damage: dict, rep, done:
     """The fields of step ``rep`` into the run's files (VTU, HDF5, energy, checkpoint):
     RunFailure when a value is not finite (the writers refuse NaN and inf, naming the
     field)."""
+    import numpy as np
+
     with timing.part("outputs"):
         sig = fields.element_stress()
         disp = fields.nodal_displacement()
         j = integ.joints
+        removed = {}
+        if scene.removal is not None:  # 1 on the cells of the blocks out of the model
+            out = np.isin(mesh.bodies, scene.removal.bodies) & scene.removed_at(rep.time - scene.solver.h)
+            removed = {"removed": out[mesh.block_of_element].astype(float)}
         step_out = StepOutput(
             block_points={"displacement_m": disp},
             block_cells={"block": mesh.block_of_element.astype(float), "stress_Pa": sig,
-                         "von_mises_Pa": von_mises(sig), **damage},
+                         "von_mises_Pa": von_mises(sig), **damage, **removed},
             joint_points=fields.joint_fields(),
             h5={"u": integ.u, "v": integ.v, "element_stress_Pa": sig,
                 "nodal_displacement_m": disp,
@@ -356,6 +362,9 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
         raise RunInputError(f"invalid case {case.name}: {exc}") from exc
     log(_case_line(case, scene, integ))
     log(_arithmetic_line())
+    if scene.removal is not None:
+        log(f"removal: {', '.join(scene.removal.names)} leave the model at t = "
+            f"{scene.removal.at_s(scene.solver.h):.6g} s")
     if case.step_growth_note:
         log(case.step_growth_note)
     if point is not None:
@@ -363,6 +372,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
             restore_integrator(integ, point.state)
         except CheckpointError as exc:
             raise RunInputError(f"{outdir / rf.CHECKPOINT}: {exc}") from exc
+        scene.settle(integ)  # a run resumed at or after a removal
         log(f"resumed from the checkpoint of step {point.step} (t = {integ.t:.6g} s)")
     mesh = OutputMesh.of(scene)
     fields = StepFields(scene, mesh, integ)
@@ -397,15 +407,17 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
         while True:
             if TERMINATE.is_set():
                 raise KeyboardInterrupt
-            if scene.holds_at(integ.t) != holds:  # a dof is held from now on: a new system
-                holds = scene.holds_at(integ.t)
-                new = scene.integrator(integ.t)
-                restore_integrator(new, integrator_state(integ))
-                new.set_step_memory(integ.step_memory())
+            new = scene.next_integrator(integ)  # a hold or the removal begins: a new system
+            if new is not integ:
+                if scene.holds_at(integ.t) != holds:
+                    holds = scene.holds_at(integ.t)
+                    log(f"from t = {integ.t:.6g} s: " + ", ".join(
+                        f"{scene.bodies[hd.body].name} held in {DOF_NAMES[hd.dof]}"
+                        for hd in holds))
+                if scene.removed_at(integ.t) and not integ.phase[1]:
+                    log(f"from t = {integ.t:.6g} s: removed " + ", ".join(scene.removal.names))
                 integ = new
                 fields = StepFields(scene, mesh, integ)
-                log(f"from t = {integ.t:.6g} s: " + ", ".join(
-                    f"{scene.bodies[hd.body].name} held in {DOF_NAMES[hd.dof]}" for hd in holds))
             counts = integ.solver_counts()
             rep = _advance(integ, scene, log)
             notes.note(rep, integ, counts)

@@ -60,6 +60,70 @@ class PointLoad(Section):
     ramp_s: Real = Field(0.1, gt=0.0, le=1e6, description="duration of the ramp (s)")
 
 
+class Removal(Section):
+    """Blocks taken out of the structure at a time (a hole opened in a vault): ``blocks``, by
+    name, leave the model at ``time_s``. From the start of the step in which ``time_s`` falls
+    (exactly at ``time_s`` when it is on the grid of the time step) their contact points carry
+    nothing (no impulse, no cohesion), their loads stop, the collapse rule no longer watches
+    them, and the outputs flag them as removed; a rigid block is then held at rest where it
+    was, a deformable one moves on with no contact and no load
+    (:mod:`masonry_nscd.scenes.removal`)."""
+
+    blocks: list[Annotated[str, Field(min_length=1, max_length=200)]] = Field(
+        ..., min_length=1, max_length=100000,
+        description="names of the blocks removed (e.g. [voussoir 12])")
+    time_s: Real = Field(
+        ..., ge=0.0, le=1e6, description="time at which they leave the model (s; 0: before "
+        "the first step)")
+
+    @model_validator(mode="after")
+    def _check_blocks(self) -> Removal:
+        twice = sorted({b for b in self.blocks if self.blocks.count(b) > 1})
+        if twice:
+            raise_problems([("blocks", f"names {', '.join(map(repr, twice))} more than once")])
+        return self
+
+
+class LineLoad(Section):
+    """A dead load spread along a segment over named blocks (fill, a wall on a vault): a force
+    of ``force_N_m`` per metre of the segment from ``from_m`` to ``to_m`` (its resultant
+    ``force_N_m`` times the segment's length), ramped with gravity. The segment is cut into
+    short pieces; each piece's force acts at its middle on the named block under it, the
+    highest of those whose outline in plan (x, z) holds the middle, or else the block nearest
+    to it in plan (:func:`masonry_nscd.scenes.limit_loads.line_load_pattern`)."""
+
+    blocks: list[Annotated[str, Field(min_length=1, max_length=200)]] = Field(
+        ..., min_length=1, max_length=100000,
+        description="names of the blocks that carry the load")
+    force_N_m: Vector3 = Field(
+        ..., description="force per metre of the segment (N/m): x, y, z (y up: a weight is "
+        "[0, -w, 0])")
+    from_m: Vector3 = Field(..., description="start of the segment (m): x, y, z")
+    to_m: Vector3 = Field(..., description="end of the segment (m): x, y, z")
+
+    @model_validator(mode="after")
+    def _check_segment(self) -> LineLoad:
+        if not sum((b - a) ** 2 for a, b in zip(self.from_m, self.to_m)) > 0.0:
+            raise_problems([("to_m", "equals from_m; a line load needs a segment of length")])
+        return self
+
+    @property
+    def length_m(self) -> float:
+        """The segment's length (m)."""
+        return sum((b - a) ** 2 for a, b in zip(self.from_m, self.to_m)) ** 0.5
+
+
+class BlockLoad(Section):
+    """A dead force on each of the named blocks (a column, a statue, a lantern's legs):
+    ``force_N`` on every one of ``blocks``, where ``loading.point_load`` acts (the middle of
+    the block's top or extrados face, the builder's), ramped with gravity."""
+
+    blocks: list[Annotated[str, Field(min_length=1, max_length=200)]] = Field(
+        ..., min_length=1, max_length=100000, description="names of the blocks loaded")
+    force_N: Vector3 = Field(
+        ..., description="force on each block (N): x, y, z (y up: a weight is [0, -W, 0])")
+
+
 #: The names a support can have: an arch's springings, a cross vault's corners, and a cross
 #: vault's sides (the two corners on that side)
 SUPPORT_NAMES = ("left", "right", "north-east", "north-west", "south-east", "south-west",
@@ -309,6 +373,32 @@ class Loading(Section):
     settlement: Settlement | None = Field(
         None, description="arch, vault, cross vault: the settlement of supports (null: none)"
     )
+    removal: Removal | None = Field(
+        None, description="limit states: blocks taken out at a time (null: none)"
+    )
+    line_loads: list[LineLoad] = Field(
+        default_factory=list, max_length=1000,
+        description="limit states: dead loads per metre along segments over named blocks"
+    )
+    block_loads: list[BlockLoad] = Field(
+        default_factory=list, max_length=1000,
+        description="limit states: dead forces on named blocks, the same on each"
+    )
+
+    def named_blocks(self) -> list[tuple[str, str]]:
+        """Every block a limit-state load names, as ``(dotted path, name)``: the point load's,
+        the removed blocks, the line and block loads' blocks (the builders check them against
+        theirs)."""
+        out = []
+        if self.point_load is not None:
+            out.append(("loading.point_load.block", self.point_load.block))
+        if self.removal is not None:
+            out += [(f"loading.removal.blocks[{i}]", b) for i, b in enumerate(self.removal.blocks)]
+        for field in ("line_loads", "block_loads"):
+            for k, load in enumerate(getattr(self, field)):
+                out += [(f"loading.{field}[{k}].blocks[{i}]", b)
+                        for i, b in enumerate(load.blocks)]
+        return out
 
     @property
     def end_time_s(self) -> float:

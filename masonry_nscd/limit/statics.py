@@ -27,6 +27,10 @@ once every ramp is over, so ``F_live`` is the load per unit of that factor and `
 rest (self-weight and the other loads); a deformable block's nodal loads are reduced to their
 resultant and moment about its reference point. A scene with no growing factor (a factor of
 rate zero) has only dead loads.
+
+Blocks removed at a time (``Scene.removal``, ``loading.removal``) are out of the model whatever
+the time: no equilibrium rows, no interface points, no loads; the analysis is that of the
+structure with the hole.
 """
 
 from __future__ import annotations
@@ -106,7 +110,10 @@ def split_loads(scene) -> tuple[np.ndarray, np.ndarray, str | None, str]:
     factors = list(scene.collapse.factors) if scene.collapse is not None else []
     last = max([st.start_s for st in scene.stages] + [scene.time_limit_s, 1.0])
     t1, t2 = 10.0 * last, 20.0 * last
-    F1, F2 = scene.loads.at(t1, ndof), scene.loads.at(t2, ndof)
+    loads = scene.loads
+    if scene.removal is not None:  # the removed blocks' loads are gone
+        loads = loads.without(scene.removal.dofs(scene.bodies))
+    F1, F2 = loads.at(t1, ndof), loads.at(t2, ndof)
     for fa in factors:
         v1, v2 = float(fa.value(t1)), float(fa.value(t2))
         if v2 != v1:
@@ -129,6 +136,11 @@ def rigid_model(scene) -> RigidModel:
     for hd in scene.holds:
         free[6 * hd.body + hd.dof] = False
     pts = scene.points
+    if scene.removal is not None:  # the structure once they are out: no dofs, no points
+        out = set(scene.removal.bodies)
+        for i in out:
+            free[6 * i:6 * i + 6] = False
+        pts = [p for p in pts if not out & set(p.bodies)]
     law = np.array([p.law for p in pts], dtype=np.int64)
     P = np.asarray(scene.params)[law] if len(pts) else np.zeros((0, 16))
     dead, live, factor, unit = split_loads(scene)

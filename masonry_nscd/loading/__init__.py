@@ -147,3 +147,11 @@ class Loads:
         for p, h in zip(self.patterns, self.histories):
             F += h(t) * p
         return F
+
+    def without(self, dofs) -> Loads:
+        """The same loads with nothing on ``dofs`` (global dof indices): those of bodies taken
+        out of the model."""
+        patterns = [p.copy() for p in self.patterns]
+        for p in patterns:
+            p[np.asarray(dofs, dtype=np.int64)] = 0.0
+        return Loads(patterns, list(self.histories))

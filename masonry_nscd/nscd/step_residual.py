@@ -249,6 +249,7 @@ class StepResidual:
         self.u_pred = u_old + s.h * (1.0 - s.theta) * U_old
         self.nf = len(solver.free)
         self._R = np.empty(s.ndof)
+        self._p_free: float | None = None  # |M_hat v_free| (N s), when asked for
         # the product by M_hat (v - v_free): of every body, or of all but the ENDO3D blocks,
         # whose rows are then M v + h theta F_int(u) + b (integrator.MaterialCorrection)
         self._mhat_op = solver.mhat_op
@@ -363,11 +364,26 @@ class StepResidual:
             if self.solver.has_rigid:
                 # and the rigid contacts' conditions, as the impulses that would meet them
                 res = max(res, math.sqrt(self.scales.rigid_sq(F) / den) / h)
+        else:
+            # no point carries a force (every body in free flight: a block left alone after
+            # the removal of its neighbours): the momentum balance alone tells, against the
+            # momentum of the free velocities. Without it the predictor, an extrapolation of
+            # the steps before, passed for the solution, and a block that had just lost its
+            # last contact went on accelerating upwards
+            res = max(res, math.sqrt(ev.momentum_sq) / self._free_momentum())
         cvec, cscale = ev.correction, ev.correction_scale
         if cvec is not None and c_prev is not None:
             dc = change_norm(cvec, c_prev)
             res = max(res, dc / cscale if cscale > 0 else (0.0 if dc == 0 else math.inf))
         return res, num, den
+
+    def _free_momentum(self) -> float:
+        """``|M_hat v_free|`` over the free dofs (N s; 1e-300 at least), made once."""
+        if self._p_free is None:
+            p = np.empty(self.sys.ndof)
+            self.solver.mhat_op.matvec(self.v_free, p)
+            self._p_free = max(float(np.linalg.norm(p[self.solver.free])), 1e-300)
+        return self._p_free
 
     def parts(self, ev: Evaluation, num: float, den: float) -> tuple[float, float, float]:
         """The three parts of the measure (change of the tractions, momentum, rigid

@@ -20,6 +20,7 @@ from typing import Any
 from masonry_nscd.case import CaseError
 from masonry_nscd.case.structures import structures
 from masonry_nscd.nscd import linear
+from masonry_nscd.scenes.removal import removal_of
 
 
 @dataclass(frozen=True)
@@ -52,6 +53,19 @@ def _builder(name: str) -> Builder:
     return builder
 
 
+def describe_case(case) -> str:
+    """The one line of ``masonry validate``: the builder's, and the loads on named blocks and
+    the removal that every limit-state structure takes."""
+    line = builder_of(case).describe(case)
+    ld = case.loading
+    extra = [f"a line load of {load.length_m:.4g} m on {', '.join(load.blocks)}"
+             for load in ld.line_loads]
+    extra += [f"a force on each of {', '.join(load.blocks)}" for load in ld.block_loads]
+    if ld.removal is not None:
+        extra.append(f"{', '.join(ld.removal.blocks)} removed at {ld.removal.time_s:g} s")
+    return line + "".join(f"; {e}" for e in extra)
+
+
 def problems(case) -> list[str]:
     """What the schema does not see wrong with a valid case: its builder's checks, and a
     linear solver this machine does not have. One message per problem, naming the field."""
@@ -73,5 +87,8 @@ def check_case(case):
 
 
 def build_scene(case):
-    """The scene of a validated case (CaseError when its builder refuses it)."""
-    return builder_of(check_case(case)).build(case)
+    """The scene of a validated case (CaseError when its builder refuses it), with the removal
+    of blocks the case asks for (``loading.removal``, :mod:`masonry_nscd.scenes.removal`)."""
+    scene = builder_of(check_case(case)).build(case)
+    scene.removal = removal_of(case, scene.bodies)
+    return scene

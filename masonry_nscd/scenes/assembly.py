@@ -309,15 +309,16 @@ def build_assembly(case) -> Scene:
 def check(case) -> list[tuple[str, str]]:
     """The mesh file read and checked (``read_assembly``; nothing kept): its problems with
     their fields (``assembly.mesh_file``, ``assembly.supports[0].group``, ...), then the
-    blocks that ``assembly.driven_block`` and ``loading.point_load.block`` name, which must be
-    blocks of the structure (not supports)."""
+    blocks that ``assembly.driven_block`` and the loads (``Loading.named_blocks``: the point
+    load, the removal, the line loads) name, which must be blocks of the structure (not
+    supports)."""
     try:
         b = read_assembly(case.assembly)
     except AssemblyError as exc:
         return [(f"assembly.{field}", text) for field, text in exc.problems]
     structure = [nm for nm, s in zip(b.names, b.support, strict=True) if s is None]
     listed = ", ".join(repr(nm) for nm in structure)
-    named = (("loading.point_load.block", getattr(case.loading.point_load, "block", None)),
+    named = (*case.loading.named_blocks(),
              ("assembly.driven_block", case.assembly.driven_block))
     return [(field, f"got {name!r}; the blocks of the structure are {listed}")
             for field, name in named if name is not None and name not in structure]

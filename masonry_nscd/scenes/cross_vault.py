@@ -40,6 +40,7 @@ from itertools import pairwise
 
 import numpy as np
 
+from masonry_nscd.case.structures.arch import named_block_problems
 from masonry_nscd.case.structures.cross_vault import CORNERS, SIDES, WEBS
 from masonry_nscd.contact import laws
 from masonry_nscd.loading import at_rest
@@ -224,12 +225,10 @@ def geometry_problems(case) -> list[tuple[str, str]]:
         problems.append(("cross_vault.rib_depth_m", (
             f"got {v.rib_depth_m:.6g} m; the rib's intrados must stay above the arch's centre: "
             f"below {sec.R + v.thickness_m / 2.0 - sec.c:.6g} m")))
-    load = case.loading.point_load
-    if load is not None and not problems and load.block not in block_names(v):
-        problems.append(("loading.point_load.block", (
-            f"got {load.block!r}; the blocks are named like 'east web north course "
-            f"{v.springer_courses + 1} stone 1', 'springer north-east', 'east rib north "
-            "voussoir 1'")))
+    if not problems:
+        problems += named_block_problems(case.loading, block_names(v), (
+            f"the blocks are named like 'east web north course {v.springer_courses + 1} "
+            "stone 1', 'springer north-east', 'east rib north voussoir 1'"))
     return problems
 
 

@@ -22,9 +22,10 @@ the recorders, the summary and the plots need, so that none of them knows what w
 * the solver settings, and per-point data to write out (the drawn joint properties of
   ``joint.scatter``).
 
-A held dof changes the system (its velocity becomes imposed), so :meth:`Scene.integrator` builds
-the integrator of the stage a step starts in; the run loop moves the state into a new one when a
-hold begins (:meth:`Scene.holds_change`). :meth:`Scene.info` is what the run folder keeps of the
+A held dof changes the system (its velocity becomes imposed), and so does the removal of blocks
+(``removal``, :mod:`masonry_nscd.scenes.removal`), so :meth:`Scene.integrator` builds the
+integrator of the phase a step starts in; the run loop moves the state into a new one when a
+hold or the removal begins (:meth:`Scene.next_integrator`). :meth:`Scene.info` is what the run folder keeps of the
 scene (``scene.json``) for the summary and the plots.
 """
 
@@ -43,7 +44,9 @@ import numpy as np
 from masonry_nscd.contact.laws import KIND_JOINT
 from masonry_nscd.loading import Loads, at_rest
 from masonry_nscd.model import ContactPoint, RigidBody
+from masonry_nscd.nscd.checkpoint import integrator_state, restore_integrator
 from masonry_nscd.nscd.integrator import Integrator
+from masonry_nscd.scenes.removal import Removal
 
 DOF_NAMES = ("x", "y", "z", "rot_x", "rot_y", "rot_z")
 SCENE_FORMAT = "masonry_nscd.scene"
@@ -169,6 +172,7 @@ class Scene:
     # (dofs, weights) of U_x and of U_y, global dofs (None: the driven body's reference point)
     measured: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None
     collapse: CollapseRule | None = None  # a limit-state scene's (None: no watch)
+    removal: Removal | None = None  # blocks taken out at a time (scenes/removal.py)
 
     # --- what changes with time -----------------------------------------------------------
     def stage_at(self, t: float) -> str:
@@ -199,6 +203,35 @@ class Scene:
         ``t_before``."""
         return self.holds_at(t_before) != self.holds_at(t_after)
 
+    def removed_at(self, t: float) -> bool:
+        """Whether the removed blocks are out in a step that starts at ``t`` (s)."""
+        return self.removal is not None and self.removal.active(t, self.solver.h)
+
+    def phase_at(self, t: float) -> tuple:
+        """What makes the system of a step starting at ``t`` (s): its holds and whether the
+        removed blocks are out. A step in another phase than the last one needs a new
+        integrator (:meth:`next_integrator`)."""
+        return self.holds_at(t), self.removed_at(t)
+
+    def next_integrator(self, integ):
+        """The integrator of the step starting at ``integ.t``: ``integ`` itself, or, when a
+        hold or the removal begins there, a new one (:meth:`integrator`) with the state of
+        ``integ`` moved into it (:meth:`settle`)."""
+        if getattr(integ, "phase", None) == self.phase_at(integ.t):
+            return integ
+        new = self.integrator(integ.t)
+        restore_integrator(new, integrator_state(integ))
+        new.set_step_memory(integ.step_memory())
+        self.settle(new)
+        return new
+
+    def settle(self, integ) -> None:
+        """The state of ``integ`` (an integrator of this scene with a state put in) as the
+        removal leaves it, when the removed blocks are out at its time (``Removal.settle``;
+        nothing before, and nothing new the second time)."""
+        if self.removed_at(integ.t):
+            self.removal.settle(integ, self.points)
+
     def step_limit_s(self, t: float) -> float:
         """The latest time (s) a step starting at ``t`` may end at (the adaptive step size's
         bound): the start of the first step that holds a dof not held at ``t``, and the
@@ -211,6 +244,8 @@ class Scene:
         for hd in self.holds:
             if hd not in self.holds_at(t):
                 limit = min(limit, math.floor(hd.from_s / h + 1e-9) * h)
+        if self.removal is not None and not self.removed_at(t):
+            limit = min(limit, self.removal.at_s(h))
         if self.turns_s and self.solver.max_growth:
             limit = min(limit, self._turn_limit_s(t))
         return limit
@@ -248,8 +283,11 @@ class Scene:
             bodies[hd.body] = dataclasses.replace(
                 b, imposed_velocity={**b.imposed_velocity, hd.dof: at_rest},
                 dof_mode=b.dof_mode.copy())
+        points, loads = self.points, self.loads
+        if self.removed_at(t):
+            bodies, points, loads = self.removal.apply(bodies, points, loads)
         s = self.solver
-        return Integrator(bodies, self.points, self.params, self.loads, h=s.h, theta=s.theta,
+        integ = Integrator(bodies, points, self.params, loads, h=s.h, theta=s.theta,
                           tolerance=s.tolerance, max_iterations=s.max_iterations,
                           check_every=s.check_every, method=s.method,
                           endo3d_params=s.endo3d_params, endo3d_tau=s.endo3d_tau,
@@ -258,6 +296,8 @@ class Scene:
                           max_growth=s.max_growth, grow_after=s.grow_after,
                           easy_iterations=s.easy_iterations, easy_damage=s.easy_damage,
                           step_limit=self.step_limit_s, linear=s.linear)
+        integ.phase = self.phase_at(t)  # what it was built for (``next_integrator``)
+        return integ
 
     # --- read-outs ------------------------------------------------------------------------
     def driven_dofs(self, body_dof0: np.ndarray) -> tuple[int, int]:
@@ -314,5 +354,7 @@ class Scene:
                            else "block", **info}
                           for i, info in zip(self.structure, self.body_info)],
             **({"collapse": self.collapse.info()} if self.collapse is not None else {}),
+            **({"removal": self.removal.info(self.solver.h)} if self.removal is not None
+               else {}),
             **self.meta,
         }

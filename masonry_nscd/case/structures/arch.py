@@ -130,13 +130,20 @@ class Arch(Section):
 
 
 def _point_load_problems(case) -> list[tuple[str, str]]:
-    """A point load on a block the arch does not have (its voussoirs, from the left
-    springing, and its block abutments)."""
-    a, load = case.arch, case.loading.point_load
-    if load is None:
-        return []
+    """A load or a removal naming a block the arch does not have (its voussoirs, from the
+    left springing, and its block abutments)."""
+    a = case.arch
     names = [f"voussoir {k}" for k in range(1, a.voussoirs + 1)]
-    return point_load_problems(a, load, names, f"voussoir 1 to voussoir {a.voussoirs}")
+    return point_load_problems(a, case.loading, names, f"voussoir 1 to voussoir {a.voussoirs}")
+
+
+def named_block_problems(loading, names, how: str) -> list[tuple[str, str]]:
+    """The blocks that the limit-state loads of ``loading`` name (``Loading.named_blocks``:
+    the point load, the removal, the line loads) and that are not among ``names``, each
+    ``(dotted path, text)``; ``how`` says how the blocks are named."""
+    known = set(names)
+    return [(path, f"got {name!r}; {how}") for path, name in loading.named_blocks()
+            if name not in known]
 
 
 def settlement_problems(case, names: tuple[str, ...]) -> list[tuple[str, str]]:
@@ -157,23 +164,24 @@ def _arch_problems(case) -> list[tuple[str, str]]:
     return _point_load_problems(case) + settlement_problems(case, ("left", "right"))
 
 
-def point_load_problems(a: Arch, load, names: list[str], where: str) -> list[tuple[str, str]]:
-    """``loading.point_load.block`` against the voussoirs ``names`` of the arch or vault ``a``
-    (``where``: how a message names their range) and its abutments when they are blocks."""
+def point_load_problems(a: Arch, loading, names: list[str], where: str
+                        ) -> list[tuple[str, str]]:
+    """The blocks that the loads of ``loading`` name (the point load, the removal, the line
+    loads) against the voussoirs ``names`` of the arch or vault ``a`` (``where``: how a
+    message names their range) and its abutments when they are blocks."""
     extra = a.abutments == "blocks"
     if extra:
         names = [*names, "left abutment", "right abutment"]
-    if load.block in names:
-        return []
-    return [("loading.point_load.block", (
-        f"got {load.block!r}; the blocks are {where} (from the left springing)"
-        + (", left abutment, right abutment" if extra else "")))]
+    return named_block_problems(loading, names, (
+        f"the blocks are {where} (from the left springing)"
+        + (", left abutment, right abutment" if extra else "")))
 
 
 #: The parts of a case that only a limit-state structure reads: its collapse rule and its
 #: growing loads
 LIMIT_STATE_OWNS = ("collapse", "loading.body_force", "loading.point_load",
-                    "loading.settlement")
+                    "loading.settlement", "loading.removal", "loading.line_loads",
+                    "loading.block_loads")
 
 STRUCTURE = Structure(
     name="arch", model=Arch, article="an arch", order=10, limit_state=True,

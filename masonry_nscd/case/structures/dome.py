@@ -10,7 +10,11 @@ from pydantic import Field, model_validator
 from masonry_nscd.case.errors import raise_problems
 from masonry_nscd.case.fields import Real, Section, Whole
 from masonry_nscd.case.structures import Structure
-from masonry_nscd.case.structures.arch import LIMIT_STATE_OWNS, settlement_problems
+from masonry_nscd.case.structures.arch import (
+    LIMIT_STATE_OWNS,
+    named_block_problems,
+    settlement_problems,
+)
 
 
 class Dome(Section):
@@ -103,13 +107,11 @@ class Dome(Section):
 
 def _point_load_problems(case) -> list[tuple[str, str]]:
     """A point load on a block the dome does not have; a settlement (its ring is fixed)."""
-    d, load = case.dome, case.loading.point_load
+    d = case.dome
     fixed = settlement_problems(case, ())
-    if load is None or load.block in d.voussoir_names():
-        return fixed
-    return fixed + [("loading.point_load.block", (
-        f"got {load.block!r}; the blocks are course 1 voussoir 1 to course {d.courses} "
-        f"voussoir {d.voussoirs} (from the springing; voussoir 1 at azimuth 0)"))]
+    return fixed + named_block_problems(case.loading, d.voussoir_names(), (
+        f"the blocks are course 1 voussoir 1 to course {d.courses} voussoir {d.voussoirs} "
+        "(from the springing; voussoir 1 at azimuth 0)"))
 
 
 STRUCTURE = Structure(

@@ -62,13 +62,11 @@ class Vault(Arch):
 
 def _point_load_problems(case) -> list[tuple[str, str]]:
     """A point load on a block the vault does not have."""
-    v, load = case.vault, case.loading.point_load
+    v = case.vault
     moved = settlement_problems(case, ("left", "right"))
-    if load is None:
-        return moved
     where = (f"ring 1 voussoir 1 to ring {v.rings} voussoir "
              f"{len(v.voussoir_names(v.rings))}")
-    return point_load_problems(v, load, v.voussoir_names(), where) + moved
+    return point_load_problems(v, case.loading, v.voussoir_names(), where) + moved
 
 
 STRUCTURE = Structure(
