@@ -82,8 +82,9 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
         grid = fig.add_gridspec(1, 2, width_ratios=(1.4, 1.0))
         ax = fig.add_subplot(grid[0], projection="3d")
         bx = fig.add_subplot(grid[1])
-        magnify = _draw_in_perspective(ax, fields, disp, summary, magnify)
-        _draw_load_panel(fig, ax, bx, run, summary, fields, magnify)
+        magnify = _draw_in_perspective(ax, fields, disp, summary, magnify, gone)
+        _draw_load_panel(fig, ax, bx, run, summary, fields, magnify,
+                         _removal_note(removal, gone.any()))
         return save_png(fig, path)
     ax, bx = fig.subplots(1, 2, width_ratios=(1.4, 1.0))
     builder = run.scene.get(run.scene.get("builder", "arch")) or {}
@@ -130,14 +131,24 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    _draw_load_panel(fig, ax, bx, run, summary, fields, magnify)
+    _draw_load_panel(fig, ax, bx, run, summary, fields, magnify,
+                     _removal_note(removal, len(removed) > 0))
     return save_png(fig, path)
 
 
-def _draw_in_perspective(ax, fields, disp: np.ndarray, summary: dict, magnify: float) -> float:
+def _removal_note(removal: dict | None, shown: bool) -> str:
+    """The title's line on the blocks removed by then (drawn red dotted), if any are shown."""
+    if not shown:
+        return ""
+    return f"\n{', '.join(removal['blocks'])} removed at t = {removal['at_s']:.4g} s (red dotted)"
+
+
+def _draw_in_perspective(ax, fields, disp: np.ndarray, summary: dict, magnify: float,
+                         gone: np.ndarray) -> float:
     """Every element's faces, moved by ``magnify`` times their displacements (the largest drawn
     as AUTO_MAGNIFY_FRACTION of the structure's size when ``magnify`` is 0) and coloured by
-    it, in perspective (y up), with the hinges (red) and sliding joints (blue) at their places;
+    it, in perspective (y up), with the hinges (red) and sliding joints (blue) at their places,
+    and the elements ``gone`` (removed by then) as red dotted outlines where they were;
     returns the magnification drawn."""
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize
@@ -149,8 +160,12 @@ def _draw_in_perspective(ax, fields, disp: np.ndarray, summary: dict, magnify: f
     if magnify <= 0.0:
         magnify = AUTO_MAGNIFY_FRACTION * size / largest if largest > 0.0 else 1.0
     moved = X + magnify * disp
-    faces = fields.hexes[:, _HEX_FACES].reshape(-1, 4)
+    faces = fields.hexes[~gone][:, _HEX_FACES].reshape(-1, 4)
     shown = moved[:, [0, 2, 1]]  # x, z on the ground, y up
+    if gone.any():
+        ax.add_collection3d(Poly3DCollection(
+            X[:, [0, 2, 1]][fields.hexes[gone][:, _HEX_FACES].reshape(-1, 4)],
+            facecolors="none", edgecolors="red", linestyles=":", linewidths=0.8))
     value = 1e3 * np.linalg.norm(disp, axis=1)[faces].mean(axis=1)
     norm = Normalize(0.0, float(value.max(initial=0.0)) or 1.0)
     mappable = ScalarMappable(norm=norm, cmap="viridis")
@@ -178,8 +193,10 @@ def _draw_in_perspective(ax, fields, disp: np.ndarray, summary: dict, magnify: f
     return magnify
 
 
-def _draw_load_panel(fig, ax, bx, run, summary: dict, fields, magnify: float) -> None:
-    """The mechanism's title, and the load against the motion in ``bx``."""
+def _draw_load_panel(fig, ax, bx, run, summary: dict, fields, magnify: float,
+                     removal_note: str) -> None:
+    """The mechanism's title (``removal_note`` its last line), and the load against the motion
+    in ``bx``."""
     c = summary.get("collapse")
     loads = (c or {}).get("loads_at_onset") or {}
     ax.set_title(f"{summary['status']}: {summary['mechanism']} mechanism"
@@ -187,8 +204,7 @@ def _draw_load_panel(fig, ax, bx, run, summary: dict, fields, magnify: float) ->
                     if loads else "")
                  + f"\nstep {fields.step}, t = {fields.time_s:.3f} s, displacements x "
                  f"{magnify:.3g}; hinges (red) at their pivots, sliding (blue x), open "
-                 "(orange)" + (f"\n{', '.join(removal['blocks'])} removed at t = "
-                               f"{removal['at_s']:.4g} s (red dotted)" if len(removed) else ""))
+                 "(orange)" + removal_note)
 
     table = read_limit_table(run.outdir)
     factors = [f["name"] for f in summary.get("load_factors", []) if f["name"] in table]
