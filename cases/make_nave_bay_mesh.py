@@ -28,11 +28,12 @@ the clerestory walls), side by side (``north``: +z, ``south``: -z; ``east``: +x,
   the floor to ``VAULT_SPRING_M``.
 * The vault, a quadripartite rib vault over the bay: the webs are a pointed groin vault of
   stones in courses (two barrels meeting on the diagonal planes, the geometry of
-  ``masonry_nscd/scenes/cross_vault.py``), ``<web> web <half> course j stone k``; the diagonal
-  ribs are the webs' groin stones deepened by ``DIAGONAL_RIB_DEPTH_M`` below the intrados (a
-  rib bonded into its webs: each course's two groin stones make one voussoir of the rib);
-  ``boss`` the keystone where the ribs cross: the top course's eight groin stones as one
-  block (without it the four crown wedges drop, ``docs/validation.md``);
+  ``masonry_nscd/scenes/cross_vault.py``), ``<web> web <half> course j stone k`` (k from 2:
+  the course's first stone, at the groin, is the rib's); the diagonal ribs are the webs' groin
+  stones deepened by ``DIAGONAL_RIB_DEPTH_M`` below the intrados, the two groin stones of a
+  course on either side of a groin one block, ``diagonal rib <corner> voussoir i`` (a rib
+  bonded into its webs; separate groin stones are wedges that drop); ``boss`` the keystone
+  where the ribs cross: the top course's eight groin stones as one block;
   ``<end> rib <half> voussoir j`` the transverse arches against the east and west ends of the
   webs; ``springer <corner>`` the solid lowest courses at a corner, on the upper pier. The
   north and south webs' ends bear on the clerestory walls' inner faces up to the walls' top;
@@ -291,14 +292,20 @@ def vault_blocks(bay: Bay) -> list[tuple[str, list[np.ndarray]]]:
     v = Vault(bay)
     out = []
     boss = []
+    ribs: dict[tuple[str, int], list[np.ndarray]] = {}
     for web in ("east", "west", "north", "south"):
         for half in _HALVES[web]:
+            corner = f"{half}-{web}" if web in ("east", "west") else f"{web}-{half}"
             for j in range(v.k + 1, v.n + 1):
                 for m, X in enumerate(v.course(web, half, j)):
-                    if j == v.n and m == 0:
+                    if m == 0 and j == v.n:
                         boss.append(X)
+                    elif m == 0:
+                        ribs.setdefault((corner, j), []).append(X)
                     else:
                         out.append((f"{web} web {half} course {j} stone {m + 1}", [X]))
+    for (corner, j), hexes in sorted(ribs.items()):
+        out.append((f"diagonal rib {corner} voussoir {j - v.k}", hexes))
     out.append(("boss", boss))
     for corner in CORNERS:
         out.append((f"springer {corner}", v.springer(corner)))
