@@ -357,8 +357,7 @@ def wall_side(bay: Bay) -> list[tuple[str, list[np.ndarray]]]:
     # levels of the courses
     levels = list(np.arange(bay.arcade_spring_m, bay.wall_top_m - 0.5 * bay.wall_course_m,
                             bay.wall_course_m)) + [bay.wall_top_m]
-    x_end = bay.upper_pier_x
-    assert abs(xe[0] - x_end) < 1e-9
+    assert abs(xe[0] - bay.upper_pier_x) < 1e-9  # the wall ends on the upper piers' faces
     # each column's first course level: the first level a course height above its chord's top
     first = []
     for (p, q) in cols:
@@ -378,29 +377,18 @@ def wall_side(bay: Bay) -> list[tuple[str, list[np.ndarray]]]:
                     first[r] = top
                 blocks.append(_bottom_block(cols, run, levels[top], z0, z1, len(blocks)))
                 run = []
-        if run:
-            raise AssertionError("a run of columns left")
     # courses: in course m, the columns whose first level is at or below it; cut into blocks
     # about wall_block_m long at column boundaries, staggered every other course
-    for m in range(len(levels) - 1):
+    for m in range(min(first), len(levels) - 1):
         y0, y1 = levels[m], levels[m + 1]
         present = [i for i in range(2 * n) if first[i] <= m]
-        if m >= min(first):
-            segments = _runs(present)
-            # the wall's two ends: the upper piers' faces, the columns' outermost edges
-            for seg in segments:
-                edges = [cols[seg[0]][0][0]] + [cols[i][1][0] for i in seg]
-                cuts = _cuts(edges, bay.wall_block_m, m % 2 == 1)
-                for k, (xa, xb) in enumerate(pairwise(cuts)):
-                    hexes = []
-                    for xl, xr in pairwise([e for e in edges if xa - 1e-9 <= e <= xb + 1e-9]):
-                        hexes.append(box((xl, y0, z0), (xr, y1, z1)))
-                    blocks.append((f"wall course {m + 1} block {len(blocks)}", hexes))
-        else:
-            continue
-    # between the crown columns' first levels and y, nothing is left: the courses cover the
-    # columns above their bottom pieces
-    return [(f"{name}", hexes) for name, hexes in blocks]
+        for seg in _runs(present):  # a run of neighbouring columns: one, or two at the piers
+            edges = [cols[seg[0]][0][0]] + [cols[i][1][0] for i in seg]
+            for xa, xb in pairwise(_cuts(edges, bay.wall_block_m, m % 2 == 1)):
+                hexes = [box((xl, y0, z0), (xr, y1, z1))
+                         for xl, xr in pairwise([e for e in edges if xa - 1e-9 <= e <= xb + 1e-9])]
+                blocks.append((f"wall course {m + 1} block {len(blocks)}", hexes))
+    return blocks
 
 
 def _runs(idx: list[int]) -> list[list[int]]:
