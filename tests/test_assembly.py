@@ -216,7 +216,7 @@ def test_assembly_case_checks(tmp_path):
                                                         "supports": [{"group": 1}]}}))
     with pytest.raises(CaseError, match="assembly: given with arch"):
         case_from_dict({**base, "arch": {}})
-    with pytest.raises(CaseError, match="loading.settlement: given with an assembly"):
+    with pytest.raises(CaseError, match="loading.settlement.support: got 'left'; an assembly"):
         case_from_dict({**base, "loading": {"settlement": {"support": "left",
                                                            "displacement_m": [0, 0, 0]}}})
     # a tag works as a name; a block's material from the table

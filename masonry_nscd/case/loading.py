@@ -131,18 +131,42 @@ SUPPORT_NAMES = ("left", "right", "north-east", "north-west", "south-east", "sou
 
 
 class Settlement(Section):
-    """A support that moves: the fixed body under one springing of an arch or a barrel vault
-    (the abutment, or the ground under a block abutment), or the supports of a cross vault's
+    """Supports that move: the fixed body under one springing of an arch or a barrel vault
+    (the abutment, or the ground under a block abutment), the supports of a cross vault's
     corner or side (``east``: the two corners at +x; the spreading of a bay whose piers lean),
-    moves by ``displacement_m`` along a tanh ramp of ``duration_s`` from ``start_s``."""
+    or the support blocks of an assembly named in ``blocks`` (its foundations: the two piers
+    of one side of a nave moving outwards), move by ``displacement_m`` along a tanh ramp of
+    ``duration_s`` from ``start_s``. ``support`` names the support of an arch, a vault or a
+    cross vault; ``blocks`` those of an assembly: one of the two."""
 
-    support: Literal[SUPPORT_NAMES] = Field(  # type: ignore[valid-type]
-        ..., description="the support that moves: left or right (arch, vault); a corner "
+    support: Literal[SUPPORT_NAMES] | None = Field(  # type: ignore[valid-type]
+        None, description="the support that moves: left or right (arch, vault); a corner "
         "(north-east, ...) or a side (north, south, east, west: its two corners) of a cross "
-        "vault")
+        "vault (null: blocks)")
+    blocks: list[Annotated[str, Field(min_length=1, max_length=200)]] | None = Field(
+        None, min_length=1, max_length=1000,
+        description="assembly: the names of the support blocks that move (null: support)")
     displacement_m: Vector3 = Field(..., description="its displacement (m): x, y, z")
     start_s: Real = Field(0.3, ge=0.0, le=1e6, description="time at which it starts (s)")
     duration_s: Real = Field(1.0, gt=0.0, le=1e6, description="duration of the motion (s)")
+
+    @model_validator(mode="after")
+    def _one_of(self) -> Settlement:
+        if (self.support is None) == (self.blocks is None):
+            raise_problems([("support", (
+                "give support (an arch's, a vault's or a cross vault's) or blocks (the "
+                "support blocks of an assembly), one of them"))])
+        if self.blocks is not None and len(set(self.blocks)) < len(self.blocks):
+            raise_problems([("blocks", "a block is named twice")])
+        return self
+
+    @property
+    def label(self) -> str:
+        """How the outputs name what moves: ``the right support``, ``2 support blocks``."""
+        if self.blocks is None:
+            return f"the {self.support} support"
+        return (f"the support block {self.blocks[0]!r}" if len(self.blocks) == 1 else
+                f"{len(self.blocks)} support blocks")
 
 
 class GravityStage(Section):
@@ -371,7 +395,8 @@ class Loading(Section):
         None, description="arch: a growing force on one block (null: none)"
     )
     settlement: Settlement | None = Field(
-        None, description="arch, vault, cross vault: the settlement of supports (null: none)"
+        None, description="arch, vault, cross vault, assembly: the settlement of supports (null: "
+        "none)"
     )
     removal: Removal | None = Field(
         None, description="limit states: blocks taken out at a time (null: none)"

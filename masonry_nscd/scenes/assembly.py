@@ -25,7 +25,10 @@ or a group of blocks with no support); each problem names its blocks, and the ca
 
 Loads, collapse rule and outputs are those of a limit state
 (:mod:`masonry_nscd.scenes.limit_loads`): gravity, the body force ``lambda g m``, a force on
-one block at the middle of its top (the centre of its nodes in x and z, their highest y). The
+one block at the middle of its top (the centre of its nodes in x and z, their highest y), and
+the settlement of the support blocks that ``loading.settlement.blocks`` names (each moves by
+``displacement_m`` along the tanh ramp, without rotating: the spreading of piers' footings;
+``settlement_m`` is the length of that displacement). The
 curve's ``U_x``, ``U_y`` are the reference point of ``assembly.driven_block`` (the highest block
 by default); ``F_x``, ``F_y`` the force of all the supports on the structure, ``*_bottom`` that
 of the first support of the list.
@@ -40,13 +43,14 @@ import numpy as np
 from masonry_nscd.contact import laws
 from masonry_nscd.io.mesh_file import MeshFileError, read_block_mesh
 from masonry_nscd.loading import at_rest
+from masonry_nscd.loading.multiplier import SmoothMotion
 from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody, overlap
 from masonry_nscd.model.detection import JOINT_ANGLE_TOL, find_joints, joint_points
 from masonry_nscd.model.faces import gauss_points, locate
 from masonry_nscd.model.mesh_checks import inverted_elements, overlapping_pairs, unheld_blocks
 from masonry_nscd.scenes import Builder
 from masonry_nscd.scenes.limit_loads import limit_loads, limit_settings
-from masonry_nscd.scenes.scene import Scene
+from masonry_nscd.scenes.scene import LoadFactor, Scene, Stage
 
 #: Joint groups of an assembly, in the order of their ids.
 GROUPS = ("joint", "support", "glue")
@@ -236,17 +240,31 @@ def describe(case) -> str:
             f"{case.solver.time_step_s:g} s")
 
 
+def support_motion(settle, name: str) -> dict:
+    """The imposed velocities of the support block ``name``: at rest, or, when
+    ``loading.settlement.blocks`` names it, each component of the settlement's displacement
+    along its tanh ramp (rotations held)."""
+    imposed = dict.fromkeys(range(6), at_rest)
+    if settle is not None and settle.blocks is not None and name in settle.blocks:
+        for d in range(3):
+            if settle.displacement_m[d]:
+                imposed[d] = SmoothMotion(settle.displacement_m[d], settle.start_s,
+                                          settle.duration_s)
+    return imposed
+
+
 def build_assembly(case) -> Scene:
     """The scene of an assembly case (module docstring)."""
     a, blk = case.assembly, case.blocks
     b = read_assembly(a)
+    settle = case.loading.settlement
     bodies: list = []
     info = []
     for k, (X, c) in enumerate(b.meshes):
         name = b.names[k]
         if b.support[k] is not None:
             bodies.append(RigidBody(center=X.mean(axis=0), mass=1.0, inertia=np.ones(3),
-                                    imposed_velocity=dict.fromkeys(range(6), at_rest),
+                                    imposed_velocity=support_motion(settle, name),
                                     name=name, X=X, conn=c, support=True))
             continue
         m = b.material[k]
@@ -285,6 +303,12 @@ def build_assembly(case) -> Scene:
         return np.array([X[:, 0].mean(), X[:, 1].max(), X[:, 2].mean()])
 
     loads, stages, factors = limit_loads(case, bodies, structure, top_middle)
+    if settle is not None:
+        stages.append(Stage("settlement", settle.start_s))
+        motion = SmoothMotion(float(np.linalg.norm(settle.displacement_m)), settle.start_s,
+                              settle.duration_s)
+        factors.append(LoadFactor("settlement_m", "m", motion.displacement,
+                                  f"settlement of {settle.label}"))
     stages.sort(key=lambda st: st.start_s)
     solver, rule = limit_settings(case, factors)
     col = case.collapse
@@ -320,8 +344,16 @@ def check(case) -> list[tuple[str, str]]:
     listed = ", ".join(repr(nm) for nm in structure)
     named = (*case.loading.named_blocks(),
              ("assembly.driven_block", case.assembly.driven_block))
-    return [(field, f"got {name!r}; the blocks of the structure are {listed}")
-            for field, name in named if name is not None and name not in structure]
+    problems = [(field, f"got {name!r}; the blocks of the structure are {listed}")
+                for field, name in named if name is not None and name not in structure]
+    settle = case.loading.settlement
+    held = [nm for nm, s in zip(b.names, b.support, strict=True) if s is not None]
+    for i, name in enumerate(getattr(settle, "blocks", None) or []):
+        if name not in held:
+            problems.append((f"loading.settlement.blocks[{i}]", (
+                f"got {name!r}; a settlement moves support blocks, the assembly's are "
+                + ", ".join(repr(nm) for nm in held))))
+    return problems
 
 
 BUILDER = Builder("assembly", build_assembly, describe, check)

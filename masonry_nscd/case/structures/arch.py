@@ -150,9 +150,14 @@ def settlement_problems(case, names: tuple[str, ...]) -> list[tuple[str, str]]:
     """``loading.settlement.support`` against the supports ``names`` of the case's structure
     (none: the structure's supports do not move)."""
     settle = case.loading.settlement
-    if settle is None or settle.support in names:
+    if settle is None or (settle.blocks is None and settle.support in names):
         return []
     what = case.structure.article
+    if settle.blocks is not None:
+        return [("loading.settlement.blocks", (
+            f"given with {what} case; blocks name the support blocks of an assembly"
+            + (f": give support, one of {', '.join(names)}" if names else
+               f" ({what}'s supports are fixed)")))]
     if not names:
         return [("loading.settlement", f"given with {what} case, whose supports are fixed")]
     return [("loading.settlement.support", (

@@ -114,12 +114,14 @@ class Assembly(Section):
 
 
 def _settlement_problems(case) -> list[tuple[str, str]]:
-    """A settlement is the arch's and the vault's: an assembly's supports are fixed."""
-    if case.loading.settlement is None:
+    """An assembly's settlement names its support blocks (``blocks``; which are supports is
+    the builder's check, it reads the mesh), not an arch's or a cross vault's ``support``."""
+    settle = case.loading.settlement
+    if settle is None or settle.blocks is not None:
         return []
-    return [("loading.settlement", (
-        "given with an assembly case; the settlement of a support is the arch's and the "
-        "vault's (an assembly's supports are fixed)"))]
+    return [("loading.settlement.support", (
+        f"got {settle.support!r}; an assembly's settlement names the support blocks that "
+        "move: loading.settlement.blocks: [names of blocks in assembly.supports]"))]
 
 
 STRUCTURE = Structure(
