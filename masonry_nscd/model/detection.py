@@ -329,10 +329,14 @@ def _merged_corners(found: list, tol: float) -> list:
     areas = np.concatenate([f[3] for f in found])
     owner = np.concatenate([[i] * len(f[2]) for i, f in enumerate(found)])
     keys = np.round((pts - pts.min(axis=0)) / tol).astype(np.int64)
-    _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
-    total = np.bincount(inverse.ravel(), weights=areas)
-    return [(found[owner[i]][0], found[owner[i]][1], pts[i:i + 1], total[k:k + 1])
-            for k, i in enumerate(first)]
+    first: dict[tuple[int, int], int] = {}  # a corner's key -> its first occurrence
+    total: dict[tuple[int, int], float] = {}  # -> the sum of its areas, in order
+    for i, key in enumerate(map(tuple, keys.tolist())):
+        first.setdefault(key, i)
+        total[key] = total.get(key, 0.0) + float(areas[i])
+    return [(found[owner[first[key]]][0], found[owner[first[key]]][1],
+             pts[first[key]:first[key] + 1], np.array([total[key]]))
+            for key in sorted(first)]
 
 
 def _reference(face: np.ndarray, x: np.ndarray) -> tuple[float, float]:

@@ -120,8 +120,10 @@ def triangle_points(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def plane_basis(normal: np.ndarray) -> np.ndarray:
     """Two unit vectors (2, 3) that span the plane of unit ``normal`` (right-handed with it)."""
-    n = np.asarray(normal, dtype=float)
-    helper = np.eye(3)[int(np.argmin(np.abs(n)))]
-    e1 = np.cross(helper, n)
+    n0, n1, n2 = (float(v) for v in normal)
+    k = int(np.argmin(np.abs([n0, n1, n2])))
+    # e1 = helper x n, the helper the unit vector along the normal's smallest component
+    e1 = np.array([(0.0, -n2, n1), (n2, 0.0, -n0), (-n1, n0, 0.0)][k])
     e1 /= np.linalg.norm(e1)
-    return np.stack([e1, np.cross(n, e1)])
+    e2 = np.array([n1 * e1[2] - n2 * e1[1], n2 * e1[0] - n0 * e1[2], n0 * e1[1] - n1 * e1[0]])
+    return np.stack([e1, e2])
