@@ -40,7 +40,8 @@ the larger, and a uniform traction gives the same force however the area is spli
 
 Broad phase: the bounding boxes of the patches, enlarged by ``max_gap + gap_tol``, are hashed
 into a grid of cells the size of the median patch; only patches that share a cell are compared,
-so the cost grows with the number of patches, not with its square.
+so the cost grows with the number of patches, not with its square (a patch more than 32 cells
+across, a ring's or the ground's face, is compared with every patch directly).
 """
 
 from __future__ import annotations
@@ -99,18 +100,41 @@ class Detection:
     skewed: list[tuple[Patch, Patch, float]] = field(default_factory=list)
 
 
-def candidate_pairs(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """Pairs ``(i, j)``, i < j, of boxes ``[lo, hi]`` (n, 3) that overlap (uniform-grid hash).
+#: A box more than this many grid cells across is compared with every box directly
+BIG_BOX_CELLS = 32
 
-    The cells are the size of the median box, but at least a 32nd of the largest box (which
-    then spans at most 33 cells a side however flat the others are) and a 100,000th of the
-    whole extent (the cells' keys stay far inside 64-bit integers)."""
+
+def candidate_pairs(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Pairs ``(i, j)``, i < j, of boxes ``[lo, hi]`` (n, 3) that overlap, sorted.
+
+    The boxes are hashed into a uniform grid of cells the size of the median box (at least a
+    100,000th of the whole extent, so that the cells' keys stay far inside 64-bit integers),
+    and only boxes that share a cell are compared. A box more than ``BIG_BOX_CELLS`` cells
+    across (the face of a ring or of the ground under many blocks) is compared with every box
+    directly instead: a few large faces do not coarsen the grid for all the others."""
     n = len(lo)
     if n < 2:
         return np.zeros((0, 2), dtype=np.int64)
     ext = (hi - lo).max(axis=1)
     domain = float((hi.max(axis=0) - lo.min(axis=0)).max())
-    cell = max(float(np.median(ext)), float(ext.max()) / 32.0, domain * 1e-5) or 1.0
+    cell = max(float(np.median(ext)), domain * 1e-5) or 1.0
+    big = ext > BIG_BOX_CELLS * cell
+    small = np.flatnonzero(~big)
+    found = [small[_grid_pairs(lo[small], hi[small], cell)]]
+    for b in np.flatnonzero(big):
+        other = np.flatnonzero(np.all((lo[b] <= hi) & (lo <= hi[b]), axis=1))
+        other = other[other != b]
+        found.append(np.stack([np.minimum(other, b), np.maximum(other, b)], axis=1))
+    pairs = np.concatenate(found).reshape(-1, 2)
+    return np.unique(pairs, axis=0) if len(pairs) else pairs
+
+
+def _grid_pairs(lo: np.ndarray, hi: np.ndarray, cell: float) -> np.ndarray:
+    """Pairs ``(i, j)``, i < j, of boxes that overlap, found through a grid of cells of
+    ``cell`` (m) (:func:`candidate_pairs`)."""
+    n = len(lo)
+    if n < 2:
+        return np.zeros((0, 2), dtype=np.int64)
     origin = lo.min(axis=0)
     c0 = np.floor((lo - origin) / cell).astype(np.int64)
     c1 = np.floor((hi - origin) / cell).astype(np.int64)
