@@ -55,13 +55,16 @@ import numpy as np
 
 from masonry_nscd.contact import laws
 from masonry_nscd.fe import hex8
-from masonry_nscd.loading import at_rest
-from masonry_nscd.loading.multiplier import SmoothMotion
-from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody
+from masonry_nscd.model import RigidBody
 from masonry_nscd.model.detection import find_joints, joint_points
 from masonry_nscd.scenes import Builder
-from masonry_nscd.scenes.limit_loads import limit_loads, limit_settings
-from masonry_nscd.scenes.scene import LoadFactor, Scene, Stage
+from masonry_nscd.scenes.limit_loads import (
+    limit_loads,
+    limit_settings,
+    structure_block,
+    support_motion,
+)
+from masonry_nscd.scenes.scene import Scene
 
 X, Y, Z = 0, 1, 2
 #: Joint groups of an arch, in the order of their ids.
@@ -248,14 +251,8 @@ def voussoir_scene(case, a, voussoirs: list[Voussoir], driven: int, builder: str
     L = a.centreline_span_m
     bodies: list = []
     info = []
-    material = MAT_ENDO3D if blk.material == "endo3d" else MAT_ELASTIC
-    for k, v in enumerate(voussoirs):
-        Xv, cv = v.mesh(a.elements_per_voussoir)
-        if blk.material == "rigid":
-            bodies.append(RigidBody.from_mesh(Xv, cv, blk.density_kg_m3, name=v.name))
-        else:
-            bodies.append(Block(X=Xv, conn=cv, E=blk.E_Pa, nu=blk.nu, density=blk.density_kg_m3,
-                                material=material, name=v.name))
+    for v in voussoirs:
+        bodies.append(structure_block(blk, *v.mesh(a.elements_per_voussoir), v.name))
         info.append({"name": v.name, **v.place, "role": v.role})
     n_vous = len(bodies)
 
@@ -266,12 +263,7 @@ def voussoir_scene(case, a, voussoirs: list[Voussoir], driven: int, builder: str
     settle = ld.settlement
     supports = {}
     for side, xs in (("left", -L / 2.0), ("right", L / 2.0)):
-        imposed = dict.fromkeys(range(6), at_rest)
-        if settle is not None and settle.support == side:
-            for d in range(3):
-                if settle.displacement_m[d]:
-                    imposed[d] = SmoothMotion(settle.displacement_m[d], settle.start_s,
-                                              settle.duration_s)
+        imposed = support_motion(settle, settle is not None and settle.support == side)
         if a.abutments == "fixed":
             Xa, ca = _box((xs - width / 2, top - height, 0.0), (xs + width / 2, top, depth))
             bodies.append(RigidBody(center=Xa.mean(axis=0), mass=1.0, inertia=np.ones(3),
@@ -318,12 +310,6 @@ def voussoir_scene(case, a, voussoirs: list[Voussoir], driven: int, builder: str
         case, bodies, structure,
         lambda k: voussoirs[k].extrados_middle() if k < n_vous else
         np.array([bodies[k].X[:, 0].mean(), bodies[k].X[:, 1].max(), 0.5 * depth]))
-    if settle is not None:
-        stages.append(Stage("settlement", settle.start_s))
-        motion = SmoothMotion(float(np.linalg.norm(settle.displacement_m)), settle.start_s,
-                              settle.duration_s)
-        factors.append(LoadFactor("settlement_m", "m", motion.displacement,
-                                  f"settlement of the {settle.support} support"))
     stages.sort(key=lambda st: st.start_s)
     solver, rule = limit_settings(case, factors)
     meta = {**meta, "supports_xy_m": [[*bodies[i].X[:, :2].min(axis=0).tolist(),

@@ -43,14 +43,13 @@ import numpy as np
 from masonry_nscd.contact import laws
 from masonry_nscd.io.mesh_file import MeshFileError, read_block_mesh
 from masonry_nscd.loading import at_rest
-from masonry_nscd.loading.multiplier import SmoothMotion
 from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody, overlap
 from masonry_nscd.model.detection import JOINT_ANGLE_TOL, find_joints, joint_points
 from masonry_nscd.model.faces import gauss_points, locate
 from masonry_nscd.model.mesh_checks import inverted_elements, overlapping_pairs, unheld_blocks
 from masonry_nscd.scenes import Builder
-from masonry_nscd.scenes.limit_loads import limit_loads, limit_settings
-from masonry_nscd.scenes.scene import LoadFactor, Scene, Stage
+from masonry_nscd.scenes.limit_loads import limit_loads, limit_settings, support_motion
+from masonry_nscd.scenes.scene import Scene
 
 #: Joint groups of an assembly, in the order of their ids.
 GROUPS = ("joint", "support", "glue")
@@ -240,31 +239,19 @@ def describe(case) -> str:
             f"{case.solver.time_step_s:g} s")
 
 
-def support_motion(settle, name: str) -> dict:
-    """The imposed velocities of the support block ``name``: at rest, or, when
-    ``loading.settlement.blocks`` names it, each component of the settlement's displacement
-    along its tanh ramp (rotations held)."""
-    imposed = dict.fromkeys(range(6), at_rest)
-    if settle is not None and settle.blocks is not None and name in settle.blocks:
-        for d in range(3):
-            if settle.displacement_m[d]:
-                imposed[d] = SmoothMotion(settle.displacement_m[d], settle.start_s,
-                                          settle.duration_s)
-    return imposed
-
-
 def build_assembly(case) -> Scene:
     """The scene of an assembly case (module docstring)."""
     a, blk = case.assembly, case.blocks
     b = read_assembly(a)
     settle = case.loading.settlement
+    moving = set(settle.blocks or ()) if settle is not None else set()  # the supports it moves
     bodies: list = []
     info = []
     for k, (X, c) in enumerate(b.meshes):
         name = b.names[k]
         if b.support[k] is not None:
             bodies.append(RigidBody(center=X.mean(axis=0), mass=1.0, inertia=np.ones(3),
-                                    imposed_velocity=support_motion(settle, name),
+                                    imposed_velocity=support_motion(settle, name in moving),
                                     name=name, X=X, conn=c, support=True))
             continue
         m = b.material[k]
@@ -303,12 +290,6 @@ def build_assembly(case) -> Scene:
         return np.array([X[:, 0].mean(), X[:, 1].max(), X[:, 2].mean()])
 
     loads, stages, factors = limit_loads(case, bodies, structure, top_middle)
-    if settle is not None:
-        stages.append(Stage("settlement", settle.start_s))
-        motion = SmoothMotion(float(np.linalg.norm(settle.displacement_m)), settle.start_s,
-                              settle.duration_s)
-        factors.append(LoadFactor("settlement_m", "m", motion.displacement,
-                                  f"settlement of {settle.label}"))
     stages.sort(key=lambda st: st.start_s)
     solver, rule = limit_settings(case, factors)
     col = case.collapse

@@ -43,13 +43,16 @@ import numpy as np
 from masonry_nscd.case.structures.arch import named_block_problems
 from masonry_nscd.case.structures.cross_vault import CORNERS, SIDES, WEBS
 from masonry_nscd.contact import laws
-from masonry_nscd.loading import at_rest
-from masonry_nscd.loading.multiplier import SmoothMotion
-from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody
+from masonry_nscd.model import RigidBody
 from masonry_nscd.model.detection import find_joints, joint_points
 from masonry_nscd.scenes import Builder
-from masonry_nscd.scenes.limit_loads import limit_loads, limit_settings
-from masonry_nscd.scenes.scene import LoadFactor, Scene, Stage
+from masonry_nscd.scenes.limit_loads import (
+    limit_loads,
+    limit_settings,
+    structure_block,
+    support_motion,
+)
+from masonry_nscd.scenes.scene import Scene
 
 GROUPS = ("bed", "head", "crown", "groin", "springer", "rib", "rib side", "base")
 #: Per web: the horizontal axis its courses run along (0: x, 2: z) and its side of the bay
@@ -282,14 +285,7 @@ def build_cross_vault(case) -> Scene:
     info: list[dict] = []
 
     def add(name: str, mesh, place: dict) -> None:
-        X, conn = mesh
-        if blk.material == "rigid":
-            bodies.append(RigidBody.from_mesh(X, conn, blk.density_kg_m3, name=name))
-        else:
-            bodies.append(Block(X=X, conn=conn, E=blk.E_Pa, nu=blk.nu,
-                                density=blk.density_kg_m3, name=name,
-                                material=MAT_ENDO3D if blk.material == "endo3d"
-                                else MAT_ELASTIC))
+        bodies.append(structure_block(blk, *mesh, name))
         info.append({"name": name, **place})
 
     for name, mesh in stone_meshes(v, sec):
@@ -315,12 +311,7 @@ def build_cross_vault(case) -> Scene:
         lo, hi = feet.min(axis=0), feet.max(axis=0)
         margin = 0.1 * v.thickness_m
         lo, hi = lo - margin, hi + margin
-        imposed = dict.fromkeys(range(6), at_rest)
-        if corner in moving:
-            for d in range(3):
-                if settle.displacement_m[d]:
-                    imposed[d] = SmoothMotion(settle.displacement_m[d], settle.start_s,
-                                              settle.duration_s)
+        imposed = support_motion(settle, corner in moving)
         X, conn = hexahedron({(e, s, lv): np.array([(lo, hi)[e][0], -v.support_height_m * (1 - lv),
                                                       (lo, hi)[s][2]])
                               for e in (0, 1) for s in (0, 1) for lv in (0, 1)})
@@ -362,12 +353,6 @@ def build_cross_vault(case) -> Scene:
         return X[X[:, 1] >= X[:, 1].max() - 1e-9 * v.rise_m].mean(axis=0)
 
     loads, stages, factors = limit_loads(case, bodies, structure, top_middle)
-    if settle is not None:
-        stages.append(Stage("settlement", settle.start_s))
-        motion = SmoothMotion(float(np.linalg.norm(settle.displacement_m)), settle.start_s,
-                              settle.duration_s)
-        factors.append(LoadFactor("settlement_m", "m", motion.displacement,
-                                  f"settlement of the {settle.support} support"))
     stages.sort(key=lambda st: st.start_s)
     solver, rule = limit_settings(case, factors)
     col = case.collapse

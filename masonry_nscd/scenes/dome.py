@@ -32,10 +32,10 @@ import numpy as np
 
 from masonry_nscd.contact import laws
 from masonry_nscd.loading import Ramp, at_rest
-from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody, dof_offsets
+from masonry_nscd.model import RigidBody, dof_offsets
 from masonry_nscd.model.detection import find_joints, joint_points
 from masonry_nscd.scenes import Builder
-from masonry_nscd.scenes.limit_loads import limit_loads, limit_settings
+from masonry_nscd.scenes.limit_loads import limit_loads, limit_settings, structure_block
 from masonry_nscd.scenes.scene import Scene
 
 GROUPS = ("bed", "head", "base")
@@ -125,13 +125,7 @@ def build_dome(case) -> Scene:
         for k in range(d.voussoirs):
             X, conn = voussoir_mesh(d, alphas[i - 1], alphas[i], course_halves(d, i, k))
             name = f"course {i} voussoir {k + 1}"
-            if blk.material == "rigid":
-                bodies.append(RigidBody.from_mesh(X, conn, blk.density_kg_m3, name=name))
-            else:
-                bodies.append(Block(X=X, conn=conn, E=blk.E_Pa, nu=blk.nu,
-                                    density=blk.density_kg_m3, name=name,
-                                    material=MAT_ENDO3D if blk.material == "endo3d"
-                                    else MAT_ELASTIC))
+            bodies.append(structure_block(blk, X, conn, name))
             info.append({"name": name, "course": i, "voussoir": k + 1})
     structure = list(range(len(bodies)))
     course_of = [place["course"] for place in info]

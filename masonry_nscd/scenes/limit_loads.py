@@ -19,7 +19,10 @@ Loads on the structure's blocks (SI units):
   named block, where the point load would act on it.
 
 Each growing load is a :class:`~masonry_nscd.collapse.LoadFactor` whose value at collapse the
-summary reports; the stages are ``gravity``, ``body force``, ``point load`` by start time.
+summary reports, and so is a settlement (``loading.settlement``: the builder moves its
+supports; here its stage and its factor, the length of the supports' displacement, m); the
+stages are ``gravity``, ``body force``, ``point load``, ``settlement``, the caller sorts them
+by start time.
 
 A force ``F`` at a point ``x`` of a block (:func:`add_force`): on a rigid block ``F`` and its
 moment ``(x - x_ref) x F`` about the reference point; on a deformable block ``F`` shared
@@ -33,10 +36,10 @@ from collections.abc import Callable
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from masonry_nscd.loading import Loads, Ramp
-from masonry_nscd.loading.multiplier import GrowingMultiplier
+from masonry_nscd.loading import Loads, Ramp, at_rest
+from masonry_nscd.loading.multiplier import GrowingMultiplier, SmoothMotion
 from masonry_nscd.materials.point_driver import params_from_case
-from masonry_nscd.model import RigidBody, dof_offsets
+from masonry_nscd.model import MAT_ELASTIC, MAT_ENDO3D, Block, RigidBody, dof_offsets
 from masonry_nscd.scenes.scene import CollapseRule, LoadFactor, SolverSettings, Stage
 
 
@@ -94,6 +97,13 @@ def limit_loads(case, bodies: list, structure: list[int],
             k = index[name]
             add_force(F, bodies[k], int(dof0[k]), point_at(k), np.asarray(each.force_N, float))
         loads.add(F, dead)
+    settle = ld.settlement
+    if settle is not None:
+        stages.append(Stage("settlement", settle.start_s))
+        motion = SmoothMotion(float(np.linalg.norm(settle.displacement_m)), settle.start_s,
+                              settle.duration_s)
+        factors.append(LoadFactor("settlement_m", "m", motion.displacement,
+                                  f"settlement of {settle.label}"))
     return loads, stages, factors
 
 
@@ -165,6 +175,29 @@ def _distance_to_polygon(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
     s = np.clip(np.sum(rel * edge, axis=2) / np.maximum(np.sum(edge * edge, axis=1), 1e-300),
                 0.0, 1.0)
     return np.linalg.norm(rel - s[..., None] * edge, axis=2).min(axis=1)
+
+
+def structure_block(blocks, X: np.ndarray, conn: np.ndarray, name: str):
+    """A block of the structure meshed by ``X`` (m) and ``conn``, as the case's ``blocks``
+    section makes it: a rigid body (its mass, centre and inertia from the mesh) or a
+    deformable block, linear elastic or ENDO3D."""
+    if blocks.material == "rigid":
+        return RigidBody.from_mesh(X, conn, blocks.density_kg_m3, name=name)
+    return Block(X=X, conn=conn, E=blocks.E_Pa, nu=blocks.nu, density=blocks.density_kg_m3,
+                 name=name, material=MAT_ENDO3D if blocks.material == "endo3d" else MAT_ELASTIC)
+
+
+def support_motion(settle, moves: bool) -> dict:
+    """The imposed velocities (dof -> history) of a fixed support: at rest, or, where it
+    ``moves``, each component of the settlement's displacement (m) along its tanh ramp, its
+    rotations held."""
+    imposed = dict.fromkeys(range(6), at_rest)
+    if moves:
+        for d in range(3):
+            if settle.displacement_m[d]:
+                imposed[d] = SmoothMotion(settle.displacement_m[d], settle.start_s,
+                                          settle.duration_s)
+    return imposed
 
 
 def limit_settings(case, factors: list[LoadFactor]) -> tuple[SolverSettings, CollapseRule]:
