@@ -63,6 +63,7 @@ from masonry_nscd.scenes.limit_loads import (
     limit_settings,
     structure_block,
     support_motion,
+    until_collapse,
 )
 from masonry_nscd.scenes.scene import Scene
 
@@ -205,8 +206,7 @@ def describe(case) -> str:
             f"{a.centreline_radius_m:.4g} m, span {a.centreline_span_m:.4g} m, thickness "
             f"{a.thickness_m:.4g} m (t/R = {a.thickness_m / a.centreline_radius_m:.4g}), "
             f"{a.abutments} abutments, blocks {case.blocks.material}, joints {case.joint.law}; "
-            f"{', '.join(loads)}; until collapse or {case.collapse.end_time_s:g} s, about "
-            f"{case.step_count} steps of {case.solver.time_step_s:g} s")
+            f"{', '.join(loads)}; {until_collapse(case)}")
 
 
 def _box(lo, hi) -> tuple[np.ndarray, np.ndarray]:

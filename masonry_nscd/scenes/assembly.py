@@ -48,7 +48,12 @@ from masonry_nscd.model.detection import JOINT_ANGLE_TOL, find_joints, joint_poi
 from masonry_nscd.model.faces import gauss_points, locate
 from masonry_nscd.model.mesh_checks import inverted_elements, overlapping_pairs, unheld_blocks
 from masonry_nscd.scenes import Builder
-from masonry_nscd.scenes.limit_loads import limit_loads, limit_settings, support_motion
+from masonry_nscd.scenes.limit_loads import (
+    limit_loads,
+    limit_settings,
+    support_motion,
+    until_collapse,
+)
 from masonry_nscd.scenes.scene import Scene
 
 #: Joint groups of an assembly, in the order of their ids.
@@ -234,9 +239,7 @@ def describe(case) -> str:
     n_sup = sum(s is not None for s in b.support)
     return (f"{case.name}: assembly of {len(b.tags) - n_sup} blocks and {n_sup} supports from "
             f"{a.mesh_file} ({sum(len(c) for _, c in b.meshes)} elements, "
-            f"{len(b.pairs)} joints), joints {case.joint.law}; until collapse or "
-            f"{case.collapse.end_time_s:g} s, about {case.step_count} steps of "
-            f"{case.solver.time_step_s:g} s")
+            f"{len(b.pairs)} joints), joints {case.joint.law}; {until_collapse(case)}")
 
 
 def build_assembly(case) -> Scene:

@@ -51,6 +51,7 @@ from masonry_nscd.scenes.limit_loads import (
     limit_settings,
     structure_block,
     support_motion,
+    until_collapse,
 )
 from masonry_nscd.scenes.scene import Scene
 
@@ -272,9 +273,8 @@ def describe(case) -> str:
             + (" staggered" if v.stagger else "")
             + (f", transverse ribs {v.rib_width_m:.4g} x {v.rib_depth_m:.4g} m"
                if v.transverse_ribs else "")
-            + f", blocks {case.blocks.material}, joints {case.joint.law}; until collapse or "
-            f"{case.collapse.end_time_s:g} s, about {case.step_count} steps of "
-            f"{case.solver.time_step_s:g} s")
+            + f", blocks {case.blocks.material}, joints {case.joint.law}; "
+            + until_collapse(case))
 
 
 def build_cross_vault(case) -> Scene:

@@ -35,7 +35,12 @@ from masonry_nscd.loading import Ramp, at_rest
 from masonry_nscd.model import RigidBody, dof_offsets
 from masonry_nscd.model.detection import find_joints, joint_points
 from masonry_nscd.scenes import Builder
-from masonry_nscd.scenes.limit_loads import limit_loads, limit_settings, structure_block
+from masonry_nscd.scenes.limit_loads import (
+    limit_loads,
+    limit_settings,
+    structure_block,
+    until_collapse,
+)
 from masonry_nscd.scenes.scene import Scene
 
 GROUPS = ("bed", "head", "base")
@@ -110,9 +115,8 @@ def describe(case) -> str:
             f"{d.radius_m:.4g} m, span {d.centreline_span_m:.4g} m, thickness "
             f"{d.thickness_m:.4g} m, oculus {d.oculus_deg:g} deg"
             + (f", lantern {d.lantern_N:g} N" if d.lantern_N else "")
-            + f", blocks {case.blocks.material}, joints {case.joint.law}; until collapse or "
-            f"{case.collapse.end_time_s:g} s, about {case.step_count} steps of "
-            f"{case.solver.time_step_s:g} s")
+            + f", blocks {case.blocks.material}, joints {case.joint.law}; "
+            + until_collapse(case))
 
 
 def build_dome(case) -> Scene:

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 from masonry_nscd.scenes import Builder
 from masonry_nscd.scenes.arch import Voussoir, arch_geometry, voussoir_scene
+from masonry_nscd.scenes.limit_loads import until_collapse
 from masonry_nscd.scenes.scene import Scene
 
 
@@ -74,9 +75,7 @@ def describe(case) -> str:
             f"{' (staggered)' if v.stagger and v.rings > 1 else ''}, {blocks} blocks, radius "
             f"{v.centreline_radius_m:.4g} m, span {v.centreline_span_m:.4g} m, thickness "
             f"{v.thickness_m:.4g} m, depth {v.depth_m:.4g} m, {v.abutments} abutments, blocks "
-            f"{case.blocks.material}, joints {case.joint.law}; until collapse or "
-            f"{case.collapse.end_time_s:g} s, about {case.step_count} steps of "
-            f"{case.solver.time_step_s:g} s")
+            f"{case.blocks.material}, joints {case.joint.law}; {until_collapse(case)}")
 
 
 def build_vault(case) -> Scene:
