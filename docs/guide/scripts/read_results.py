@@ -1,5 +1,5 @@
 """Read a run folder with plain numpy, h5py and matplotlib: the curve from the CSV, the joints'
-damage at the last output step from results.h5, and one figure of both.
+cohesion lost by the last output step from results.h5, and one figure of both.
 
     python docs/guide/scripts/read_results.py results/wall_0.5MPa [-o figure.png]
 
@@ -46,10 +46,11 @@ def main() -> None:
         last = h5["steps"][steps[-1]]
         time_s = float(last.attrs["time"])
         beta = last["joint_beta"][:]                     # cohesive integrity, 1 intact
-    d_coh = 1.0 - beta * (1.0 - d0)                      # the joints' cohesion lost, 0 to 1
-    cracked = d_coh > 0.999
-    print(f"{len(steps)} output steps; at t = {time_s:.3f} s {cracked.sum()} of {len(d_coh)} "
-          f"contact points have lost their cohesion")
+    d_coh = 1.0 - beta * (1.0 - d0)                      # the joints' damage, 0 to 1
+    lost = 1.0 - beta                                    # cohesion lost since the start
+    print(f"{len(steps)} output steps; at t = {time_s:.3f} s {(lost > 0.99).sum()} of "
+          f"{len(lost)} contact points have lost their cohesion since the start "
+          f"(largest joint damage d_coh {d_coh.max():.5f})")
 
     fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.2),
                                       gridspec_kw={"width_ratios": [1, 1.4]})
@@ -59,13 +60,14 @@ def main() -> None:
     left.set_ylabel("F_x (kN)")
     left.set_title("force_displacement.csv")
     left.grid(alpha=0.3)
-    dots = right.scatter(points[:, 0], points[:, 1], c=d_coh, s=6, cmap="viridis",
-                         vmin=0.0, vmax=1.0)
+    order = np.argsort(lost)                             # the most damaged drawn last
+    dots = right.scatter(points[order, 0], points[order, 1], c=lost[order], s=6,
+                         cmap="magma_r", vmin=0.0, vmax=1.0)
     right.set_aspect("equal")
     right.set_xlabel("x (m)")
     right.set_ylabel("y (m)")
-    right.set_title(f"results.h5: joint damage d_coh at t = {time_s:.2f} s")
-    fig.colorbar(dots, ax=right, label="d_coh")
+    right.set_title(f"results.h5: cohesion lost by the joints at t = {time_s:.2f} s")
+    fig.colorbar(dots, ax=right, label="1 - beta")
     fig.tight_layout()
     out = args.output or run / "read_results.png"
     fig.savefig(out, dpi=110)
