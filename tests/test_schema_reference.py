@@ -94,6 +94,19 @@ def test_shipped_case_names_and_matches_the_schema(validator, path):
     assert not errors, errors
 
 
+def test_anchors_and_merge_keys_are_read_before_the_checks(validator, tmp_path):
+    text = (f"{MODELINE}\nloading:\n  gravity: &ramp {{start_s: 0.0, ramp_s: 0.1}}\n"
+            "  vertical_stress:\n    <<: *ramp\n    value_Pa: 0.3e6\n")
+    data = read_yaml(text)
+    assert data["loading"]["vertical_stress"] == {"start_s": 0.0, "ramp_s": 0.1,
+                                                  "value_Pa": 0.3e6}
+    assert validator.is_valid(data)
+    path = tmp_path / "merged.yaml"
+    path.write_text(text, encoding="utf-8")
+    result = runner.invoke(app, ["validate", str(path)])
+    assert result.exit_code == 0, result.output
+
+
 def test_the_defaults_validate_and_are_the_models(validator):
     """``{}`` is a valid case, and every default the schema states is the model's."""
     assert validator.is_valid({})
@@ -131,6 +144,8 @@ WRONG = {
                                  "supports"),
     "two structures": ("arch: {radius_m: 1.0}\nvault: {radius_m: 1.0}\n", "vault"),
     "a limit state's rule in a wall case": ("collapse: {end_time_s: 1.0}\n", "collapse"),
+    "a joint region's value out of the joint's range": (
+        "joint:\n  regions: [{joints: bed, courses: [1], mu: 5}]\n", "joint.regions[0].mu"),
 }
 
 

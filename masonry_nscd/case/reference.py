@@ -10,6 +10,7 @@ The JSON Schema is pydantic's (draft 2020-12), made to describe the file as user
 - a default made by a factory is given when it is a value (``joint.scatter.fields``), not when
   it is a whole section (each field of the section has its own);
 - ``name`` has no default there: it is the case file's stem;
+- a joint region's numbers, which replace the joint's, take the joint's bounds;
 - the rule of the structures (``structures/``): a case builds one structure, and the parts of
   the case that only other structures read are refused (``supports`` with an arch,
   ``collapse`` with a wall), as ``if``/``then`` rules made from each structure's ``owns``;
@@ -37,6 +38,7 @@ from pydantic import BaseModel
 from pydantic.json_schema import GenerateJsonSchema, NoDefault
 
 from masonry_nscd.case.fields import SQRT3
+from masonry_nscd.case.joint import REGION_FIELDS
 from masonry_nscd.case.messages import UNIT_SUFFIXES, split_annotated, unit_of
 from masonry_nscd.case.model import Case
 from masonry_nscd.case.structures import structures
@@ -155,10 +157,21 @@ def _structure_rules() -> list[dict[str, Any]]:
     return rules
 
 
+def _region_bounds(defs: dict[str, Any]) -> None:
+    """A joint region's numbers take the bounds of the joint's (a region's values replace the
+    joint's and are checked as the joint's: ``Joint._check_regions``)."""
+    joint = defs["Joint"]["properties"]
+    for name in REGION_FIELDS:
+        node = defs["JointRegion"]["properties"][name]
+        number = next(o for o in node["anyOf"] if o.get("type") == "number")
+        number.update({k: v for k, v in joint[name].items() if k in _BOUNDS.values()})
+
+
 def case_json_schema() -> dict[str, Any]:
     """The JSON Schema (draft 2020-12) of a case file as users write it (module docstring)."""
     raw = _fix(Case.model_json_schema(mode="validation", schema_generator=_Generator))
     raw["properties"]["name"].pop("default", None)
+    _region_bounds(raw["$defs"])
     schema: dict[str, Any] = {
         "$schema": DRAFT,
         "title": "masonry_nscd case file",
@@ -466,7 +479,10 @@ refused in a case of another structure (`supports` with an arch, `collapse` with
 
 **Reading YAML.** Case files are read as YAML 1.2: `1e5`, `0.3e6` and `.5` are numbers, only
 `true`/`false` are booleans, `null`, `~` or an empty value is null; a key given twice is an
-error. A number where a whole number is expected may be written `3` or `3.0`.
+error. A number where a whole number is expected may be written `3` or `3.0`. Anchors,
+aliases and merge keys are read before any check (`vertical_stress: {{<<: *ramp, value_Pa:
+0.3e6}}` takes the keys of the mapping anchored `&ramp`, which must itself be a valid part of
+the case: there is no free key to park it in).
 
 **Checking a case.** `masonry validate CASE.yaml` checks everything and exits with 2 listing
 each problem (a misspelt key is named with the keys allowed there). The JSON Schema
