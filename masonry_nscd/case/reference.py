@@ -185,9 +185,37 @@ def case_json_schema() -> dict[str, Any]:
     return schema
 
 
+#: The order of the keywords in a node of the file written; the others after them, sorted
+_KEYWORD_ORDER = ("$schema", "$ref", "title", "description", "type", "enum", "anyOf", "default",
+                  "minimum", "exclusiveMinimum", "maximum", "exclusiveMaximum", "minLength",
+                  "maxLength", "minItems", "maxItems", "prefixItems", "items", "properties",
+                  "required", "additionalProperties", "if", "then", "not", "allOf", "$defs")
+
+
+def _canonical(node: Any) -> Any:
+    """``node`` with its keywords in the order of :data:`_KEYWORD_ORDER` and the sections of
+    ``$defs`` by name; the fields of ``properties`` stay in the model's order. The file so
+    does not depend on the order in which pydantic writes a node's keywords."""
+    if isinstance(node, list):
+        return [_canonical(n) for n in node]
+    if not isinstance(node, dict):
+        return node
+    rank = {k: i for i, k in enumerate(_KEYWORD_ORDER)}
+    out = {}
+    for key in sorted(node, key=lambda k: (rank.get(k, len(rank)), k)):
+        value = node[key]
+        if key == "$defs":
+            out[key] = {name: _canonical(value[name]) for name in sorted(value)}
+        elif key == "properties":
+            out[key] = {name: _canonical(sub) for name, sub in value.items()}
+        else:
+            out[key] = _canonical(value)
+    return out
+
+
 def json_text() -> str:
     """The JSON Schema as written to ``docs/reference/case.schema.json``."""
-    return json.dumps(case_json_schema(), indent=2, ensure_ascii=False) + "\n"
+    return json.dumps(_canonical(case_json_schema()), indent=2, ensure_ascii=False) + "\n"
 
 
 # ---------------------------------------------------------------------------------------------
