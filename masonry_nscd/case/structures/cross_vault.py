@@ -52,9 +52,11 @@ class CrossVault(Section):
         description="radius of the pointed arcs across z (m; null: span_z / 2, semicircular)")
     thickness_m: Real = Field(0.25, gt=0.0, le=50.0, description="thickness of the webs (m)")
     courses: Whole = Field(8, ge=2, le=200,
-                           description="courses of a web from its springing to the crown")
+                           description="courses of a web from its springing to the crown "
+                           "(count)")
     springer_courses: Whole = Field(
-        2, ge=1, le=199, description="lowest courses made one solid springer at each corner")
+        2, ge=1, le=199, description="lowest courses made one solid springer at each corner "
+        "(count)")
     stone_length_m: Real = Field(0.5, gt=0.0, le=100.0,
                                  description="length of a web's stones along its course (m)")
     stagger: bool = Field(True, description="joints of every second course offset by half a "
