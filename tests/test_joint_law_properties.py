@@ -356,8 +356,9 @@ def test_stick_under_a_tiny_friction_bound_and_a_coupled_compliance():
 
 
 def test_round_off_sized_openings_do_not_underflow():
-    """Found by the search above: a slip of 1.8e-156 m with delta_1 = 1e-6 m made the mixed-mode
-    weights underflow to zero (ZeroDivisionError in the kernel)."""
+    """Openings at the round-off scale: a slip of 1.8e-156 m with delta_1 = 1e-6 m would make the
+    mixed-mode weights underflow to zero (a division by zero in the kernel); the tractions stay
+    finite and the joint intact."""
     P = jl.joint_params(K_I_spring=1e3, K_II_spring=1e3, d_spring=0.0, sigma_I_e=100.0,
                         K_I_coh=1e8, G_fI=1.0, sigma_II_e=100.0, K_II_coh=1e3, G_fII=10.0,
                         d_coh_initial=0.0, mu=0.0, eta=0.1)
