@@ -1014,8 +1014,8 @@ def sensitivity_cmd(
 def main() -> None:
     """The ``masonry`` console script: the app; ``masonry run`` then leaves by ``os._exit`` with
     its exit code once its output is flushed (its files are closed by then), skipping the
-    interpreter's teardown of numba, LLVM and scipy, a fifth of a second of every run
-    (docs/performance.md, session 15). Other commands (a sweep's cluster, say) end as Python
+    interpreter's teardown of numba, LLVM and scipy, which costs every run time for nothing
+    (docs/performance.md). Other commands (a sweep's cluster, say) end as Python
     ends them, and so does every process of a run under mpiexec, once process 0 has stopped
     the others (mpiexec loses the exit code of an ``os._exit`` after MPI's end)."""
     import os
