@@ -1,12 +1,14 @@
 # Two commands do everything on a fresh machine:
 #   make run    installs into .venv if needed and runs the reference case
 #   make test   installs into .venv if needed and runs the test suite
+# make reference writes the case file's reference again from the case model (masonry schema):
+# docs/reference/case.md and docs/reference/case.schema.json
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 CASE   ?= cases/wall_0.5MPa.yaml
 
-.PHONY: run test check-cases venv lint clean-cache
+.PHONY: run test check-cases venv lint clean-cache reference
 
 $(BIN)/masonry: pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -27,6 +29,10 @@ check-cases: venv
 
 lint: venv
 	$(BIN)/ruff check masonry_nscd tests
+
+reference: venv
+	$(BIN)/masonry schema --markdown -o docs/reference/case.md
+	$(BIN)/masonry schema --json -o docs/reference/case.schema.json
 
 clean-cache: venv
 	$(BIN)/masonry cache-clear

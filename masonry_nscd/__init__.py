@@ -52,9 +52,9 @@ if "NUMBA_CACHE_DIR" not in os.environ:
 MPI_SIZE_VARIABLES = ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE")
 
 # Under mpiexec with several processes (nscd/mpi.py) the processes share the cores: one BLAS
-# thread each unless the environment says otherwise, set before numpy loads its BLAS. Two
-# processes whose BLAS took two threads each made GMRES's inner products five times slower on
-# two cores (docs/scaling.md).
+# thread each unless the environment says otherwise, set before numpy loads its BLAS: the
+# processes are the parallelism, and BLAS threads on top of them would compete for the same
+# cores (docs/scaling.md).
 if any(os.environ.get(v, "").strip().isdigit() and int(os.environ[v]) > 1
        for v in MPI_SIZE_VARIABLES):
     for _name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):

@@ -115,6 +115,35 @@ def validate(
         typer.echo(f"ok {summary}")
 
 
+@app.command()
+def schema(
+    markdown: Annotated[bool, typer.Option(
+        "--markdown", help="The reference page of the case file (Markdown).")] = False,
+    json_schema: Annotated[bool, typer.Option(
+        "--json", help="The JSON Schema (draft 2020-12) of the case file, for editors.")] = False,
+    output: Annotated[Path | None, typer.Option(
+        "-o", "--output", metavar="FILE", help="Write to FILE instead of printing.")] = None,
+) -> None:
+    """The case file's reference, made from the case model: every section and field with its
+    meaning, unit, default and allowed values (--markdown), or a JSON Schema that editors
+    check case files with (--json). The committed copies are docs/reference/case.md and
+    docs/reference/case.schema.json (`make reference` writes both)."""
+    if markdown == json_schema:
+        _fail("give one of --markdown and --json", 2)
+    from masonry_nscd.case import reference
+
+    text = reference.markdown_text() if markdown else reference.json_text()
+    if output is None:
+        typer.echo(text, nl=False)
+        return
+    try:
+        output.parent.mkdir(parents=True, exist_ok=True)
+        output.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        _fail(f"cannot write {output}: {exc.strerror or exc}", 2)
+    typer.echo(f"wrote {output}")
+
+
 SetOption = Annotated[
     list[str] | None,
     typer.Option("--set", metavar="PATH=VALUE",
@@ -985,8 +1014,8 @@ def sensitivity_cmd(
 def main() -> None:
     """The ``masonry`` console script: the app; ``masonry run`` then leaves by ``os._exit`` with
     its exit code once its output is flushed (its files are closed by then), skipping the
-    interpreter's teardown of numba, LLVM and scipy, a fifth of a second of every run
-    (docs/performance.md, session 15). Other commands (a sweep's cluster, say) end as Python
+    interpreter's teardown of numba, LLVM and scipy, which costs every run time for nothing
+    (docs/performance.md). Other commands (a sweep's cluster, say) end as Python
     ends them, and so does every process of a run under mpiexec, once process 0 has stopped
     the others (mpiexec loses the exit code of an ``os._exit`` after MPI's end)."""
     import os

@@ -49,7 +49,8 @@ __all__ = ["CSV_COLUMNS", "LOST_RESIDUAL", "TERMINATE", "WRITING", "RunFailure",
 
 #: Set by a signal handler (``masonry run`` on SIGTERM) that also raises KeyboardInterrupt: the
 #: step loop raises it again at the next step, should the handler's exception have been lost
-#: (a SIGTERM 16 s into a run, while numba was loading its kernels, left the run going).
+#: (a SIGTERM that arrives while numba is loading its kernels could otherwise leave the run
+#: going).
 TERMINATE = threading.Event()
 
 #: Set while the run writes its files (an output step, the files' closing): a stop request
@@ -83,9 +84,9 @@ def _writing_files():
 #: A step that ends with a residual (relative change of the contact forces between the last
 #: iterates; for Newton also the momentum residual against the contact impulses) above this
 #: has lost its solution: the run stops (RunFailure) rather than record it.
-#: Steps that stall below it are recorded and counted (measured on the ENDO3D wall at 0.5 MPa:
-#: worst 7e-3 over 2638 steps; an ENDO3D block driven far past its peak: 1.96, with forces off
-#: by a factor of ten).
+#: Steps that stall below it are recorded and counted: the steps a run stalls on while it
+#: still follows its path stay about a decade below it, and a step that has lost its solution
+#: (an ENDO3D block driven far past its peak) ends near 1 with forces off by a factor of ten.
 LOST_RESIDUAL = 0.1
 
 
@@ -401,7 +402,7 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
     holds = scene.holds_at(integ.t)
 
     # the scene's objects, built once, out of the cyclic garbage collector's way: its full
-    # collections walked every one of them (docs/performance.md, session 24)
+    # full collections would walk every one of them at each pass
     gc.freeze()
     try:
         while True:

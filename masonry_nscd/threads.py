@@ -9,8 +9,8 @@ first range itself and waits for the others.
 How many threads: ``NUMBA_NUM_THREADS`` when set (the variable numba's own parallel loops
 read), else the cores this process may run on; ``set_count`` overrides both (a sweep's worker
 runs one thread, the runs being the parallelism). A range is at least ``MIN_POINTS`` points,
-so a small batch stays on the calling thread, where a thread's hand-over (some 10 to 50
-microseconds) would cost more than it saves.
+so a small batch stays on the calling thread, where a thread's hand-over (a wake-up
+of an idle core) would cost more than it saves.
 """
 
 from __future__ import annotations
@@ -91,7 +91,7 @@ def run_together(jobs: Sequence[tuple[Callable[[int, int], Any], int, int | None
     so that it fills the wait), then waits. Returns each batch's results in the order of its
     ranges.
 
-    A hand-over costs some 100 microseconds on this kind of machine (the idle core wakes up):
+    A hand-over costs the wake-up of an idle core, far more than a call:
     two batches of one Newton evaluation (the joint law, the ENDO3D trial) run together pay it
     once, and the calling thread's serial work fills it."""
     global _pool, _pool_size

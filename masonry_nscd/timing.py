@@ -5,9 +5,8 @@ calling thread, once per call of the whole part (a kernel that the threads of
 ``masonry_nscd.threads`` share is timed around the hand-over, not per thread). A timer costs
 about a microsecond, against parts of a tenth of a millisecond and more. ``masonry run`` writes
 the table at the end of ``run.log`` and into ``summary.json``: calls, total seconds and the
-median time of a call, which is what a change to a kernel moves (a per-entry bounds test in the
-Newton matrix's fill made its median ten times larger, 2.3 to 27 ms, and it showed only as a
-slower run).
+median time of a call, which is what a change to a kernel moves (a slower kernel shows there
+by name, where the run's total would only show a slower run).
 
 The timers are the process's (one run at a time in a process, as ``masonry run`` and the
 sweeps' workers do); ``reset`` starts a run's. Not re-entrant: a part does not contain itself.

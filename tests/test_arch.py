@@ -1,4 +1,4 @@
-"""Arches of voussoirs (issue 18): geometry, joints on radial planes, limit states.
+"""Arches of voussoirs: geometry, joints on radial planes, limit states.
 
 The reference values come from limit analysis of the same voussoirs, computed here on its own
 (not with the package): each voussoir a trapezoid on the chords of its intrados and extrados,

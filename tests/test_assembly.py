@@ -1,4 +1,4 @@
-"""Block assemblies read from mesh files (issue 18): the reader, the checks, the mesh route.
+"""Block assemblies read from mesh files: the reader, the checks, the mesh route.
 
 References: the weights from the geometry of ``cases/make_pier_arches_mesh.py`` (rectangles
 and the chord trapezoids of the voussoirs, ``(R_e^2 - R_i^2) sin(dtheta) / 2`` each), and the

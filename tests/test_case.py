@@ -93,8 +93,8 @@ def test_defaults_reproduce_the_study():
 @pytest.mark.parametrize("stem,sigma", sorted(STUDY_CASES.items()))
 def test_study_cases_are_the_defaults_but_sigma(stem, sigma):
     """The schema's defaults are the study's model as model.md writes it; the study's cases set
-    sigma_N and the two settings of issue 15 (refined corner units, a crushing length), whose
-    defaults keep the law and the mesh as specified."""
+    sigma_N and the two settings past the peak (refined corner units, a crushing length),
+    whose defaults keep the law and the mesh as specified."""
     case = load_case(ROOT / "cases" / f"{stem}.yaml")
     assert case.loading.vertical_stress.value_Pa == sigma
     assert vertical_force_N(case) == pytest.approx(sigma * 1.85 * 0.15, rel=1e-12)
@@ -103,7 +103,7 @@ def test_study_cases_are_the_defaults_but_sigma(stem, sigma):
     expected["wall"]["refine"] = [{"courses": [1, -1], "units": [1, -1],
                                    "elements_per_unit": (4, 4, 1)}]
     expected["blocks"]["endo3d"]["crushing_length_m"] = 0.005
-    if sigma == 0.5e6:  # issue 19 (session 28): adaptive steps of 2e-3 to 4e-3 s at 0.5 MPa
+    if sigma == 0.5e6:  # adaptive steps of 2e-3 to 4e-3 s at 0.5 MPa (docs/choices.md)
         expected["solver"].update(time_step_s=2e-3, max_time_step_s=4e-3, easy_iterations=6,
                                   easy_damage=0.005)
         expected["output"]["every_steps"] = 10  # every 0.02 s, as the others
@@ -122,8 +122,8 @@ def test_study_forces_in_kN():
 
 def test_elastic_variant_differs_only_by_material():
     """Same wall and loading; the elastic wall takes adaptive steps from 4e-3 up to 1.6e-2 s
-    (fields every 8 steps) where the ENDO3D wall's steps are of 2e-3 to 4e-3 s (issue 19,
-    session 28), and a tolerance of 1e-4 instead of 3e-5, which moves the ENDO3D wall's force
+    (fields every 8 steps) where the ENDO3D wall's steps are of 2e-3 to 4e-3 s, and a
+    tolerance of 1e-4 instead of 3e-5, which moves the ENDO3D wall's force
     at 10 mm at 0.3 MPa (docs/choices.md)."""
     endo = load_case(ROOT / "cases" / "wall_0.5MPa.yaml")
     elastic = load_case(ROOT / "cases" / "wall_0.5MPa_elastic.yaml")

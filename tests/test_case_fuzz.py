@@ -1,4 +1,4 @@
-"""More fuzzing of the case files (completes tests/test_case.py, issue 7).
+"""More fuzzing of the case files (completes tests/test_case.py).
 
 * Text-level edits of every shipped case (lines deleted, duplicated, swapped, cut; characters
   inserted or replaced): ``masonry validate`` and ``masonry run`` end with exit code 0 (valid)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+from itertools import pairwise
 
 import numpy as np
 import pytest
@@ -168,3 +169,72 @@ def test_cross_vault_case_checks():
         _vault({"settlement": {"support": "left", "displacement_m": [0.01, 0.0, 0.0]}})
     with pytest.raises(CaseError, match="loading.point_load.block"):
         build_scene(_vault({"point_load": {"block": "voussoir 3"}}))
+
+
+def test_diagonal_ribs_join_the_groin_stones_and_leave_the_webs_as_they_were():
+    """With ``diagonal_ribs`` the two groin stones of a course at a corner are one block of two
+    true hexahedra sharing their groin face (12 nodes), deeper than the two stones it replaces;
+    the top course's eight are the boss; every other stone is the groin vault's, node for node;
+    the ribs' voussoirs rest on each other and the first on its corner's springer."""
+    plain = {b.name: b for b in build_scene(_vault()).bodies}
+    scene = build_scene(_vault(diagonal_ribs=True, diagonal_rib_depth_m=0.2))
+    ribbed = {b.name: b for b in scene.bodies}
+    k, n = 3, 8
+    for name, b in ribbed.items():
+        if "web" in name:
+            np.testing.assert_array_equal(b.X, plain[name].X)
+    ribs = {name: b for name, b in ribbed.items() if name.startswith("diagonal rib")}
+    assert len(ribs) == 4 * (n - k - 1)
+    assert not any("stone 1" in name for name in ribbed)
+    for corner in ("north-east", "north-west", "south-east", "south-west"):
+        for i in range(1, n - k):
+            b = ribs[f"diagonal rib {corner} voussoir {i}"]
+            assert b.conn.shape == (2, 8) and len(b.X) == 12
+            assert not len(inverted_elements(b.X, b.conn))
+            j = k + i
+            replaced = [plain[f"{web} web {half} course {j} stone 1"].mass
+                        for web, half in _corner_halves(corner)]
+            assert b.mass > sum(replaced)
+    boss = ribbed["boss"]
+    assert boss.conn.shape == (8, 8)
+    assert boss.mass > sum(b.mass for name, b in plain.items()
+                           if name.endswith(f"course {n} stone 1"))
+    names = [b.name for b in scene.bodies]
+    rib_joints = set()
+    for p in scene.points:
+        pair = tuple(sorted(names[i] for i in p.bodies))
+        if scene.groups[p.group] == "rib":
+            rib_joints.add(pair)
+    for corner in ("north-east", "north-west", "south-east", "south-west"):
+        chain = [f"springer {corner}"] + [f"diagonal rib {corner} voussoir {i}"
+                                           for i in range(1, n - k)] + ["boss"]
+        for a, b in pairwise(chain[1:]):
+            assert tuple(sorted((a, b))) in rib_joints
+
+
+def _corner_halves(corner: str):
+    ns, ew = corner.split("-")
+    return ((ew, ns), (ns, ew))
+
+
+def test_the_ribbed_vault_stands_and_its_four_supports_share_its_weight(tmp_path):
+    """The vault with diagonal and transverse ribs stands under its weight; its four supports
+    carry it to the solver's tolerance, a quarter each (the bay's symmetry)."""
+    case = _vault(diagonal_ribs=True, diagonal_rib_depth_m=0.2, transverse_ribs=True,
+                  rib_depth_m=0.7)
+    path = tmp_path / "vault.yaml"
+    path.write_text(case_to_yaml(case))
+    res = CliRunner().invoke(app, ["run", str(path), "-o", str(tmp_path / "run")])
+    assert res.exit_code == 0, res.output
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["status"] == "standing"
+    weight_kN = sum(b.mass for b in build_scene(case).bodies if not b.support) * 9.81 / 1e3
+    forces = summary["support_forces_last_kN"]
+    assert forces["all supports"][1] == pytest.approx(weight_kN, rel=1e-6)
+    assert abs(forces["all supports"][0]) <= 1e-8 * weight_kN
+    assert forces["support north-east"][1] == pytest.approx(weight_kN / 4, rel=1e-4)
+
+
+def test_a_diagonal_rib_deeper_than_its_arch_is_refused():
+    with pytest.raises(CaseError, match="cross_vault.diagonal_rib_depth_m: got 1.8 m"):
+        build_scene(_vault(diagonal_ribs=True, diagonal_rib_depth_m=1.8))

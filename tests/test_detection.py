@@ -169,8 +169,8 @@ def test_the_grid_broad_phase_on_degenerate_boxes(boxes):
 @pytest.mark.parametrize("material", ["elastic", "rigid"])
 def test_every_point_faces_its_antagonist(material):
     """On the study's wall, each contact point projected across its gap lies on a boundary
-    face of its antagonist (the old builder tied the bed points of rigid units to the first
-    unit below, wherever they were)."""
+    face of its antagonist, rigid units included (a point tied to a unit it does not face
+    would carry forces across empty space)."""
     scene = build_scene(load_case("cases/wall_0.5MPa_elastic.yaml",
                                   [f"blocks.material={material}"]))
     bodies = scene.bodies

@@ -9,8 +9,8 @@ a typical stone):
   and damages that never decrease;
 * objectivity: the same strain history turned by a rotation R, applied to the element turned
   by R (the Hillerborg lengths follow the element), gives the stresses turned by R and the
-  same damages, before and after cracks open (issue 7: choices made per direction in a
-  repeated eigenspace now take their basis from the state). A rare residual, a sensitivity of
+  same damages, before and after cracks open (choices made per direction in a repeated
+  eigenspace take their basis from the state). A rare residual, a sensitivity of
   the law near crack closure to differences at the return mapping's tolerance, is kept as an
   xfail example (test_cracked_state_objectivity_residual).
 """
@@ -275,20 +275,18 @@ def _compare_frames(prm, hist, xe, R):
 
 
 def test_cracked_state_is_objective():
-    """Found by test_objective_under_rotation (before it stopped at the first crack): a cube
-    of 0.5 m sheared in xy to gamma = 0.01 (one crack), then towards -0.01 in xz; the same
-    history turned by pi about y (cube turned with it) gave stresses off by 4.0e4 Pa (of
-    2.3e5) at the first step of the second leg (issue 7).
+    """A cube of 0.5 m sheared in xy to gamma = 0.01 (one crack), then towards -0.01 in xz,
+    and the same history turned by pi about y (cube turned with it): the stresses turned back
+    agree, also at the first step of the second leg, where the crack's basis matters.
 
-    Diagnosis: at that step the states (effective stress, plastic strains, W, W_max, damages)
-    of the two frames agree to round-off; only the apparent stress differs. W_max has the
-    eigenvalues (0, 0, 1.1e-3 m) (one crack) and the current W, whose crack has turned, has
-    terms of 1e-6 m in the plane of the repeated 0: the reclosure's w_i,cur, the diagonal of W
-    in the eigenbasis of W_max, depended on the basis the eigen solver picked in that plane,
-    so did rho_i and the compressive stress across it. Fixed: a repeated eigenspace of W_max
+    Why it could differ: W_max has the eigenvalues (0, 0, 1.1e-3 m) (one crack) and the
+    current W, whose crack has turned, has terms of 1e-6 m in the plane of the repeated 0: the
+    reclosure's w_i,cur, the diagonal of W in the eigenbasis of W_max, would depend on the
+    basis the eigen solver picks in that plane, and so would rho_i and the compressive stress
+    across it (4.0e4 Pa of 2.3e5 between the frames). So a repeated eigenspace of W_max
     gets the basis that diagonalises W there (then the element's edges), and likewise for the
     other per-direction choices in repeated eigenspaces (trial stress: eps_pR, W, edges; W in
-    the W_max update: W_max, edges). Objective now to round-off, damages included."""
+    the W_max update: W_max, edges). Objective to round-off, damages included."""
     prm = _study_like(E=1e9, R_t=3e5, eps_pic_t=3e-4, G_ft=5.0, R_c=1.5e6, eps_pic_c=1.5e-3,
                       delta=0.0, beta=0.0, eps_kdc=0.03125, DCPK=0.0, REF=3e5, GFR=1.0)
     e_xy, e_xz = np.eye(6)[5], np.eye(6)[4]
@@ -367,10 +365,10 @@ def test_cracked_histories_are_objective():
     """150 cracked histories drawn with a fixed seed (deterministic), many of them through
     repeated eigenvalues (strains along the axes, two equal normal strains, pure shears; half
     and quarter turns, which keep a diagonal tensor diagonal): stresses and damages turned
-    with the element agree to round-off. Before issue 7 about one such history in four
-    differed (737 of 3000 in a survey with this generator, by a median of 9 % of the largest
-    stress or damage, up to 3.2 times it); after it, 2 of 3000
-    (test_cracked_state_objectivity_residual), none in this sample."""
+    with the element agree to round-off. With the eigen solver's basis in repeated
+    eigenspaces about one such history in four would differ; with the basis taken from the
+    state, the rare residual of test_cracked_state_objectivity_residual is not in this
+    sample."""
     rng = np.random.default_rng(0)
     n = 0
     while n < 150:
@@ -385,10 +383,10 @@ def test_cracked_histories_are_objective():
         assert d_sig <= 1e-6 and d_state <= 1e-6, (n, d_sig, d_state)
 
 
-@pytest.mark.xfail(strict=True, reason="residual: sensitivity near crack closure (issue 7)")
+@pytest.mark.xfail(strict=True, reason="residual: sensitivity near crack closure")
 def test_cracked_state_objectivity_residual():
-    """What remains of issue 7: 2 of 3000 histories of test_cracked_histories_are_objective's
-    generator (0 of 4000 with generic directions), both a sensitivity of the law to the
+    """The residual of objectivity: a rare history of test_cracked_histories_are_objective's
+    generator (none with generic directions), a sensitivity of the law to the
     differences that the return mapping's tolerance (1e-8 max(R_t, R_c,eff, REF)) leaves
     between the two frames; no choice of basis in a repeated eigenspace is involved.
 
@@ -427,27 +425,23 @@ def test_cracked_state_objectivity_residual():
 
 
 def test_return_mapping_converges_in_shear_with_dilatancy():
-    """Found by test_whole_schema_range_cyclic_paths: a yz shear to 0.1 and back with
-    beta = 1.5 > delta = 0 (allowed by the schema then, with a warning of the kernel): at
-    gamma = 0.0467 on the way back the return mapping stopped with status 1 and wrote
-    lambda_D = -0.126 and sigma_xx = 655 Pa (the strain has no xx part, nu = 0).
+    """A yz shear to 0.1 and back with beta = 1.5 > delta = 0 (the kernel accepts it with a
+    warning): every step returns status 0, lambda_D never decreases and Drucker-Prager holds.
 
-    Cause (issue 7): from the first step, Rankine + Drucker-Prager gave a negative
-    Drucker-Prager multiplier, Drucker-Prager was excluded for the step and never admitted
-    again, and the step ended with status 0 and f_D = 6e7 to 8e8 times the tolerance (the
-    effective stress at 28 R_c with lambda_D = 0). The same silent exclusion happened with
-    beta <= delta (about one random cyclic history in four, f_D up to 1e8 tolerances), also
-    through a closure or a skipped Drucker-Prager judged on the same pass. Fixed in the return
-    mapping (module docstring of endo3d): one correction of the active set per pass, an
-    excluded surface that the final stress violates is admitted again, acceptance only at a
-    Kuhn-Tucker point, then a closest-point search over the active sets; the written
-    lambda_D never decreases, also when the return mapping fails.
+    What it checks: from the first step, Rankine + Drucker-Prager give a negative
+    Drucker-Prager multiplier; a Drucker-Prager excluded for the step and never admitted again
+    would end the step with status 0 and f_D many orders above the tolerance (the effective
+    stress at 28 R_c with lambda_D = 0), and a written lambda_D could decrease (the strain has
+    no xx part and nu = 0, so sigma_xx must stay 0). The return mapping (module docstring of
+    endo3d) makes one correction of the active set per pass, admits again an excluded surface
+    that the final stress violates, accepts only a Kuhn-Tucker point, then searches the active
+    sets by closest points; the written lambda_D never decreases, also when it fails.
 
     Decision on beta > delta: the Drucker-Prager flow dissipates dlambda (C + (delta - beta) p)
     (J/m^3), negative at pressures p > C/(beta - delta): the law creates energy, and here the
     converged answer ratchets the effective pressure up by about 4 kPa per step of the shear
     cycle (to 200 kPa = 110 R_c at the end), lambda_D growing while the shear goes back. The
-    case schema now refuses beta > delta (blocks.endo3d.beta, 0 <= beta <= delta);
+    case schema refuses beta > delta (blocks.endo3d.beta, 0 <= beta <= delta);
     endo3d_params still accepts it with a warning, for studies of the kernel, which converges
     here and never writes a negative multiplier."""
     prm = _study_like(E=1e6, R_t=1e3, eps_pic_t=1e-3, G_ft=1.0, R_c=1.77827941e3,
@@ -476,13 +470,12 @@ def test_return_mapping_converges_in_shear_with_dilatancy():
 
 
 def test_round_off_peak_plastic_strain():
-    """Found by test_objective_under_rotation_until_a_crack_opens (return mapping status 1 on a
-    compressive path): when the cap DCPK does not bind, the peak is reached without plastic
-    strain, but ``eps_pl,pk = eps_pic_c - R_c,eff / E`` with ``R_c,eff = E eps_pic_c`` was
+    """When the cap DCPK does not bind, the peak is reached without plastic strain: the
+    computed ``eps_pl,pk = eps_pic_c - R_c,eff / E`` with ``R_c,eff = E eps_pic_c`` would be
     5.4e-20 here (E eps / E != eps in floating point, for about 1 value in 10), so
-    lambda_pk = 9.4e-20 and the hardening slope 2 (C_max - C_min) / lambda_pk ~ 2.6e26 Pa.
-    Fixed (issue 7): eps_pl,pk = 0 exactly when the cap does not bind, and a plastic peak strain
-    below 16 machine epsilons of eps_pic_c (round-off of the difference when DCPK is within a
+    lambda_pk = 9.4e-20 and the hardening slope 2 (C_max - C_min) / lambda_pk ~ 2.6e26 Pa, and
+    the return mapping could fail on a compressive path. So eps_pl,pk = 0 exactly when the cap
+    does not bind, and a plastic peak strain below 16 machine epsilons of eps_pic_c (round-off of the difference when DCPK is within a
     few ulps of 1 - R_c/(E eps_pic_c)) is set to zero."""
     prm = _study_like(E=46889313201.390625, R_t=3832408.5, eps_pic_t=8.173309093992743e-05,
                       G_ft=5.0, R_c=19162042.5, eps_pic_c=0.0004469778410777281, delta=0.0,
@@ -502,10 +495,10 @@ def test_small_peak_plastic_strain_return_mapping_converges():
     """A genuine but small plastic strain at the peak (cap DCPK binding just below
     1 - R_c/(E eps_pic_c): eps_pl,pk = 1e-10 eps_pic_c, lambda_pk = 7.7e-14, cohesion from
     C_min to C_max over that range of lambda_D). The return mapping's iterates with a negative
-    multiplier increment evaluated the parabola C(lambda_D) below 0 (cohesion -1e17 Pa, slope
-    3e20 Pa), or a cohesion jumping between C_min and C_max within the round-off of
-    lambda_n + dlambda: status 1 at the 34th step of this path (issue 7). Now the cohesion of
-    such iterates is the tangent at the start of the step."""
+    multiplier increment would evaluate the parabola C(lambda_D) below 0 (cohesion -1e17 Pa,
+    slope 3e20 Pa), or a cohesion jumping between C_min and C_max within the round-off of
+    lambda_n + dlambda, and fail (status 1 on this path). The cohesion of such iterates is the
+    tangent at the start of the step: every step converges and lambda_D never decreases."""
     thr = 1.0 - 19162042.5 / (46889313201.390625 * 0.0004469778410777281)
     prm = _study_like(E=46889313201.390625, R_t=3832408.5, eps_pic_t=8.173309093992743e-05,
                       G_ft=5.0, R_c=19162042.5, eps_pic_c=0.0004469778410777281, delta=0.0,

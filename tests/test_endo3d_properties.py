@@ -189,9 +189,8 @@ def test_monotonic_paths(prm, n, amp, h):
 def test_cyclic_nonproportional_paths(prm, a, b, c, amp, f, h):
     """Damages never decrease, and a return mapping that reports convergence (status 0, as
     ``run`` asserts) leaves the effective stress in the admissible set: Rankine and
-    Drucker-Prager hold to the tolerance. Before issue 7 about one random cyclic history in
-    four had converged steps with f_D up to 1e8 tolerances (a Drucker-Prager excluded on one
-    pass was never admitted again)."""
+    Drucker-Prager hold to the tolerance (a Drucker-Prager excluded on one pass must be
+    admitted again when the final stress violates it)."""
     hist = segments([amp * a, -f * amp * b, amp * c, np.zeros(6)], 15)
     _S, states = run(prm, hist, h)
     check_monotone(states)
@@ -224,10 +223,10 @@ def test_closed_proportional_cycle_dissipates(prm, n, amp, ra, rb, h):
 
 def test_shear_cycle_states_are_admissible():
     """The yz shear cycle of test_return_mapping_converges_in_shear_with_dilatancy with
-    beta = delta = 0 (associated): on the way back (step 16) the return mapping closed a crack
-    and, on the same pass, dropped Drucker-Prager for its negative multiplier, and ended with
-    status 0 and f_D = 2.3e7 tolerances (issue 7). Now admissible at every step, lambda_D
-    non-decreasing."""
+    beta = delta = 0 (associated): on the way back (step 16) the return mapping closes a crack
+    and, on the same pass, Drucker-Prager's multiplier comes out negative; dropping it for good
+    would leave f_D far above the tolerance with status 0. The stress is admissible at every
+    step and lambda_D non-decreasing."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         prm = m.endo3d_params(E=1e6, nu=0.0, R_t=1e3, eps_pic_t=1e-3, G_ft=1.0,

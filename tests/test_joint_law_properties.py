@@ -204,13 +204,11 @@ def test_pure_compression_stores_and_returns_the_spring_energy(compression_sprin
 
 
 def test_frictionless_slide_under_a_mildly_coupled_compliance():
-    """Found by test_finite_irreversible_and_dissipative: mu = 0, the normal-tangential
-    coupling of D = A + C_s only 0.03 of its diagonal; the slide T = (-0.133, 0, 98.65) Pa
-    satisfies every condition (solve (D + diag(0, 1/k_t, 1/k_t)) T = u~), but the iteration of
-    ``_slide`` stopped at its uncoupled first iterate (normal traction in tension) and the
-    direction scan of ``_slide_by_angle`` bracketed no root: ST_AMBIGUOUS. Fixed (issue 7):
-    the slide is the root N of h(N) = N0 + g.s(mu N) - N, which for mu = 0 is the linear
-    solution."""
+    """mu = 0, the normal-tangential coupling of D = A + C_s only 0.03 of its diagonal: the
+    slide T = (-0.133, 0, 98.65) Pa satisfies every condition (solve
+    (D + diag(0, 1/k_t, 1/k_t)) T = u~), though the uncoupled first iterate has its normal
+    traction in tension. The slide is the root N of h(N) = N0 + g.s(mu N) - N, which for
+    mu = 0 is the linear solution: found exactly, with the status slide."""
     P = jl.joint_params(K_I_spring=1e4, K_II_spring=1e6, d_spring=0.0, sigma_I_e=100.0,
                         K_I_coh=1e4, G_fI=1.0, sigma_II_e=100.0, K_II_coh=1e4, G_fII=1.0,
                         d_coh_initial=0.0, mu=0.0, eta=0.1)
@@ -228,14 +226,11 @@ def test_frictionless_slide_under_a_mildly_coupled_compliance():
 
 
 def test_slide_under_a_coupled_compliance_is_objective():
-    """Found by a long run of test_objective_in_the_tangent_plane with coupled compliances: the
-    same point in two tangent frames (turned by 1 rad) ends with integrities 0.0075 and 0.074.
-    The normal predictor is 4.9e-276 m (0 gives the right answer in both frames): in the turned
-    frame ``local_solve`` at beta = 0.00747 gives up on the slide (first diagonal iterate in
-    tension by 1e-272 Pa) and returned ST_AMBIGUOUS, and the regula falsi of
-    ``solve`` then settled on another integrity, reported as a plain slide.
-    Fixed (issue 7): the slide is found from the bracket [0, |r0| / mu] of h(N), whatever the
-    sign of the uncoupled first iterate, and with invariants of the tangent plane only."""
+    """The same point in two tangent frames (turned by 1 rad) under a coupled compliance ends
+    with the same integrity. The normal predictor is 4.9e-276 m (0 gives the right answer in
+    both frames), so the uncoupled first iterate of the slide is in tension by 1e-272 Pa in
+    one frame and not in the other; the slide is found from the bracket [0, |r0| / mu] of
+    h(N), whatever the sign of that iterate, with invariants of the tangent plane only."""
     P = jl.joint_params(K_I_spring=1e4, K_II_spring=1e6, d_spring=0.0, sigma_I_e=100.0,
                         K_I_coh=1e4, G_fI=1.0, sigma_II_e=100.0, K_II_coh=1e6, G_fII=1.0,
                         d_coh_initial=0.5, mu=1.0, p=1.0, eta=0.1)
@@ -248,14 +243,14 @@ def test_slide_under_a_coupled_compliance_is_objective():
 
 
 def test_integrity_search_does_not_crawl_at_a_steep_root():
-    """Found by a long run of test_objective_in_the_tangent_plane (A = 0, also before issue 7's
-    fix of the slide, for about 1 angle in 5): a stiff normal spring (1e16 Pa/m) under
-    compression, 7e13 Pa, with mu_eff = mu (1 - beta) of 7e-8 near beta = 1, so that the
-    slip of the first step grows by 1.7e-4 m over 4e-10 of beta and g(beta) = beta_env - beta
-    falls from +7e-8 to -0.4 there. The Illinois regula falsi crawled back from each overshoot
-    with doubling steps and used up its 100 iterations at beta = 0.99999993, where g = -0.41:
-    the next step, a stick with u_c unchanged, dropped the integrity to 0.59, or not,
-    depending on the tangent frame. Now it bisects after three iterates on the same side."""
+    """A stiff normal spring (1e16 Pa/m) under compression, 7e13 Pa (A = 0), with
+    mu_eff = mu (1 - beta) of 7e-8 near beta = 1, so that the slip of the first step grows by
+    1.7e-4 m over 4e-10 of beta and g(beta) = beta_env - beta falls from +7e-8 to -0.4 there.
+    A plain Illinois regula falsi would crawl back from each overshoot with doubling steps and
+    end its iterations far from the root, and the next step (a stick with u_c unchanged) would
+    drop the integrity or not depending on the tangent frame. Bisecting after three iterates
+    on the same side, the integrity is consistent with the cohesive slip, kept by the stick,
+    and the same in every frame."""
     P = jl.joint_params(K_I_spring=1e16, K_II_spring=1.0 / 5.623413251903491e-09, d_spring=0.0,
                         sigma_I_e=1e5, K_I_coh=3.1622776601683792e7, G_fI=1e3,
                         sigma_II_e=100.0, K_II_coh=1e6, G_fII=1.0, d_coh_initial=0.0, mu=1.0,
@@ -278,8 +273,8 @@ def test_integrity_search_does_not_crawl_at_a_steep_root():
 
 def test_round_off_sized_slip_under_a_coupled_compliance():
     """Tractions of 1e-156 Pa (a slip of 1e-162 m): written in Pa, the slide's squared norms
-    and 2 x 2 determinants underflow (ZeroDivisionError in a first version of issue 7's fix),
-    and ``phi s / |s|`` went through a subnormal product (7 digits lost, not objective);
+    and 2 x 2 determinants would underflow (a division by zero), and ``phi s / |s|`` would go
+    through a subnormal product (7 digits lost, not objective);
     ``_tangential_slip`` works with the dimensionless ``q = r0 / phi``, norms avoid the
     squares, and products keep the small factors apart."""
     zero = np.zeros((3, 3))
@@ -305,20 +300,19 @@ def test_round_off_sized_slip_under_a_coupled_compliance():
 
 @pytest.mark.parametrize("case", ["coupled_t2", "stiff_normal_spring"])
 def test_slide_at_zero_normal_traction_under_a_coupled_compliance(case):
-    """Found by long runs of test_objective_in_the_tangent_plane with coupled compliances, mu =
-    0: the second step's slide has T_n = 0 exactly, the boundary with the open status (u_c,n
+    """Coupled compliances, mu = 0: the second step's slide has T_n = 0 exactly, the boundary with the open status (u_c,n
     = 0), and h(0) = N0 + g.s is a difference of terms of 66 to 100 Pa.
 
-    * ``coupled_t2``: u~_n = 0, the normal coupled with t2 only; h(0) was -1.8e-15 Pa in one
-      frame, below the round-off allowed for it (1e-13 of N0 and g.s alone).
+    * ``coupled_t2``: u~_n = 0, the normal coupled with t2 only; h(0) can come out at
+      -1.8e-15 Pa in one frame, below the round-off allowed for it (1e-13 of N0 and g.s alone).
     * ``stiff_normal_spring``: u~ = 0 after a slip; the normal spring compliance 1e-11 m/Pa
-      against 1e-6 tangentially, and the partial pivoting of the stick's solve took
+      against 1e-6 tangentially, and the partial pivoting of the stick's solve takes
       N0 = 65.8 Pa from a difference of terms 4500 times larger: h(0) = -3e-11 Pa.
 
-    Taken for a tension: no status (ST_AMBIGUOUS), in some frames and not in others, with a
-    first version of issue 7's fix (and in every frame for the first case before it). Now N0
-    is recomputed from the cofactors of D (invariant under a diagonal scaling of D), whose
-    terms bound the round-off of h."""
+    Taken for a tension, that round-off would give no status (ST_AMBIGUOUS) in some frames
+    and not in others. N0 is computed from the cofactors of D (invariant under a diagonal
+    scaling of D), whose terms bound the round-off of h: a slide in every frame, the same
+    tractions turned."""
     if case == "coupled_t2":
         P = jl.joint_params(K_I_spring=1e8, K_II_spring=1e6, d_spring=0.0, sigma_I_e=100.0,
                             K_I_coh=1e6, G_fI=1.0, sigma_II_e=100.0, K_II_coh=1e10, G_fII=1.0,
@@ -341,14 +335,12 @@ def test_slide_at_zero_normal_traction_under_a_coupled_compliance(case):
 
 
 def test_stick_under_a_tiny_friction_bound_and_a_coupled_compliance():
-    """Found by a long run of test_objective_in_the_tangent_plane with coupled compliances:
-    mu_eff = 1e-13, so the friction bound is 1e-11 Pa under 100 Pa of compression, and the
+    """A coupled compliance and mu_eff = 1e-13, so the friction bound is 1e-11 Pa under 100 Pa of compression, and the
     same predictor twice. In the second step the friction residual r0 = T0_t - k_t u_c,t is a
     difference of 2e-3 Pa tractions whose round-off (eps |G_tn v_n| ~ 5e-15 Pa) is 5e-4 of
-    the bound: the stick test failed in one solve and held in another. The slide then started
-    from a bracket with no sign change (a first version of issue 7's fix returned N at its
-    end, 6e-3 Pa off); before issue 7, no status in one frame. Now the slide's own solve
-    returns the stick when it holds there."""
+    the bound: the stick test can fail in one solve and hold in another, and the slide then
+    starts from a bracket with no sign change. The slide's own solve returns the stick when it
+    holds there, so every frame gets the same answer."""
     P = jl.joint_params(K_I_spring=1e6, K_II_spring=1e9, d_spring=0.125, sigma_I_e=100.0,
                         K_I_coh=1e6, G_fI=1.0, sigma_II_e=100.0, K_II_coh=1e8, G_fII=1.0,
                         d_coh_initial=0.99944, mu=1e-13, p=1.0, eta=0.1)
@@ -364,8 +356,9 @@ def test_stick_under_a_tiny_friction_bound_and_a_coupled_compliance():
 
 
 def test_round_off_sized_openings_do_not_underflow():
-    """Found by the search above: a slip of 1.8e-156 m with delta_1 = 1e-6 m made the mixed-mode
-    weights underflow to zero (ZeroDivisionError in the kernel)."""
+    """Openings at the round-off scale: a slip of 1.8e-156 m with delta_1 = 1e-6 m would make the
+    mixed-mode weights underflow to zero (a division by zero in the kernel); the tractions stay
+    finite and the joint intact."""
     P = jl.joint_params(K_I_spring=1e3, K_II_spring=1e3, d_spring=0.0, sigma_I_e=100.0,
                         K_I_coh=1e8, G_fI=1.0, sigma_II_e=100.0, K_II_coh=1e3, G_fII=10.0,
                         d_coh_initial=0.0, mu=0.0, eta=0.1)

@@ -1,4 +1,4 @@
-"""``joint.regions``: wall joints with properties of their own (the base joint of issue 15).
+"""``joint.regions``: wall joints with properties of their own (a weaker base joint, say).
 
 The points a region holds are checked against the geometry (the heights of the bed joints, the
 courses' heights), not against the builder's own bookkeeping."""

@@ -1,5 +1,5 @@
-"""A step whose ENDO3D return mapping fails at some Gauss point is reported, not hidden
-(issue 7): counted as not converged, its count in ``failed_gauss_points`` of the CSV and in the
+"""A step whose ENDO3D return mapping fails at some Gauss point is reported, not hidden:
+counted as not converged, its count in ``failed_gauss_points`` of the CSV and in the
 summary, and a log line naming the step and the element."""
 
 from __future__ import annotations

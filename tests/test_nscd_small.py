@@ -136,7 +136,7 @@ def test_slender_block_tips_at_its_closed_form_push(law):
             assert integ.step().converged
             fx.append(-integ.point_forces()[:, 0].sum())  # the base shear: the push
         assert integ.u[info["rotation_dof"]] < -5e-4  # it tipped (clockwise, about z)
-        # within 2e-3 on rigid contacts; 2 % on the dry joint's springs (the bound),
+        # within 2e-3 on rigid contacts; 2 % on the dry joint's springs (the bound asked),
         # whose closure lets the block turn and gather momentum before it tips (0.5 % over)
         rel = 2e-3 if law == "coulomb" else 2e-2
         assert max(fx) == pytest.approx((info["weight"] + N) * arm / H, rel=rel)

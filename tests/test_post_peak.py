@@ -1,5 +1,6 @@
-"""What issue 15 added: meshes refined where crushing localises, scattered joint properties, and
-the failure mode named in the summary."""
+"""Past the peak: meshes refined where crushing localises, the crushing length that makes the
+compressive softening independent of the element size, scattered joint properties, and the
+failure mode named in the summary."""
 
 import json
 

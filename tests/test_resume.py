@@ -1,4 +1,4 @@
-"""Interrupted runs, resumed runs, write errors and bad output folders (issue 7).
+"""Interrupted runs, resumed runs, write errors and bad output folders.
 
 An interrupted run keeps valid outputs up to its last output step and ``masonry run --resume``
 continues it from its checkpoint to the curve of an uninterrupted run (within the solver

@@ -179,7 +179,8 @@ def test_dry_wall_newton_and_gauss_seidel_give_the_same_curve(tmp_path):
     """A shortened dry wall (3 courses of 2 rigid units, softer joints: 1e9 and 4e8 Pa/m, on
     which Gauss-Seidel converges in seconds; 0.15 MPa; 4 mm at 40 mm/s, past the peak, through
     the sliding and rocking of its units) with both solvers at 1e-8: the same F_x over the
-    horizontal stage within 1e-4 RMS (the issue asks 1 %), the same vertical forces."""
+    horizontal stage within 1e-4 RMS (the two solvers solve one discrete problem; 1 % is the
+    agreement asked), the same vertical forces."""
     curves = {}
     for method in ("newton", "nlgs"):
         case = load_case("cases/dry_stone_wall.yaml",

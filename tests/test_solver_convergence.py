@@ -115,9 +115,8 @@ def test_creeping_newton_iterations_take_the_next_fresh_direction_whole():
 
 def test_newton_iterations_that_return_to_an_iterate_a_third_time_are_given_up():
     """``newton._Cycle``: the merit norms and convergence measures of the 0.4 MPa wall's step
-    699 (t = 2.796 s) in a run with the round-off of the Anderson kernel tried in session 25,
-    whose iterations went round a three-iterate cycle until the cap of 50
-    (docs/performance.md, session 25). Iterations 7, 10 and 13 are the cycle's lowest
+    699 (t = 2.796 s) in a run with another round-off of the Anderson mixing, whose iterations
+    went round a three-iterate cycle until the cap of 50. Iterations 7, 10 and 13 are the cycle's lowest
     iterate, the same within 5e-7 in both values: the cycle closes at the 13th iteration. (Its
     far iterate differs by 6e-5 between its first and second pass, 5 and 8, and by 1e-8 and
     less later.)"""

@@ -1,4 +1,5 @@
-"""The adaptive step size (``solver.max_time_step_s``, ``nscd/step_size.py``, issue 19)."""
+"""The adaptive step size (``solver.max_time_step_s``, ``nscd/step_size.py``): steps of
+``h 2^k`` grown while they are easy, made again smaller when they fail."""
 
 from __future__ import annotations
 

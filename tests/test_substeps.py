@@ -153,8 +153,8 @@ def test_a_step_whose_newton_iterations_cycle_is_halved_and_the_log_says_why(tmp
                                                                             monkeypatch):
     """``newton._Cycle``: a step whose iterations close a cycle is given up at once and made
     again as halves; the count reaches ``solver_counts`` and the run log names the reason.
-    The cycle is forced at step 5's attempt at h (at its first iterate), as the wall of
-    docs/performance.md (session 25) met one."""
+    The cycle is forced at step 5's attempt at h (at its first iterate), as a wall's step can
+    meet one at a kink of the residual."""
     from masonry_nscd.nscd import integrator as integ_mod
     from masonry_nscd.nscd import newton
 

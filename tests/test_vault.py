@@ -1,4 +1,4 @@
-"""Barrel vaults (issue 18): the arch's section in staggered rings along its depth.
+"""Barrel vaults: the arch's section in staggered rings along its depth.
 
 Reference values are computed here from the geometry: the section of a vault of ``n`` voussoirs
 is the polygon of the ``2 n`` half voussoirs' chords, of area ``(R_e^2 - R_i^2) n sin(pi /

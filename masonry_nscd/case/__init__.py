@@ -47,7 +47,8 @@ given and what is allowed.
 The package, by section: ``fields`` (the number types and the base of every section),
 ``blocks``, ``joint``, ``loading``, ``solver``, ``output``, ``collapse``, ``structures/`` (one
 module per structure), ``model`` (the case), ``yaml12`` (the YAML 1.2 reader and writer),
-``messages``, ``overrides`` (``--set``) and ``files`` (reading and writing case files).
+``messages``, ``overrides`` (``--set``), ``files`` (reading and writing case files) and
+``reference`` (the reference page and JSON Schema of ``masonry schema``, ``docs/reference/``).
 
 Public API: :class:`Case` (and its sections), :func:`load_case`, :func:`case_from_dict`,
 :func:`case_to_yaml`, :func:`read_yaml`, :class:`CaseError`.

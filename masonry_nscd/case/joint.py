@@ -20,7 +20,7 @@ class JointScatter(Section):
     glue is not scattered."""
 
     cv: Real = Field(0.2, gt=0.0, le=2.0, description="coefficient of variation (dimensionless)")
-    seed: Whole = Field(1, ge=0, le=2**63 - 1, description="seed of the random draws (integer)")
+    seed: Whole = Field(1, ge=0, le=2**63 - 1, description="seed of the random draws (index)")
     fields: list[Literal["sigma_I_e_Pa", "sigma_II_e_Pa", "G_fI_J_m2", "G_fII_J_m2"]] = Field(
         default_factory=lambda: ["sigma_I_e_Pa", "sigma_II_e_Pa", "G_fI_J_m2", "G_fII_J_m2"],
         min_length=1, max_length=4, description="joint fields drawn",
@@ -59,7 +59,7 @@ class JointRegion(Section):
     )
     courses: list[Annotated[Whole, Field(ge=-200, le=200)]] | None = Field(
         None, min_length=1, max_length=200,
-        description="courses, from 1 at the bottom (-1: the top); null: every course",
+        description="courses (index: from 1 at the bottom, -1: the top); null: every course",
     )
     K_I_spring_Pa_m: Real | None = Field(None, description="as joint.K_I_spring_Pa_m (Pa/m)")
     K_II_spring_Pa_m: Real | None = Field(None, description="as joint.K_II_spring_Pa_m (Pa/m)")

@@ -28,7 +28,8 @@ class BodyForce(Section):
     """
 
     direction: Direction = Field(
-        (1.0, 0.0, 0.0), description="direction of the body force (made a unit vector)"
+        (1.0, 0.0, 0.0), description="direction of the body force: x, y, z (dimensionless, made a unit "
+        "vector)"
     )
     multiplier: Real = Field(
         0.0, ge=-100.0, le=100.0,
@@ -52,7 +53,7 @@ class PointLoad(Section):
 
     block: str = Field(..., min_length=1, max_length=200, description="name of the block")
     direction: Direction = Field(
-        (0.0, -1.0, 0.0), description="direction of the force (made a unit vector)"
+        (0.0, -1.0, 0.0), description="direction of the force: x, y, z (dimensionless, made a unit vector)"
     )
     force_N: Real = Field(0.0, ge=0.0, le=1e12, description="constant part of the force (N)")
     rate_N_s: Real = Field(0.0, ge=0.0, le=1e12, description="growth of the force (N/s)")
@@ -389,10 +390,11 @@ class Loading(Section):
     # the loads of limit-state runs (an arch, a vault, an assembly; this module's top)
     body_force: BodyForce = Field(
         default_factory=BodyForce,
-        description="arch: body force lambda(t) g m along a direction (the collapse multiplier)",
+        description="limit states: body force lambda(t) g m along a direction (the collapse "
+        "multiplier)",
     )
     point_load: PointLoad | None = Field(
-        None, description="arch: a growing force on one block (null: none)"
+        None, description="limit states: a growing force on one block (null: none)"
     )
     settlement: Settlement | None = Field(
         None, description="arch, vault, cross vault, assembly: the settlement of supports (null: "

@@ -10,21 +10,28 @@ from pydantic import BaseModel, ValidationError
 
 from masonry_nscd.case.fields import SQRT3
 
-_UNIT_SUFFIXES = (
+#: The units a field's name ends with, the longer suffixes first (``rate_per_s`` is 1/s, not s)
+UNIT_SUFFIXES = (
     ("_kg_m3", "kg/m^3"),
     ("_J_m2", "J/m^2"),
     ("_m_s2", "m/s^2"),
     ("_Pa_m", "Pa/m"),
+    ("_per_s", "1/s"),
     ("_m_s", "m/s"),
+    ("_N_m", "N/m"),
+    ("_N_s", "N/s"),
+    ("_deg", "degrees"),
     ("_Pa", "Pa"),
     ("_kg", "kg"),
+    ("_N", "N"),
     ("_s", "s"),
     ("_m", "m"),
 )
 
 
-def _unit_of(name: str) -> str | None:
-    for suffix, unit in _UNIT_SUFFIXES:
+def unit_of(name: str) -> str | None:
+    """The unit a field's name ends with (``E_Pa``: Pa), or None."""
+    for suffix, unit in UNIT_SUFFIXES:
         if name.endswith(suffix):
             return unit
     return None
@@ -80,7 +87,7 @@ def describe(annotation: Any, metadata: Sequence[Any], name: str = "") -> str:
         text = "a whole number" if annotation is int else "a number"
         if low or high:
             text += f", {low}value{high}"
-        unit = _unit_of(name)
+        unit = unit_of(name)
         if unit:
             text += f" (in {unit})"
         return text

@@ -217,7 +217,7 @@ def _case_fields() -> dict[str, tuple[Any, Any]]:
     for s in others:
         common[s.name] = (s.model | None, Field(None, description=s.description))
     common["collapse"] = (Collapse, Field(default_factory=Collapse,
-                                          description="arch: when the run has collapsed"))
+                                          description="limit states: when the run has collapsed"))
     return common
 
 

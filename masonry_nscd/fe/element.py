@@ -275,20 +275,17 @@ def stiffness_from_gradients(dN: np.ndarray, w: np.ndarray, C: np.ndarray) -> np
 def mass_properties(X: np.ndarray, conn: np.ndarray, density: float, el: Element
                     ) -> tuple[float, np.ndarray, np.ndarray]:
     """Mass (kg), first moment (kg m, (3,)) and second moment ``int rho x x^T dV`` (kg m^2,
-    (3, 3)) of a mesh of uniform density by the element's ``mass_rule``, element by element
-    and point by point."""
+    (3, 3)) of a mesh of uniform density by the element's ``mass_rule``: the sums over the
+    elements ``e`` and their points ``g`` of ``rho det J(e, g) w_g`` times 1, ``x`` and
+    ``x x^T``."""
     X = np.asarray(X, dtype=float)
     points, weights = el.mass_rule
     N_all, dN_all = el.shape_at(points)
-    mass, first, second = 0.0, np.zeros(3), np.zeros((3, 3))
-    for cell in np.asarray(conn, dtype=np.int64):
-        xe = X[cell]
-        for g in range(len(weights)):
-            N = N_all[g]
-            J = jacobians(xe[None], dN_all[g:g + 1])[0, 0]
-            x = N @ xe
-            w = density * (float(np.linalg.det(J)) * weights[g])
-            mass += w
-            first += w * x
-            second += w * np.outer(x, x)
+    xe = X[np.asarray(conn, dtype=np.int64)]  # (E, nn, 3)
+    J = np.einsum("gna,enb->egab", dN_all, xe)  # the transpose of dx/dxi: the same det
+    w = density * np.linalg.det(J) * np.asarray(weights)[None, :]  # (E, G), kg
+    x = np.einsum("gn,enb->egb", N_all, xe)  # the points, m
+    mass = float(w.sum())
+    first = np.einsum("eg,egb->b", w, x)
+    second = np.einsum("eg,ega,egb->ab", w, x, x)
     return mass, first, second

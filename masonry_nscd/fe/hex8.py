@@ -3,8 +3,8 @@ and the hexahedron's shortcuts to :mod:`masonry_nscd.fe.element` (stiffness, lum
 strains, forces), and structured box meshes.
 
 What is computed once per block (B matrices, stiffness, mass) is vectorised NumPy over the
-elements: compiled with numba it cost 8 of the 14 s of a first run of the smoke case, for work
-that takes milliseconds. What runs at every step for ENDO3D blocks (``forces_from_gradients``,
+elements: compiled with numba its compilation would take most of a first run of a small case,
+for work that takes milliseconds. What runs at every step for ENDO3D blocks (``forces_from_gradients``,
 ``stiffness_from_gradients``, and the strains inside ``materials.blocks.trial_forces``) stays
 compiled: plain loops, quick to compile, on the shape functions' gradients rather than the
 mostly zero B matrices (:mod:`masonry_nscd.fe.element`, for any element type).

@@ -3,8 +3,8 @@
 A run's VTU files and its HDF5 output step are written at every output step, and encoding the
 VTU files (zlib) and writing them (an fsync each, :mod:`masonry_nscd.io.atomic`) takes a few
 ms a step that the steps need not wait for: the compression and the fsyncs let other threads
-run, so on a second core they overlap the next steps (docs/performance.md, sessions 23 and
-24; h5py's own calls hold the interpreter, the HDF5 step's fsync does not).
+run, so on a second core they overlap the next steps (docs/performance.md; h5py's own calls
+hold the interpreter, the HDF5 step's fsync does not).
 :class:`BackgroundWriter` runs ``write(path)`` calls, in the order given, on one thread of its
 own:
 

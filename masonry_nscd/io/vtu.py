@@ -2,8 +2,8 @@ r"""VTK output for ParaView: blocks and joint contact points as ``.vtu``, time s
 
 Anything else that needs VTK files calls the functions below. The files are written here
 directly (VTK's XML format, every array in raw appended data, compressed block by block with
-zlib at level 1), not by meshio: that took 8.4 ms per output step of the study's wall
-against 4.6 ms, and its base64 text made the files 22 % larger. VTK 9.7 and meshio read them
+zlib at level 1), not by meshio, whose base64 text inside the XML and zlib's default level
+make larger files more slowly (docs/choices.md). VTK and meshio read them
 back to the same arrays (``tests/test_io.py`` reads them with meshio).
 
 What is written
@@ -374,10 +374,10 @@ def write_points_vtu(
 def _pvd_line(t: float, name: str, part: int, parent: str) -> str:
     """One ``DataSet`` line of a collection in folder ``parent`` (absolute). Cached: a run
     writes its collection again at every output step with one more entry per file, and
-    formatting every entry each time made that quadratic (7.5 ms for 660 entries)."""
+    formatting every entry each time would make that quadratic in the number of entries."""
     if os.path.isabs(name):
         name = os.path.relpath(name, parent)
-    # the XML by hand (ElementTree took 6 ms for 300 entries, at every output step)
+    # the XML by hand: one formatted line per entry, no tree built at every output step
     return (f'    <DataSet timestep="{t!r}" group="" part="{part}" '
             f'file={quoteattr(Path(name).as_posix())} />')
 

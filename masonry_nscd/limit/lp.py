@@ -38,7 +38,7 @@ from masonry_nscd.limit import friction
 from masonry_nscd.limit.statics import RigidModel, equilibrium_matrix, point_velocities
 
 #: HiGHS's method: its interior point with crossover (a vertex, whose duals are the
-#: mechanism); its dual simplex took 5 to 8 times longer on the vault and the dome.
+#: mechanism); its dual simplex is slower on the larger scenes (docs/choices.md).
 METHOD = "highs-ipm"
 #: ``linprog``'s status codes, by name.
 LP_STATUS = {0: "optimal", 1: "iteration limit", 2: "infeasible", 3: "unbounded",

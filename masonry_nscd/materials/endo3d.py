@@ -23,7 +23,7 @@ Plastic criteria on the principal effective stresses ``s_i`` (directions ``e_i``
   ``d eps_pD = dlam_D (s_dev / (2 sqrt(J2)) + beta/3 1)`` (so ``tr d eps_pD = beta dlam_D``).
   Its dissipation is ``dlam_D (C + (delta - beta) p)`` (J/m^3): non-negative for
   ``beta <= delta`` (``p >= -R_t`` under Rankine); the case schema asks ``beta <= delta``,
-  :func:`endo3d_params` only warns (issue 7).
+  :func:`endo3d_params` only warns (kept for studies of the kernel itself).
 * Cohesion hardening (Pa): ``C = C_min + (C_max - C_min)(2x - x^2)``, ``x = lambda_D/lambda_pk``
   for ``x < 1``, ``C = C_max`` afterwards (and always when ``lambda_pk = 0``: no division by
   it), with ``C_min = R_t delta``, ``C_max = R_c,eff (1/sqrt(3) - delta/3)``. Slope
@@ -55,9 +55,9 @@ direction (prescribed increment ``-r_i``); (3) of the multipliers with the wrong
 (Rankine < 0, reclosure > 0, Drucker-Prager < 0) the largest is excluded; (4) an excluded
 surface, or a closure, that the final stress violates (``f > tol``, or a closed direction with
 ``s_i > -REF``) is admitted again. A pass is accepted only when the Kuhn-Tucker conditions hold
-(right signs, no criterion violated by more than ``tol``): before issue 7 an excluded
-Drucker-Prager was never re-admitted and about one random cyclic history in four ended steps
-with ``f_D`` up to 1e8 ``tol`` and status 0. If the corrections cycle (8 passes:
+(right signs, no criterion violated by more than ``tol``), so that a step never ends with a
+violated criterion and status 0 (correction (4) is what re-admits an excluded
+Drucker-Prager). If the corrections cycle (8 passes:
 non-associated flow, corners), the active sets are searched, fewest active surfaces first (each
 direction inactive, Rankine or, crack open, reclosure or full closure; Drucker-Prager off or
 on) by a closest-point (backward Euler) solve per set (:func:`_closest_point`), and the first
@@ -87,12 +87,9 @@ there), so that the law is objective:
 The edge tensor ``a1 a1^T + 2 a2 a2^T + 3 a3 a3^T`` (m^2, three edges of the hexahedron from
 its node 0) has distinct eigenvalues also for a cube. Eigenvalues are repeated when equal to
 ``DEGENERATE_REL = 1e-12`` of the largest (round-off is ~1e-16); outside such spaces nothing
-changes. Before issue 7 random cracked histories depended on the frame (459 of 2000 with
-generic directions, 737 of 3000 with directions along the axes or with equal normal strains,
-by a median of 9 % of the stresses or damages); after it, 0 of 4000 and 2 of 3000 (a
-sensitivity of the law to differences at the return mapping's tolerance, near crack closure or
-nearly repeated principal stresses, not a choice of basis:
-tests/test_endo3d_objectivity.py::test_cracked_state_objectivity_residual).
+changes. What remains frame-dependent is a sensitivity of the law to differences at the
+return mapping's tolerance, near crack closure or nearly repeated principal stresses, not a
+choice of basis (tests/test_endo3d_objectivity.py::test_cracked_state_objectivity_residual).
 
 Damage (Hillerborg regularisation)
 ----------------------------------
@@ -306,7 +303,7 @@ def endo3d_params(
     kept for studies of the kernel, the case schema refuses it). The plastic strain at the
     compressive peak ``eps_pl,pk = eps_pic_c - R_c,eff/E`` is exactly 0 when the cap DCPK does
     not bind, and is set to 0 below ``16 eps_machine eps_pic_c`` (round-off of the difference,
-    which made ``lambda_pk`` ~ 1e-19 and the hardening slope ~ 1e26 Pa, issue 7).
+    which would make ``lambda_pk`` ~ 1e-19 and the hardening slope ~ 1e26 Pa).
     Returns a float64 vector of length ``N_PARAMS`` indexed by the ``P_*`` constants.
     """
     vals = {

@@ -25,9 +25,9 @@ A step that did not reach the tolerance, or whose ENDO3D return mapping failed a
 point (``StepReport.material_failures``), is made again from its start as two steps of h/2
 (``max_halvings`` times at most, each half again halved if it fails): at a kink of the joint
 law (a joint opening on a rocking wall, a very stiff spring closing) Newton can cycle between
-two statuses, and a smaller step moves the state less across the kink. Measured on the smoke
-wall (stress test): with no vertical stress 12 of 100 steps ended above the tolerance 1e-8 at
-h, none at h/2 throughout; with 1e13 Pa/m springs 9 steps at h, 19 at h/2, none at h/4. A step
+two statuses, and a smaller step moves the state less across the kink (the smoke wall of the
+stress test, with no vertical stress or with very stiff springs, is such a case;
+docs/choices.md). A step
 still unconverged at the smallest size is reported (``StepReport.converged`` False) and the
 caller decides; NaN or infinity anywhere in the new state raises ``DivergenceError`` naming the
 step and what diverged. After a step of h that had to be subdivided, the next
@@ -515,8 +515,8 @@ class Integrator:
             # Gauss-Seidel sweeps: the solver of the case, or the end of a step that Newton
             # did not finish and that will not be subdivided (warm-started from its last
             # tractions; not with ENDO3D blocks, whose material correction only the Newton
-            # residual carries). Halving the step is tried first: 20,000 sweeps cost 16 s on the
-            # reference wall and rarely reach 1e-8 where Newton failed.
+            # residual carries). Halving the step is tried first: the sweeps cost far more than
+            # a Newton step and rarely reach a tight tolerance where Newton failed.
             newton_its = sweeps if self.newton is not None else 0
             T = j.T.copy() if self.newton is None else T
             uc = np.empty_like(j.uc)

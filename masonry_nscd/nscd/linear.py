@@ -20,8 +20,8 @@ body system
 
 (the glue as the penalty ``1 / eps`` it is; the Newton solver sums ``S`` straight into a
 fixed pattern, ``newton.jacobian_values(..., eliminate=True)``, and gives it with ``B``, ``C``
-and ``D^-1`` to ``factorise_system``: no Newton matrix is made, which took a third of a step
-of the 64x wall as scipy's slicing and products), solved by restarted GMRES with a two-level
+and ``D^-1`` to ``factorise_system``: no Newton matrix is made and sliced, which on a large wall would cost
+a large share of a step in scipy's slicing and products), solved by restarted GMRES with a two-level
 multiplicative preconditioner over the bodies, the coarse level first::
 
     y = R S_0^-1 R^T b,   P^-1 b = y + S_loc^-1 (b - S y)
@@ -40,22 +40,17 @@ costs a third product and a second coarse solve in each (docs/scaling.md). The l
 are kept as dense blocks grouped by size and applied by one stacked product per size, not as a
 sparse matrix, and only the blocks that moved by more than ``block_tolerance`` (1e-3 of their
 Frobenius norm) since their inverse was made are inverted again: the joints' cohesive damage
-moves most blocks a little at every set-up (80 % of the 8x wall's blocks changed per set-up
-past the start of the push), and an inverse good to 1e-3 is as good a preconditioner
-(docs/scaling.md). Medians on the 8x wall's first 12 steps, per refresh of the matrix and its
-preconditioner: 244 ms when the Newton matrix was filled (22 ms), then sliced and multiplied by
-scipy, its inverses kept as a sparse matrix and its coarse LU by SuperLU; 101 ms now (``S``
-filled directly, 25 ms; the preconditioner, 76 ms). The setup (``factorise``) is redone only
-where the LU would be refactorised; keeping a preconditioner of an earlier matrix for the new
-one was tried and lost (8 times the study's wall, 12 steps: 2,905 GMRES iterations against 278,
-the steps 40 % slower: the joints' springs change by orders of magnitude when they open or
-close). The solution of the previous solve (the iteration or the step before) starts GMRES when
+moves most blocks a little at every set-up, and an inverse good to 1e-3 is as good a
+preconditioner (docs/scaling.md). The setup (``factorise``) is redone only where the LU would
+be refactorised: a preconditioner of an earlier matrix is a poor one for the new matrix, as the
+joints' springs change by orders of magnitude when they open or close (docs/scaling.md). The
+solution of the previous solve (the iteration or the step before) starts GMRES when
 its residual is below that of zero. A solve whose relative residual ``|rhs - S v| / |rhs|``
 stays above ``rtol`` after ``max_iterations`` is reported (``KrylovFailure``): the Newton
 solver then factorises the same matrix by LU and says so.
 
 ``pardiso``: the sparse LU of Intel MKL (``nscd/pardiso.py``), in the same fixed pattern as
-``lu``: the same solutions to round-off, two to three times faster factorisations.
+``lu``: the same solutions to round-off, faster factorisations (docs/performance.md).
 
 ``auto`` picks ``pardiso`` (``lu`` where MKL is not installed) below ``KRYLOV_MIN_UNKNOWNS``
 unknowns, ``krylov`` from there. The environment variable ``MASONRY_DIRECT_SOLVER`` (``lu`` or
@@ -183,7 +178,7 @@ class KrylovSolver:
 
     ``rtol`` is the forcing term of an inexact Newton method: the Newton iterations judge
     their own convergence on the residual of the step, so a direction good to 1 % is enough
-    (measured in docs/scaling.md)."""
+    (docs/scaling.md)."""
 
     def __init__(self, body_of: np.ndarray, modes: np.ndarray, rtol: float = 1e-2,
                  max_iterations: int = 300, restart: int = 40):
@@ -335,8 +330,8 @@ class KrylovSolver:
                 moved = moved_blocks(blocks.reshape(len(starts), k * k),
                                      old.reshape(len(starts), k * k), self.block_tolerance)
                 changed = np.flatnonzero(moved)
-                # in place: a preconditioner serves until the next set-up (the copy of the
-                # 8x wall's 13 MB of inverses took a fifth of the local level's set-up)
+                # in place: a preconditioner serves until the next set-up (a copy of every
+                # inverse would cost a large share of the local level's set-up)
                 inv = inverses[n]
                 if len(changed):
                     inv[changed] = _inverses(blocks[changed])

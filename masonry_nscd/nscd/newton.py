@@ -41,14 +41,12 @@ Iterations:
 * where the directions of fresh matrices only creep (``_Stall``: three in a row cut short by the
   line search, each lowering the norm by less than 1 %), the next fresh direction is taken
   whole, the norm allowed to rise: the creeping steps stop just short of the kinks the
-  Newton step would cross. Seen on the first step of the wall 64 times the study's (gravity's
-  first load, the head joints at the kink between open and closed), which crept until its
-  iteration cap and was made again as halves (docs/scaling.md, session 21); the study's walls
-  never creep so.
+  Newton step would cross (gravity's first load on a large wall, its head joints at the kink
+  between open and closed: without the whole step such a step creeps to its iteration cap and
+  is made again as halves; docs/scaling.md).
 
-Measured on the reference wall with elastic blocks (100 steps from U_x = 0.3 mm, CPU time):
-plain chord steps 9.2 iterations and 0.35 factorisations per step, 26.8 ms; accelerated, 7.0
-and 0.17, 18.4 ms. Near the peak (from U_x = 2.5 mm) 63.5 against 49.7 ms per step.
+The acceleration lowers both the iterations and the factorisations per step; what it gains on
+the study's walls is in docs/performance.md.
 
 Convergence: the relative change of the contact forces between iterates,
 ``sqrt(sum |S dT|^2) / sqrt(sum |S T|^2)``, and the momentum residual of the free dofs against
@@ -96,7 +94,7 @@ from masonry_nscd.nscd.step_residual import Evaluation, Scales, StepResidual
 def _emit(k, row, col, val, rows, cols, vals, slot, data):
     """Entry ``k`` of the Newton matrix: a triplet, or (with ``slot``) added to the values of
     the fixed pattern. No bounds test here: ``_full`` checks the room a group needs before it
-    is emitted (a test per entry made the fill ten times slower)."""
+    is emitted (a test per entry would sit in the fill's innermost loop)."""
     if slot.shape[0] > 0:
         data[slot[k]] += val
     else:
@@ -144,7 +142,7 @@ def _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, s
     blocks of consecutive points on the same dofs (the Gauss points of one face, four in a
     row on the study's walls) are summed in a small dense buffer first and emitted once: a
     quarter of the triplets, each a scattered addition into ``data`` and a slot in the
-    pattern (docs/scaling.md, session 21). The Newton matrix itself keeps its order of sums,
+    pattern (docs/scaling.md). The Newton matrix itself keeps its order of sums,
     and with it the direct solver's iterates bit for bit."""
     if slot.shape[0] > 0:
         if part != 2:
@@ -282,12 +280,11 @@ CYCLE_VISITS = 3  # an iterate met this many times in one step closes a cycle (c
 class _Cycle:
     """Whether Newton's iterations cycle: an iterate met for the ``visits``-th time in one
     step, "the same" meaning the same merit norm and the same convergence measure within a
-    relative ``rtol``. Seen on the 0.4 MPa study wall (in a run with another round-off) at a
-    kink of the residual: a fresh matrix's direction lowers the norm nowhere, the step is
-    taken whole, far away, and the next iterations lead back, until the iteration cap
-    (docs/performance.md, session 25). The iterates close in on a periodic orbit: the first
-    pass through it differs from the second by some 1e-4 (the matrix's age, the counters), the
-    later passes from each other by 1e-8 and less. Such a step is given up at its
+    relative ``rtol``. It happens at a kink of the residual: a fresh matrix's direction lowers
+    the norm nowhere, the step is taken whole, far away, and the next iterations lead back,
+    until the iteration cap. The iterates close in on a periodic orbit: the first pass through
+    it differs from the later ones (the matrix's age, the counters), which agree with each
+    other far below ``rtol``, so equality to the bit would not catch it. Such a step is given up at its
     ``CYCLE_VISITS``-th visit and made again as halves, as it would be after the cap."""
 
     def __init__(self, visits: int = CYCLE_VISITS, rtol: float = 1e-6):
@@ -351,7 +348,7 @@ def jacobian_values(slot, nnz, body_dof0, mhat_off, mhat, free_index, nfree, sid
                     eliminate=False, bodies=None) -> np.ndarray:
     """The values (``nnz``) of the Newton matrix in a fixed pattern whose entry ``k`` of
     ``jacobian_coo(..., keep_zeros=True)`` sits at ``slot[k]``: the same sums, without the
-    triplets (24 bytes per entry: 1.2 GB at 64 times the study's wall). ``eliminate``: of
+    triplets (24 bytes per entry). ``eliminate``: of
     the body system ``S``, in the pattern of ``jacobian_coo(..., True, True)``. ``bodies``:
     :func:`bodies_values` of these bodies' blocks, onto a copy of which only the other
     entries are summed (the same sums bit for bit)."""
@@ -385,9 +382,8 @@ def csc_slots(rows, cols, n, indptr):
     and the place of each triplet in it: returns ``(slot, indices)`` and fills ``indptr``
     (``n + 1``), the rows of each column sorted and unique, as ``np.unique`` of the keys
     ``cols n + rows`` gives them. The triplets are bucketed by column (a counting sort) and
-    each column's rows sorted alone, where ``np.unique`` sorts all the keys at once: 0.46
-    against 2.03 s for the 12.9 M triplets of the Krylov body system of 16 times the study's
-    wall."""
+    each column's rows sorted alone, where ``np.unique`` sorts all the keys at once: linear
+    in the triplets but for the short sorts of the columns, against ``n log n`` of one sort."""
     ntrip = rows.shape[0]
     start = np.zeros(n + 1, dtype=np.int64)
     for k in range(ntrip):
@@ -458,9 +454,9 @@ class _Pattern:
     the place of each triplet in the CSC arrays is computed once and filling a matrix is a
     scatter (``scatter_add``) instead of a COO to CSC conversion. The symmetric minimum-degree
     order of SuperLU (``MMD_AT_PLUS_A``) is also computed once, at the first factorisation,
-    and the later matrices are factorised already permuted, in their natural order. Measured
-    on the reference wall (4123 unknowns, 0.28 M entries): assembly 2 ms instead of 11 ms,
-    factorisation 20 ms instead of 26 ms, the same 0.72 M nonzeros in L + U.
+    and the later matrices are factorised already permuted, in their natural order: the same
+    fill in L + U as an order computed for each matrix, without the conversion and the
+    ordering at every factorisation.
     """
 
     #: triplets from which the pattern is sorted by the compiled kernel (``_slots``)
@@ -477,8 +473,8 @@ class _Pattern:
     def _slots(self, rows, cols) -> np.ndarray:
         """CSC arrays of the pattern of (rows, cols) and the slot of each triplet: by
         ``np.unique`` of the keys ``cols n + rows`` up to ``KERNEL_TRIPLETS`` triplets, by the
-        compiled :func:`csc_slots` above (the same arrays; its compilation, 0.8 s, would add to
-        a small case's first run more than it saves)."""
+        compiled :func:`csc_slots` above (the same arrays; its compilation would add to a small
+        case's first run more than it saves)."""
         n = self.n
         self._rows, self._cols = rows, cols
         if len(rows) >= self.KERNEL_TRIPLETS:
@@ -695,10 +691,9 @@ class NewtonSolver:
 
     def share_pattern(self, other: NewtonSolver) -> None:
         """Use the patterns of ``other``, a solver of the same scene with another step size:
-        they depend on the bodies, the points and the free dofs only (the adaptive step's
-        rungs and the halves need not make theirs: the Krylov body system's took 2.3 s at 8
-        times the study's wall, 16 s at 64 times, and the slots' memory, 8 bytes per triplet;
-        the Newton matrix's 50 to 200 ms on the study's wall). A PARDISO pattern is shared
+        they depend on the bodies, the points and the free dofs only, so the adaptive step's
+        rungs and the halves need not make theirs (the time of making a pattern, and the slots'
+        memory, 8 bytes per triplet, grow with the wall). A PARDISO pattern is shared
         with a handle of its own (``_Pattern.sibling``): a handle keeps one factorisation."""
         if not (np.array_equal(self.free, other.free) and np.array_equal(self.mult, other.mult)):
             return
@@ -759,9 +754,8 @@ class NewtonSolver:
         with timing.part("factorisation"):
             if not pivoting:
                 # the pattern is symmetric and the diagonal dominant enough (mass, springs,
-                # glue compliance): symmetric ordering, pivots on the diagonal. Measured on the
-                # wall: 0.72 M nonzeros in L + U against 1.0 M with COLAMD, solves 0.4 to 1 ms
-                # against 2.5 to 3 ms with partial pivoting
+                # glue compliance): symmetric ordering, pivots on the diagonal, which gives
+                # less fill than COLAMD and faster solves than partial pivoting
                 with contextlib.suppress(RuntimeError):  # a zero pivot: pivot after all
                     self.lu = pat.factorise(data)
             if self.lu is None:
@@ -850,9 +844,8 @@ class NewtonSolver:
         (``fresh``), the full step is taken all the same: the residual is only piecewise
         smooth (a joint or an ENDO3D point at the kink between its elastic and softening
         branches, e.g. a crack about to open), the Newton direction of one branch is not one of
-        descent across the kink, and short steps stall there (measured on the ENDO3D wall at
-        U_x = 1.8 mm: 50 iterations stuck at a residual of 1e-5 with short steps, 11 to 33
-        iterations to 1e-8 with the full step).
+        descent across the kink, and short steps stall there, where the full step crosses the
+        kink and the iterations converge on the other branch.
         """
         nf = len(self.free)
         alpha = 1.0
@@ -913,8 +906,8 @@ class NewtonSolver:
         g = self.mult
         if self.extrapolates(self._solutions):
             # the solution of the step extrapolated linearly from the last two: in a slow,
-            # smooth loading both change at a steady rate (measured on the reference wall: the
-            # second iterate moves the tractions by 2e-5 instead of 1.3e-3, one iteration less);
+            # smooth loading both change at a steady rate, so the extrapolation starts the
+            # iterations closer to the solution than the last step's values do;
             # velocities and impulses per unit time, along the time when the sizes differ
             (t1, v1, r1, h1), (t2, v2, r2, h2) = self._solutions
             ratio = 1.0 if None in (t_end, t1, t2) else (t_end - t2) / (t2 - t1)
@@ -941,7 +934,7 @@ class NewtonSolver:
         pivoted = False
         while True:
             dx = self._linear_solve(-ev.F)
-            # one product instead of isfinite and all (docs/performance.md, session 24): NaN
+            # one product instead of isfinite and all (one pass, no temporary array): NaN
             # or inf in dx make it NaN or inf (so would entries of some 1e154: as broken)
             finite = math.isfinite(float(dx @ dx))
             if not finite and not pivoted:
@@ -970,7 +963,7 @@ class NewtonSolver:
                 return ev, alpha, fresh, v_try, r_try, ev_try
             # an accelerated step is taken whole or not at all: where it does not decrease the
             # norm, the plain step's line search follows (a shorter accelerated step was thrown
-            # away for the plain one all the same: docs/performance.md, session 18)
+            # away for the plain one all the same)
             alpha, descent, v_try, r_try, ev_try = self._line_search(
                 residual, v, r_glue, step, ev.norm, fresh and not accelerated,
                 halve=not accelerated)

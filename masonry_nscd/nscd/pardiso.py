@@ -9,23 +9,21 @@ transposed solve (``iparm[11] = 2``), ``J x = b``, with zero-based indices (``ip
 The other settings are MKL's defaults for a real nonsymmetric matrix (``pardisoinit``,
 ``mtype = 11``: scaling and weighted matching, pivots smaller than 1e-13 of the largest
 perturbed) but two: the minimum degree order (``iparm[1] = 0``; MKL's default, nested dissection,
-gives more fill on the study's matrix and factorises a third slower, and no faster at 16 times
-its size), and iterative refinement only when a pivot was perturbed (``iparm[7] = 0``; the
-default refines every solve twice, which quadruples a solve's time for a residual SuperLU does
+gives more fill on the study's matrix and slower factorisations; docs/choices.md), and iterative refinement only when a pivot was perturbed (``iparm[7] = 0``; the
+default refines every solve twice, each refinement a solve more, for a residual SuperLU does
 not improve on either).
 
-Why: a numeric factorisation of the study's Newton matrix (4,603 unknowns, 0.37 M entries)
-takes less than half of SuperLU's time with the same fill (docs/performance.md), and the
-factorisations are half of an elastic run; a solve costs the same. The solutions agree with
-SuperLU's to round-off (the same Newton iterations; curves within 1e-12).
+Why: a numeric factorisation of the study's Newton matrix takes less time than SuperLU's with
+the same fill, and the factorisations are a large part of an elastic run; a solve costs the
+same (docs/performance.md). The solutions agree with SuperLU's to round-off (the same Newton
+iterations).
 
 Threads: a factorisation runs on ``MKL_NUM_THREADS`` OpenMP threads when it is set, else on as
 many as the per-point kernels (``threads.count()``: the cores, one in a sweep's worker,
-``--threads``); two threads factorise the study's matrix in two thirds of the time of one, and
-a solve takes the same time on either (docs/performance.md). MKL may not change the number
+``--threads``); what a second thread gains is in docs/performance.md. MKL may not change the number
 during a run (``MKL_Set_Dynamic(0)``). MKL's OpenMP threads sleep as soon as a factorisation
-ends (``KMP_BLOCKTIME=0`` unless the environment sets it): by default they spin for 200 ms on
-the cores that the kernels' threads need next (docs/choices.md).
+ends (``KMP_BLOCKTIME=0`` unless the environment sets it): by default they spin for a while
+after a parallel region, on the cores that the kernels' threads need next (docs/choices.md).
 
 Reproducibility (``arithmetic.py``): MKL is put in its conditional numerical reproducibility
 branch for every x86-64 processor as it loads, and every handle factorises in PARDISO's CNR

@@ -21,8 +21,7 @@ blocks: the off-diagonal coupling is carried by the body velocities (cost per po
 
 What does not depend on h (the numbering, the blocks' K and masses, the points' sides) is a
 :class:`DofLayout`, made once per scene and shared by the systems of the adaptive step's sizes
-and of the halved steps (a system from a layout costs a fifth of one made from scratch:
-docs/performance.md, session 15).
+and of the halved steps, so that a new step size builds only what depends on h.
 """
 
 from __future__ import annotations

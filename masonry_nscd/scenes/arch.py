@@ -1,4 +1,4 @@
-r"""The arch: voussoirs on two abutments, a builder of the block assembly (issue 18).
+r"""The arch: voussoirs on two abutments, a builder of the block assembly.
 
 Coordinates: x horizontal from the middle of the span, y up from the springing line, z along
 the arch's depth (``0 <= z <= depth``). SI units.

@@ -1,4 +1,4 @@
-r"""A block assembly read from a mesh file: the builder of an ``assembly:`` case (issue 18).
+r"""A block assembly read from a mesh file: the builder of an ``assembly:`` case.
 
 The mesh (:func:`masonry_nscd.io.mesh_file.read_block_mesh`) is a set of 8-node hexahedra
 and 4- or 10-node tetrahedra, each tagged with its block (Gmsh: its physical volume); the

@@ -22,12 +22,16 @@ two webs in the same course share their groin face. The lowest ``springer_course
 corner are the springer, one body of two hexahedra: under the bed of the first free course of
 each web, down to the springing plane, meeting on the groin. With ``transverse_ribs``, an arch
 of the same levels, ``rib_depth`` deep below the webs' extrados and ``rib_width`` wide, stands
-against each end of the east and west webs; its voussoirs spring from the same supports. Each
-support is a fixed box under the springer (and the ribs' feet) of its corner.
+against each end of the east and west webs; its voussoirs spring from the same supports. With
+``diagonal_ribs``, the two groin stones of a course at a corner are one block, a voussoir of the
+diagonal rib: its intrados ``diagonal_rib_depth`` further on each bed's line (so that the bed
+stays one plane), bonded into both webs; the top course's eight groin stones are the boss where
+the ribs cross, and the springers' tops are deepened the same way. Each support is a fixed box
+under the springer (and the transverse ribs' feet) of its corner.
 
 Joint groups: ``bed`` (courses of a web), ``head`` (stones of a course), ``crown`` (the two
 halves of a web), ``groin`` (two webs), ``springer`` (a web on its springer), ``rib`` (the
-ribs' own joints), ``rib side`` (a web or springer against a rib), ``base`` (on the supports).
+ribs' own joints, the boss's included), ``rib side`` (a web or springer against a rib), ``base`` (on the supports).
 Loads, solver and collapse rule are those of every limit-state scene
 (:mod:`masonry_nscd.scenes.limit_loads`); ``loading.settlement`` moves the supports of a corner
 or a side (the spreading of the bay).
@@ -85,6 +89,18 @@ class ArchSection:
         """The intrados and extrados radii of the webs (m)."""
         t = self.v.thickness_m
         return self.R - t / 2.0, self.R + t / 2.0
+
+    def level(self, j: int, s: int, deep: bool = False) -> tuple[float, float]:
+        """``(w, y)`` of level ``j`` at the intrados (``s = 0``) or the extrados (1); with
+        ``deep`` the intrados point moves ``diagonal_rib_depth_m`` further on the bed's line
+        from the extrados through the intrados, so that a deepened bed stays one plane."""
+        if not (deep and s == 0):
+            return self.point(j, self.radii[s])
+        (wi, yi), (we, ye) = (self.point(j, r) for r in self.radii)
+        half = self.v.span_z_m / 2.0
+        d = np.array([(wi - we) * half, yi - ye])
+        r, y = np.array([wi * half, yi]) + d * self.v.diagonal_rib_depth_m / np.hypot(*d)
+        return float(r / half), float(y)
 
 
 def web_point(v, web: str, half: str, w: float, y: float, along: float) -> np.ndarray:
@@ -154,9 +170,9 @@ def stone_cuts(v, start: float, low: float, end: float, staggered: bool) -> list
 def course_stones(v, sec: ArchSection, web: str, half: str, j: int
                   ) -> list[tuple[np.ndarray, np.ndarray]]:
     """The stones (nodes, hexahedron) of course ``j`` (from 1) of a web's half, from the
-    groin to the web's end."""
-    rho = sec.radii
-    wy = {(s, lv): sec.point(j - 1 + lv, rho[s]) for s in (0, 1) for lv in (0, 1)}
+    groin to the web's end; with ``diagonal_ribs`` the first, at the groin, deepened below
+    the intrados (the web's half of a diagonal rib's voussoir)."""
+    wy = {(s, lv): sec.level(j - 1 + lv, s) for s in (0, 1) for lv in (0, 1)}
     end = half_along(v, web)
     groin = {k: end * w for k, (w, _) in wy.items()}
     start = float(np.mean(list(groin.values())))
@@ -165,10 +181,12 @@ def course_stones(v, sec: ArchSection, web: str, half: str, j: int
     ends = [None, *cuts, end]  # None: the groin
     stones = []
     for a, b in pairwise(ends):
+        deep = v.diagonal_ribs and a is None
         corners = {}
-        for (s, lv), (w, y) in wy.items():
+        for s, lv in wy:
+            w, y = sec.level(j - 1 + lv, s, deep)
             for e, at in ((0, a), (1, b)):
-                along = groin[s, lv] if at is None else at
+                along = end * w if at is None else at
                 corners[e, s, lv] = web_point(v, web, half, w, y, along)
         stones.append(hexahedron(corners))
     return stones
@@ -176,16 +194,16 @@ def course_stones(v, sec: ArchSection, web: str, half: str, j: int
 
 def springer_mesh(v, sec: ArchSection, corner: str) -> tuple[np.ndarray, np.ndarray]:
     """The springer of a corner: under the bed of the first free course of its two webs (the
-    level ``springer_courses``), down to the springing plane, one hexahedron per web (m)."""
+    level ``springer_courses``; deepened like the ribs' with ``diagonal_ribs``), down to the
+    springing plane, one hexahedron per web (m)."""
     ns, ew = corner.split("-")
     k = v.springer_courses
-    rho = sec.radii
     meshes = []
     for web, half in ((ew, ns), (ns, ew)):
         end = half_along(v, web)
         corners = {}
         for s in (0, 1):
-            w, y = sec.point(k, rho[s])
+            w, y = sec.level(k, s, v.diagonal_ribs)
             for e, along in ((0, end * w), (1, end)):
                 top = web_point(v, web, half, w, y, along)
                 corners[e, s, 1] = top
@@ -229,31 +247,56 @@ def geometry_problems(case) -> list[tuple[str, str]]:
         problems.append(("cross_vault.rib_depth_m", (
             f"got {v.rib_depth_m:.6g} m; the rib's intrados must stay above the arch's centre: "
             f"below {sec.R + v.thickness_m / 2.0 - sec.c:.6g} m")))
+    deep = sec.R - v.thickness_m / 2.0 - v.diagonal_rib_depth_m
+    if v.diagonal_ribs and not deep > sec.c:
+        problems.append(("cross_vault.diagonal_rib_depth_m", (
+            f"got {v.diagonal_rib_depth_m:.6g} m; the ribs' intrados must stay above the "
+            f"arch's centre: below {sec.R - v.thickness_m / 2.0 - sec.c:.6g} m")))
     if not problems:
         problems += named_block_problems(case.loading, block_names(v), (
             f"the blocks are named like 'east web north course {v.springer_courses + 1} "
-            "stone 1', 'springer north-east', 'east rib north voussoir 1'"))
+            "stone 2', 'springer north-east', 'east rib north voussoir 1', 'diagonal rib "
+            "north-east voussoir 1', 'boss'"))
     return problems
 
 
 def block_names(v) -> list[str]:
     """The names of the blocks of the vault (its supports aside)."""
     sec = ArchSection(v)
-    names = [name for name, _ in stone_meshes(v, sec)]
+    names = [name for name, _, _ in stone_meshes(v, sec)]
     names += [f"springer {c}" for c in CORNERS]
     if v.transverse_ribs:
         names += [name for name, _ in rib_meshes(v, sec)]
     return names
 
 
+def corner_of(web: str, half: str) -> str:
+    """The corner (``north-east``, ...) where a web's half meets its groin."""
+    return f"{half}-{web}" if web in ("east", "west") else f"{web}-{half}"
+
+
 def stone_meshes(v, sec: ArchSection):
-    """``(name, (nodes, hexahedra))`` of every web stone, web by web, half by half, course by
-    course from the springer, stone by stone from the groin."""
+    """``(name, (nodes, hexahedra), place)`` of every web stone, web by web, half by half,
+    course by course from the springer, stone by stone from the groin; with
+    ``diagonal_ribs`` the groin stones of a course at a corner come after them as one
+    ``diagonal rib <corner> voussoir i`` (i from 1 above the springer), and the top course's
+    eight as the ``boss``."""
+    k = v.springer_courses
+    ribs: dict[tuple[str, int], list] = {}
     for web in WEBS:
         for half in _HALVES[web]:
-            for j in range(v.springer_courses + 1, v.courses + 1):
-                for k, mesh in enumerate(course_stones(v, sec, web, half, j)):
-                    yield f"{web} web {half} course {j} stone {k + 1}", mesh
+            for j in range(k + 1, v.courses + 1):
+                for m, mesh in enumerate(course_stones(v, sec, web, half, j)):
+                    if v.diagonal_ribs and m == 0:
+                        corner = "boss" if j == v.courses else corner_of(web, half)
+                        ribs.setdefault((corner, j), []).append(mesh)
+                        continue
+                    yield (f"{web} web {half} course {j} stone {m + 1}", mesh,
+                           {"role": "web", "web": web, "half": half, "course": j})
+    tol = 1e-9 * max(v.span_x_m, v.span_z_m)
+    for (corner, j), meshes in sorted(ribs.items(), key=lambda item: item[0] == "boss"):
+        name = "boss" if corner == "boss" else f"diagonal rib {corner} voussoir {j - k}"
+        yield name, merged(meshes, tol), {"role": "rib", "corner": corner, "course": j}
 
 
 def rib_meshes(v, sec: ArchSection):
@@ -273,6 +316,8 @@ def describe(case) -> str:
             + (" staggered" if v.stagger else "")
             + (f", transverse ribs {v.rib_width_m:.4g} x {v.rib_depth_m:.4g} m"
                if v.transverse_ribs else "")
+            + (f", diagonal ribs {v.diagonal_rib_depth_m:.4g} m below the webs"
+               if v.diagonal_ribs else "")
             + f", blocks {case.blocks.material}, joints {case.joint.law}; "
             + until_collapse(case))
 
@@ -288,9 +333,8 @@ def build_cross_vault(case) -> Scene:
         bodies.append(structure_block(blk, *mesh, name))
         info.append({"name": name, **place})
 
-    for name, mesh in stone_meshes(v, sec):
-        web, _, half, _, course, _, _ = name.split()
-        add(name, mesh, {"role": "web", "web": web, "half": half, "course": int(course)})
+    for name, mesh, place in stone_meshes(v, sec):
+        add(name, mesh, place)
     for corner in CORNERS:
         add(f"springer {corner}", springer_mesh(v, sec, corner),
             {"role": "springer", "corner": corner})
@@ -361,7 +405,8 @@ def build_cross_vault(case) -> Scene:
     meta = {"span_x_m": v.span_x_m, "span_z_m": v.span_z_m, "shape": v.shape,
             "radius_m": sec.R, "rise_m": v.rise_m, "thickness_m": v.thickness_m,
             "courses": v.courses, "springer_courses": v.springer_courses,
-            "transverse_ribs": bool(v.transverse_ribs), "blocks": len(structure),
+            "transverse_ribs": bool(v.transverse_ribs),
+            "diagonal_ribs": bool(v.diagonal_ribs), "blocks": len(structure),
             "supports": {c: bodies[i].name for c, i in supports.items()}}
     return Scene(
         name=case.name, builder="cross_vault", bodies=bodies, points=points, groups=GROUPS,

@@ -254,7 +254,7 @@ class Scene:
         """The bound that ``turns_s`` puts on a step starting at ``t``: ``t + h`` inside a
         window, the window's start (on the grid of h) before it. A large step across a turn
         ends where it ends, and the run's largest displacement in a cycle stops short of the
-        amplitude (docs/performance.md, session 27)."""
+        amplitude (docs/performance.md)."""
         h = self.solver.h
         i = bisect.bisect_right(self._turn_ends, t + 1e-9 * h)  # the first window not over
         if i == len(self.turns_s):

@@ -1,4 +1,4 @@
-r"""The barrel vault: an arch extruded along its depth in rings of voussoirs (issue 18).
+r"""The barrel vault: an arch extruded along its depth in rings of voussoirs.
 
 Coordinates and the arch's cross-section as in :mod:`masonry_nscd.scenes.arch`: x horizontal
 from the middle of the span, y up from the springing line, z along the vault's axis,

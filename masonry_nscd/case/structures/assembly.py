@@ -37,7 +37,7 @@ class AssemblyMaterial(Section):
         None, ge=1e6, le=1e13, description="Young's modulus (Pa; null: blocks.E_Pa)"
     )
     nu: Real | None = Field(
-        None, gt=-1.0, lt=0.5, description="Poisson's ratio (null: blocks.nu)"
+        None, gt=-1.0, lt=0.5, description="Poisson's ratio (dimensionless; null: blocks.nu)"
     )
 
 

@@ -35,7 +35,10 @@ class CrossVault(Section):
     with ``stagger``). The lowest ``springer_courses`` courses of the two webs at a corner are
     one solid springer (tas-de-charge) down to the springing plane, on a fixed support. With
     ``transverse_ribs`` an arch of ``rib_width_m`` by ``rib_depth_m`` (its extrados the webs')
-    closes each end of the east and west webs, on the same supports.
+    closes each end of the east and west webs, on the same supports. With ``diagonal_ribs``
+    the two groin stones of a course are one voussoir of a diagonal rib, deepened by
+    ``diagonal_rib_depth_m`` below the webs' intrados and bonded into both webs; the top
+    course's groin stones are the boss where the ribs cross.
     """
 
     span_x_m: Real = Field(4.0, gt=0.0, le=200.0,
@@ -49,9 +52,11 @@ class CrossVault(Section):
         description="radius of the pointed arcs across z (m; null: span_z / 2, semicircular)")
     thickness_m: Real = Field(0.25, gt=0.0, le=50.0, description="thickness of the webs (m)")
     courses: Whole = Field(8, ge=2, le=200,
-                           description="courses of a web from its springing to the crown")
+                           description="courses of a web from its springing to the crown "
+                           "(count)")
     springer_courses: Whole = Field(
-        2, ge=1, le=199, description="lowest courses made one solid springer at each corner")
+        2, ge=1, le=199, description="lowest courses made one solid springer at each corner "
+        "(count)")
     stone_length_m: Real = Field(0.5, gt=0.0, le=100.0,
                                  description="length of a web's stones along its course (m)")
     stagger: bool = Field(True, description="joints of every second course offset by half a "
@@ -61,6 +66,11 @@ class CrossVault(Section):
     rib_width_m: Real = Field(0.3, gt=0.0, le=50.0, description="width of a rib along x (m)")
     rib_depth_m: Real = Field(0.45, gt=0.0, le=50.0,
                               description="depth of a rib from its extrados (m)")
+    diagonal_ribs: bool = Field(False, description="the groin stones of each course one "
+                                "voussoir of a diagonal rib, deepened below the intrados")
+    diagonal_rib_depth_m: Real = Field(
+        0.15, gt=0.0, le=50.0,
+        description="depth of a diagonal rib below the webs' intrados (m)")
     support_height_m: Real = Field(0.5, gt=0.0, le=100.0,
                                    description="height of the fixed supports below the "
                                    "springing plane (drawn only, m)")

@@ -42,7 +42,7 @@ class Dome(Section):
         description="diameter of the centreline at the springing (m; null: 2 radius, "
         "hemispherical)")
     thickness_m: Real = Field(0.5, gt=0.0, le=100.0, description="thickness of the shell (m)")
-    courses: Whole = Field(8, ge=1, le=200, description="courses from springing to oculus")
+    courses: Whole = Field(8, ge=1, le=200, description="courses from springing to oculus (count)")
     voussoirs: Whole = Field(16, ge=3, le=1000, description="voussoirs per course (count)")
     stagger: bool = Field(
         True, description="meridional joints of every second course offset by half a voussoir")

@@ -63,12 +63,12 @@ class RefineRegion(Section):
     ``{courses: [1, -1], units: [1, -1], elements_per_unit: [6, 6, 2]}``."""
 
     courses: list[Annotated[Whole, Field(ge=-200, le=200)]] = Field(
-        min_length=1, max_length=200, description="courses, from 1 at the bottom (-1: the top)"
+        min_length=1, max_length=200, description="courses (index: from 1 at the bottom, -1: the top)"
     )
     units: list[Annotated[Whole, Field(ge=-500, le=500)]] | None = Field(
         None, max_length=500,
-        description="positions in the course, from 1 at the left end (-1: the right end); "
-        "null: all",
+        description="positions in the course (index: from 1 at the left end, -1: the right "
+        "end); null: all",
     )
     elements_per_unit: tuple[ElementCount, ElementCount, ElementCount] = Field(
         description="hexahedra per unit along length, height, thickness (counts, 1..8 each)"

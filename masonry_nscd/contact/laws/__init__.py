@@ -134,8 +134,7 @@ def solve_points(u0, du, scale, skip, law, params, uc_old, beta_old, T, uc, beta
     relative displacement ``u = u0[a] + scale du[a]`` (m; ``A = 0``), for the Newton residual:
     tractions ``T`` (Pa), cohesive displacements ``uc`` (m), integrities and statuses, as
     :func:`solve_joint` gives them. One loop with the dispatch written in it: the same dispatch
-    as a function called per point, even inlined, made the joint law 25 % slower
-    (``docs/performance.md``)."""
+    as a function called per point, even inlined, is slower (``docs/performance.md``)."""
     A = np.zeros((3, 3))
     u = np.empty(3)
     t = np.empty(3)

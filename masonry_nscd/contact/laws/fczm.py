@@ -584,7 +584,7 @@ def local_solve(
         if st >= 0:
             return st
     # No status fits every condition. With the slide solved as a root of h(N) (``_slide``)
-    # this is no longer seen in the tests; it remains possible at the round-off boundaries
+    # the tests do not meet it; it remains possible at the round-off boundaries
     # between statuses, and where A couples the normal and the tangential directions far
     # more than a contact point of a block does (h with several roots, which its sampling
     # may miss). Take the stick solution with the friction projected radially onto the
