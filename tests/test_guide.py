@@ -10,7 +10,8 @@ backslash continues a line, ``#`` starts a comment). For each ``masonry`` comman
   at both bounds. No simulation runs: the checks take seconds.
 
 Every link of these pages (``[text](path)``, pictures included) and every repository path a
-bash line names (``cases/...``, ``docs/...``) must be a file or folder of the repository.
+bash line names (``cases/...``, ``docs/...``) must be a file or folder of the repository, and
+the guide's own cases (docs/guide/cases/) name and match the case file's JSON Schema.
 """
 
 from __future__ import annotations
@@ -29,8 +30,7 @@ from masonry_nscd.studies.batch import split_values
 
 ROOT = Path(__file__).resolve().parent.parent
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs" / "guide").glob("*.md"))]
-#: Written by ``masonry schema --markdown``: it comes with that command, and only with it.
-SCHEMA_PAGE = "docs/reference/case.md"
+GUIDE_CASES = sorted((ROOT / "docs" / "guide" / "cases").glob("*.yaml"))
 #: Folders whose paths, named on a bash line, must exist (results/ is what a run writes).
 REPO_DIRS = ("cases/", "docs/", "masonry_nscd/", "tests/")
 
@@ -165,14 +165,11 @@ def test_command_is_valid(where, argv):
 def test_links_and_paths_exist():
     """Every link of the pages, and every repository path their bash lines name, exists."""
     missing = []
-    schema_command = "schema" in GROUP.commands
     for page in PAGES:
         for target in LINK.findall(page.read_text()):
             if re.match(r"[a-z]+:", target) or target.startswith("#"):
                 continue
             path = (page.parent / target.split("#")[0]).resolve()
-            if path.relative_to(ROOT).as_posix() == SCHEMA_PAGE and not schema_command:
-                continue
             if not path.exists():
                 missing.append(f"{page.relative_to(ROOT)}: link {target}")
         for line in bash_lines(page):
@@ -181,3 +178,25 @@ def test_links_and_paths_exist():
                 if word.startswith(REPO_DIRS) and not (ROOT / word).exists():
                     missing.append(f"{page.relative_to(ROOT)}: {word}")
     assert not missing, "\n".join(missing)
+
+
+@pytest.mark.parametrize("path", GUIDE_CASES, ids=[p.stem for p in GUIDE_CASES])
+def test_guide_case_names_and_matches_the_schema(path):
+    """A case of the guide names the case file's JSON Schema on its first line, as the shipped
+    cases do (an editor then completes and checks it), and validates against that schema."""
+    import json
+
+    import jsonschema
+
+    from masonry_nscd.case import read_yaml
+    from masonry_nscd.case.reference import JSON_FILE
+
+    text = path.read_text(encoding="utf-8")
+    first = text.splitlines()[0]
+    prefix = "# yaml-language-server: $schema="
+    assert first.startswith(prefix), first
+    assert (path.parent / first[len(prefix):]).resolve() == (ROOT / JSON_FILE).resolve()
+    schema = json.loads((ROOT / JSON_FILE).read_text(encoding="utf-8"))
+    errors = [f"{e.json_path}: {e.message}"
+              for e in jsonschema.Draft202012Validator(schema).iter_errors(read_yaml(text))]
+    assert not errors, errors
