@@ -62,7 +62,7 @@ LIMIT_JSON = "limit.json"
 #: What a sweep recorded of one of its runs (:mod:`masonry_nscd.studies.sweep`), in the run's folder.
 SWEEP_MARKER = "sweep_run.json"
 
-#: Columns of the CSV (units in the names; see the README).
+#: Columns of the CSV (units in the names; see docs/guide/outputs.md).
 CSV_COLUMNS = [
     "step", "time_s", "ux_mm", "fx_kN", "uy_mm", "fy_kN", "fx_bottom_kN", "fy_bottom_kN",
     "iterations", "residual", "converged", "max_joint_damage", "max_block_damage", "max_d_cpp",
