@@ -181,7 +181,8 @@ def study_walls(ctx: Context, b: str) -> list[Row]:
                      "record (regression)"),
                  Row(b, f"{stress} MPa mode at 10 mm", s["failure_mode"]["mode"]
                      if isinstance(s.get("failure_mode"), dict) else str(s.get("failure_mode")),
-                     "stair-step + toe crushing", "study, high stress")]
+                     *(("base sliding", "study, low stress") if stress == "0.3" else
+                       ("stair-step + toe crushing", "study, high stress")))]
         pngs = ctx.plot(b, [case], case, [s["ux_at_peak_mm"], s["last_ux_mm"]])
         peak, end = damage_maps(pngs)
         ctx.figure(peak, f"damage_{stress}MPa_refined_peak.png")
