@@ -480,8 +480,11 @@ def limit_cmd(
         help="Folder of limit.json, the mechanism and the joint forces "
         "(default results/\\<case name>_limit/).")] = None,
     facets: Annotated[int, typer.Option(
-        "--facets", help="Facets of the friction pyramid (error bound 1 - cos(pi/facets)).")
-    ] = 16,
+        "--facets", help="0: Coulomb's cone exactly (a second-order cone); 3 or more: the "
+        "friction pyramid of that many facets (error bound 1 - cos(pi/facets)).")] = 0,
+    solver: Annotated[str, typer.Option(
+        "--solver", help="clarabel (interior point, direct factorisation; cone or pyramid) or "
+        "highs (interior point with crossover; pyramid only).")] = "clarabel",
     tension: Annotated[bool, typer.Option(
         "--tension", help="The joints carry the tensile strength and cohesion of the case's "
         "joint law (as built); without it, no tension and no cohesion.")] = False,
@@ -497,17 +500,22 @@ def limit_cmd(
     Every body is taken as rigid and the scene's contact points as the joints' interface
     points, with no tension and Coulomb friction; the largest multiplier of the growing load
     (body force, point load) that admissible joint forces equilibrate, with the other loads
-    dead, by a linear programme (HiGHS); the mechanism from its dual. Writes limit.json,
+    dead, by a conic programme (Clarabel; Coulomb's cone or its pyramid); the mechanism from its
+    dual. Writes limit.json,
     mechanism.vtu, joint_forces.csv, joint_forces.vtu and mechanism.png (docs/limit.md)."""
     case = _load_case_or_exit(case_file, overrides)
     from masonry_nscd.limit.analysis import FLOWS, analyse, format_result, write_outputs
+    from masonry_nscd.limit.lp import SOLVERS
 
     if flow not in FLOWS:
         _fail(f"--flow: one of {', '.join(FLOWS)}, got {flow!r}", 2)
-    if not 3 <= facets <= 1024:
-        _fail(f"--facets: from 3 to 1024, got {facets}", 2)
+    if not (facets == 0 or 3 <= facets <= 1024):
+        _fail(f"--facets: 0 (the cone) or from 3 to 1024, got {facets}", 2)
+    if solver not in SOLVERS or (solver == "highs" and not facets):
+        _fail(f"--solver: one of {', '.join(SOLVERS)} (highs with --facets 3 or more), "
+              f"got {solver!r}", 2)
     outdir = _study_outdir(output, Path("results") / f"{case.name}_limit", overwrite)
-    result = analyse(case, facets=facets, tension=tension, flow=flow)
+    result = analyse(case, facets=facets, tension=tension, flow=flow, solver=solver)
     for line in format_result(result.record):
         typer.echo(line)
     paths = write_outputs(result, outdir)

@@ -20,13 +20,13 @@ import numpy as np
 
 from masonry_nscd.io import limit_analysis as files
 from masonry_nscd.limit import friction, mechanism
-from masonry_nscd.limit.lp import LimitSolution, solve_limit, solve_non_associative
+from masonry_nscd.limit.lp import SOLVERS, LimitSolution, solve_limit, solve_non_associative
 from masonry_nscd.limit.picture import draw_mechanism
 from masonry_nscd.limit.statics import RigidModel, rigid_model
 from masonry_nscd.scenes import build_scene
 
 FLOWS = ("associative", "non-associative")
-METHOD = "rigid-block limit analysis: static linear programme (HiGHS), mechanism from its dual"
+METHOD = "rigid-block limit analysis: static programme (Coulomb's cone or its pyramid), mechanism from its dual"
 
 
 @dataclass
@@ -51,7 +51,7 @@ def _kind(flow: str, iteration: dict | None) -> str:
 
 
 def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = False,
-            flow: str = "associative") -> LimitResult:
+            flow: str = "associative", solver: str = SOLVERS[0]) -> LimitResult:
     """The limit analysis of ``case`` (module docstring)."""
     if flow not in FLOWS:
         raise ValueError(f"flow: one of {', '.join(FLOWS)}, got {flow!r}")
@@ -62,9 +62,9 @@ def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = Fals
     t2 = time.perf_counter()
     iteration = None
     if flow == "associative":
-        sol = solve_limit(model, facets, tension=tension)
+        sol = solve_limit(model, facets, tension=tension, solver=solver)
     else:
-        sol, iteration = solve_non_associative(model, facets, tension=tension)
+        sol, iteration = solve_non_associative(model, facets, tension=tension, solver=solver)
     found = mechanism.joints(model, sol.point_velocity, scene.info()) \
         if sol.multiplier is not None else []
     named = mechanism.summary(found)
@@ -78,8 +78,11 @@ def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = Fals
         "multiplier": {"name": model.factor, "unit": model.factor_unit,
                        "value": sol.multiplier, "kind": _kind(flow, iteration)},
         "flow": flow,
-        "friction": {"facets": facets, "pyramid": "inscribed",
+        "friction": {"facets": facets,
+                     "model": f"pyramid of {facets} facets, inscribed" if facets
+                     else "Coulomb's cone (second-order cone)",
                      "cone_error_bound": friction.cone_error_bound(facets)},
+        "solver": solver,
         "tension": tension,
         **named,
         "counts": {**sol.counts, "joints": len(found)},
@@ -93,11 +96,13 @@ def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = Fals
     return LimitResult(model, sol, found, record, tuple(scene.groups))
 
 
-def stands(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = False) -> bool:
+def stands(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = False,
+           solver: str = SOLVERS[0]) -> bool:
     """Whether admissible forces carry the dead loads of ``case`` alone (its growing load at
     zero): the static programme is feasible."""
     model = rigid_model(build_scene(case))
-    return solve_limit(model, facets, tension=tension, dead_only=True).status == "optimal"
+    return solve_limit(model, facets, tension=tension, dead_only=True,
+                       solver=solver).status == "optimal"
 
 
 def node_velocities(m: RigidModel, velocity: np.ndarray) -> list[np.ndarray]:
@@ -133,10 +138,12 @@ def format_result(record: dict[str, Any]) -> list[str]:
     """The lines that ``masonry limit`` prints."""
     mult = record["multiplier"]
     c, t = record["counts"], record["times_s"]
+    fr = record["friction"]
+    cone = (f"friction pyramid of {fr['facets']} facets (error bound "
+            f"{100 * fr['cone_error_bound']:.2f} %)" if fr["facets"] else "Coulomb's cone")
     lines = [(f"{record['case']}: {c['bodies']} bodies ({c['free_bodies']} free), "
-             f"{c['points']} interface points, {c['joints']} joints; friction pyramid of "
-             f"{record['friction']['facets']} facets (error bound "
-             f"{100 * record['friction']['cone_error_bound']:.2f} %)")]
+             f"{c['points']} interface points, {c['joints']} joints; {cone}, "
+             f"{record.get('solver', SOLVERS[0])}")]
     if mult["name"] is None:
         carried = "carried" if record["status"] == "optimal" else "not carried"
         lines.append(f"dead loads: {carried} ({record['status']})")

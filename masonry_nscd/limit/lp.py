@@ -1,4 +1,4 @@
-r"""The static theorem of limit analysis for rigid blocks as a linear programme, and its dual,
+r"""The static theorem of limit analysis for rigid blocks as a conic programme, and its dual,
 the collapse mechanism.
 
 Unknowns: the force ``(N, T, S)`` (N) of every interface point (:mod:`.statics`) and the load
@@ -6,14 +6,24 @@ multiplier ``lambda`` (the unit of the growing load factor). The programme
 
     maximise lambda   subject to   B f + lambda F_live = -F_dead     (free dofs, 6 per body)
                                    N >= -f_t A                      (f_t = 0: no tension)
-                                   pyramid rows of the friction     (:mod:`.friction`)
+                                   |(T, S)| <= c A + mu N           (Coulomb's cone)
 
-is solved by HiGHS (``scipy.optimize.linprog``, :data:`METHOD`). Glued points carry any force.
-Its optimum is the largest multiplier that admissible forces equilibrate: the collapse
-multiplier of the associative (normality) model, in which a sliding joint also dilates by
-``mu`` times its slip. With the frictional capacity exact (a joint that does not slide) it is
-the collapse multiplier itself; where sliding takes part, the associative multiplier is an
-upper bound of the one with non-associative Coulomb friction (no dilatancy).
+Glued points carry any force. Coulomb's cone is taken exactly, as a second-order cone
+(``facets = 0``, the default), or as the pyramid of ``k`` facets of :mod:`.friction`
+(``facets = k``, a linear programme). Its optimum is the largest multiplier that admissible
+forces equilibrate: the collapse multiplier of the associative (normality) model, in which a
+sliding joint also dilates by ``mu`` times its slip. With the frictional capacity exact (a
+joint that does not slide) it is the collapse multiplier itself; where sliding takes part, the
+associative multiplier is an upper bound of the one with non-associative Coulomb friction (no
+dilatancy).
+
+**Solvers** (:data:`SOLVERS`). ``clarabel`` (the default): Clarabel's interior point for
+conic programmes, whose every step factorises the sparse KKT system directly; it takes the
+exact cone and the pyramid alike, and its cost grows about linearly with the points (the
+equilibrium rows couple only bodies in contact). ``highs``: HiGHS's interior point with
+crossover through ``scipy.optimize.linprog``, the pyramid only; its interior point solves its
+normal equations iteratively (conjugate gradients), which on thousands of points is 5 to 30
+times slower, but its crossover ends on a vertex: an independent check of the same programme.
 
 The **mechanism** is the dual: the multipliers of the equilibrium rows are the virtual
 velocities ``(v, omega)`` (m/s, rad/s per unit) of the bodies' reference points, normalised so
@@ -32,17 +42,26 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.optimize import linprog
 
 from masonry_nscd.limit import friction
 from masonry_nscd.limit.statics import RigidModel, equilibrium_matrix, point_velocities
 
-#: HiGHS's method: its interior point with crossover (a vertex, whose duals are the
-#: mechanism); its dual simplex took 5 to 8 times longer on the vault and the dome.
-METHOD = "highs-ipm"
+#: The solvers of the programme (module docstring), the default first.
+SOLVERS = ("clarabel", "highs")
+#: HiGHS's method when asked for: its interior point with crossover (a vertex, whose duals are
+#: the mechanism).
+HIGHS_METHOD = "highs-ipm"
+#: Clarabel's tolerances (relative gap, feasibility): tighter than its defaults, so that the
+#: multiplier is good to about 1e-9 and the mechanism's small velocities are read clearly.
+CLARABEL_TOLERANCE = 1e-10
 #: ``linprog``'s status codes, by name.
 LP_STATUS = {0: "optimal", 1: "iteration limit", 2: "infeasible", 3: "unbounded",
              4: "numerical difficulties"}
+#: Clarabel's statuses, by the names of :data:`LP_STATUS`.
+CLARABEL_STATUS = {"Solved": "optimal", "AlmostSolved": "optimal",
+                   "PrimalInfeasible": "infeasible", "AlmostPrimalInfeasible": "infeasible",
+                   "DualInfeasible": "unbounded", "AlmostDualInfeasible": "unbounded",
+                   "MaxIterations": "iteration limit", "MaxTime": "time limit"}
 
 
 @dataclass
@@ -68,19 +87,27 @@ def _scales(m: RigidModel) -> tuple[float, float]:
     return W, max(L, 1e-6)
 
 
-def solve_limit(m: RigidModel, facets: int = friction.DEFAULT_FACETS, *, tension: bool = False,
-                dead_only: bool = False, normal_limit: np.ndarray | None = None
-                ) -> LimitSolution:
-    """The programme of the module docstring for the rigid model ``m``; ``tension``: the
-    joints' tensile strength and cohesion (:mod:`.statics`) count; ``dead_only`` (or a model
-    with no growing load): whether the dead loads alone can be carried (no multiplier);
-    ``normal_limit`` (p,) N: friction of fixed capacity ``mu normal_limit`` instead of
-    ``mu N`` (a step of :func:`solve_non_associative`)."""
-    t0 = time.perf_counter()
+@dataclass
+class _Programme:
+    """The scaled programme: ``min c x`` subject to ``A_eq x = b_eq``, ``G x <= h`` (rows
+    ``G_lin``) and, per cone ``i``, ``h_i - G_i x`` in the second-order cone of dimension 3."""
+
+    c: np.ndarray
+    A_eq: sp.csr_matrix
+    b_eq: np.ndarray
+    G_lin: sp.csr_matrix
+    h_lin: np.ndarray
+    G_soc: sp.csr_matrix  # (3 q, n)
+    h_soc: np.ndarray
+    row_scale: np.ndarray  # of the equilibrium rows (N, N m)
+    lam_scale: float  # lambda = x[-1] * lam_scale
+    W: float
+
+
+def _programme(m: RigidModel, facets: int, tension: bool, with_lambda: bool,
+               normal_limit: np.ndarray | None) -> _Programme:
     npt = m.points
     W, L = _scales(m)
-    with_lambda = not dead_only and m.factor is not None
-    # equilibrium rows of the free dofs, scaled
     row_scale = np.tile([W, W, W, W * L, W * L, W * L], m.bodies)[m.free]
     B = equilibrium_matrix(m)[m.free]
     A_eq = sp.diags(1.0 / row_scale) @ B * W  # the forces in units of W
@@ -89,50 +116,124 @@ def solve_limit(m: RigidModel, facets: int = friction.DEFAULT_FACETS, *, tension
     lam_scale = 1.0
     if with_lambda:
         lam_scale = 1.0 / max(float(np.abs(live).max()), 1e-300)
-        A_eq = sp.hstack([A_eq, sp.csr_matrix(live[:, None] * lam_scale)]).tocsr()
+        A_eq = sp.hstack([A_eq, sp.csr_matrix(live[:, None] * lam_scale)])
+    A_eq = sp.csr_matrix(A_eq)
     nvar = 3 * npt + int(with_lambda)
-    # friction pyramid rows
     joint = np.flatnonzero(~m.glued)
-    normals = friction.facet_normals(facets)
-    k = len(normals)
-    cosk = friction.inscribed_fraction(facets)
-    rows = np.repeat(np.arange(len(joint) * k), 3)
-    pcol = np.repeat(3 * joint, k)
-    cols = np.stack([pcol, pcol + 1, pcol + 2], axis=1).ravel()
-    mu = np.repeat(m.mu[joint], k) * (normal_limit is None)
-    vals = np.stack([-mu * cosk, np.tile(normals[:, 0], len(joint)),
-                     np.tile(normals[:, 1], len(joint))], axis=1).ravel()
-    A_ub = sp.csr_matrix((vals, (rows, cols)), shape=(len(joint) * k, nvar))
+    nj = len(joint)
+    # the cone's radius: capacity + mu_eff N (in units of W)
     cohesion = m.cohesion_Pa if tension else np.zeros(npt)
-    capacity = cohesion * m.area
-    if normal_limit is not None:
-        capacity = capacity + m.mu * np.maximum(normal_limit, 0.0)
-    b_ub = np.repeat(capacity[joint] * cosk / W, k)
-    lower = np.full((npt, 3), -np.inf)
-    lower[joint, 0] = -(m.tensile_Pa[joint] * m.area[joint] / W if tension else 0.0)
-    bounds = np.column_stack([lower.ravel(), np.full(3 * npt, np.inf)])
+    capacity = cohesion * m.area / W
+    mu_eff = m.mu.copy()
+    if normal_limit is not None:  # a fixed capacity mu Nbar, no dilatancy
+        capacity = capacity + m.mu * np.maximum(normal_limit, 0.0) / W
+        mu_eff = np.zeros(npt)
+    # N >= -f_t A  as  -N <= f_t A
+    tensile = m.tensile_Pa[joint] * m.area[joint] / W if tension else np.zeros(nj)
+    G_n = sp.csr_matrix((-np.ones(nj), (np.arange(nj), 3 * joint)), shape=(nj, nvar))
+    h_n = tensile
+    if facets:  # the pyramid's rows (module friction)
+        normals = friction.facet_normals(facets)
+        k = len(normals)
+        cosk = friction.inscribed_fraction(facets)
+        rows = np.repeat(np.arange(nj * k), 3)
+        pcol = np.repeat(3 * joint, k)
+        cols = np.stack([pcol, pcol + 1, pcol + 2], axis=1).ravel()
+        vals = np.stack([-np.repeat(mu_eff[joint], k) * cosk, np.tile(normals[:, 0], nj),
+                         np.tile(normals[:, 1], nj)], axis=1).ravel()
+        G_f = sp.csr_matrix((vals, (rows, cols)), shape=(nj * k, nvar))
+        G_lin = sp.vstack([G_n, G_f]).tocsr()
+        h_lin = np.concatenate([h_n, np.repeat(capacity[joint] * cosk, k)])
+        G_soc, h_soc = sp.csr_matrix((0, nvar)), np.zeros(0)
+    else:  # (capacity + mu N, T, S) in the second-order cone: h - G x
+        G_lin, h_lin = G_n, h_n
+        rows = np.arange(3 * nj)
+        cols = (3 * joint[:, None] + np.arange(3)).ravel()
+        vals = -np.stack([mu_eff[joint], np.ones(nj), np.ones(nj)], axis=1).ravel()
+        G_soc = sp.csr_matrix((vals, (rows, cols)), shape=(3 * nj, nvar))
+        h_soc = np.zeros(3 * nj)
+        h_soc[0::3] = capacity[joint]
     c = np.zeros(nvar)
     if with_lambda:
-        bounds = np.vstack([bounds, [-np.inf, np.inf]])
         c[-1] = -1.0
-    t1 = time.perf_counter()
-    res = linprog(c, A_ub=A_ub if A_ub.shape[0] else None, b_ub=b_ub if A_ub.shape[0] else None,
-                  A_eq=A_eq, b_eq=b_eq, bounds=bounds, method=METHOD)
-    t2 = time.perf_counter()
+    return _Programme(c, A_eq, b_eq, G_lin, h_lin, G_soc, h_soc, row_scale, lam_scale, W)
+
+
+def _solve_clarabel(p: _Programme) -> tuple[str, str, np.ndarray | None, np.ndarray | None]:
+    """Status, message, the solution ``x`` and the equilibrium rows' multipliers."""
+    import clarabel
+
+    n = len(p.c)
+    A = sp.vstack([p.A_eq, p.G_lin, p.G_soc]).tocsc()
+    b = np.concatenate([p.b_eq, p.h_lin, p.h_soc])
+    cones = [clarabel.ZeroConeT(p.A_eq.shape[0])]
+    if p.G_lin.shape[0]:
+        cones.append(clarabel.NonnegativeConeT(p.G_lin.shape[0]))
+    cones += [clarabel.SecondOrderConeT(3)] * (p.G_soc.shape[0] // 3)
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    settings.tol_gap_abs = settings.tol_gap_rel = CLARABEL_TOLERANCE
+    settings.tol_feas = CLARABEL_TOLERANCE
+    settings.max_threads = 1
+    sol = clarabel.DefaultSolver(sp.csc_matrix((n, n)), p.c, A, b, cones, settings).solve()
+    name = str(sol.status).split(".")[-1]
+    status = CLARABEL_STATUS.get(name, "numerical difficulties")
+    message = f"Clarabel: {name} after {sol.iterations} iterations"
+    if status != "optimal":
+        return status, message, None, None
+    return status, message, np.asarray(sol.x), np.asarray(sol.z[:p.A_eq.shape[0]])
+
+
+def _solve_highs(p: _Programme) -> tuple[str, str, np.ndarray | None, np.ndarray | None]:
+    from scipy.optimize import linprog
+
+    if p.G_soc.shape[0]:
+        raise ValueError("the solver highs takes the friction pyramid only (facets >= 3)")
+    bounds = np.column_stack([np.full(len(p.c), -np.inf), np.full(len(p.c), np.inf)])
+    res = linprog(p.c, A_ub=p.G_lin if p.G_lin.shape[0] else None,
+                  b_ub=p.h_lin if p.G_lin.shape[0] else None, A_eq=p.A_eq, b_eq=p.b_eq,
+                  bounds=bounds, method=HIGHS_METHOD)
     status = LP_STATUS.get(res.status, f"status {res.status}")
+    if res.status != 0:
+        return status, str(res.message), None, None
+    return status, str(res.message), np.asarray(res.x), np.asarray(res.eqlin.marginals)
+
+
+def solve_limit(m: RigidModel, facets: int = friction.DEFAULT_FACETS, *, tension: bool = False,
+                dead_only: bool = False, normal_limit: np.ndarray | None = None,
+                solver: str = SOLVERS[0]) -> LimitSolution:
+    """The programme of the module docstring for the rigid model ``m``; ``facets``: 0 for
+    Coulomb's cone, ``k >= 3`` for the pyramid of ``k`` facets; ``tension``: the joints'
+    tensile strength and cohesion (:mod:`.statics`) count; ``dead_only`` (or a model with no
+    growing load): whether the dead loads alone can be carried (no multiplier);
+    ``normal_limit`` (p,) N: friction of fixed capacity ``mu normal_limit`` instead of
+    ``mu N`` (a step of :func:`solve_non_associative`); ``solver``: one of :data:`SOLVERS`."""
+    if solver not in SOLVERS:
+        raise ValueError(f"solver: one of {', '.join(SOLVERS)}, got {solver!r}")
+    if facets and facets < 3:
+        raise ValueError(f"facets: 0 (the cone) or at least 3, got {facets}")
+    t0 = time.perf_counter()
+    npt = m.points
+    with_lambda = not dead_only and m.factor is not None
+    prog = _programme(m, facets, tension, with_lambda, normal_limit)
+    t1 = time.perf_counter()
+    run = _solve_clarabel if solver == "clarabel" else _solve_highs
+    status, message, x, y = run(prog)
+    t2 = time.perf_counter()
     forces = np.zeros((npt, 3))
     velocity = np.zeros((m.bodies, 6))
     multiplier = None
-    if res.status == 0:
-        forces = res.x[:3 * npt].reshape(npt, 3) * W
+    if status == "optimal":
+        forces = x[:3 * npt].reshape(npt, 3) * prog.W
         if with_lambda:
-            multiplier = float(res.x[-1] * lam_scale)
-            velocity = _mechanism(m, res.eqlin.marginals, row_scale)
+            multiplier = float(x[-1] * prog.lam_scale)
+            velocity = _mechanism(m, y, prog.row_scale)
     counts = {"bodies": m.bodies, "free_bodies": int((~m.support).sum()), "points": npt,
-              "glued_points": int(m.glued.sum()), "variables": nvar,
-              "equations": int(A_eq.shape[0]), "inequalities": int(A_ub.shape[0]),
+              "glued_points": int(m.glued.sum()), "variables": len(prog.c),
+              "equations": int(prog.A_eq.shape[0]),
+              "inequalities": int(prog.G_lin.shape[0]), "cones": int(prog.G_soc.shape[0] // 3),
               "facets": facets}
-    return LimitSolution(status, str(res.message), multiplier, forces, velocity,
+    return LimitSolution(status, message, multiplier, forces, velocity,
                          point_velocities(m, velocity), counts,
                          {"assemble": t1 - t0, "solve": t2 - t1})
 
@@ -161,8 +262,8 @@ STEADY_STEPS = 3
 
 def solve_non_associative(m: RigidModel, facets: int = friction.DEFAULT_FACETS, *,
                           tension: bool = False, relaxation: float = 0.5,
-                          rtol: float = 1e-4, max_iterations: int = 60
-                          ) -> tuple[LimitSolution, dict]:
+                          rtol: float = 1e-4, max_iterations: int = 60,
+                          solver: str = SOLVERS[0]) -> tuple[LimitSolution, dict]:
     r"""The multiplier with Coulomb friction that does not dilate, by the iteration of fixed
     friction capacities (Gilbert, Casapulla and Ahmed, Computers & Structures 84, 2006):
     from the associative solution's normal forces ``N^0``, each step solves the programme with
@@ -174,7 +275,7 @@ def solve_non_associative(m: RigidModel, facets: int = friction.DEFAULT_FACETS, 
     whose programme has no solution (the fixed capacities too small for the dead loads) ends
     the iteration at the step before. Returns the last optimal solution and the iteration's record: ``converged``, ``iterations``,
     ``multipliers`` (one per step), ``associative`` (the first multiplier)."""
-    first = solve_limit(m, facets, tension=tension)
+    first = solve_limit(m, facets, tension=tension, solver=solver)
     record = {"associative": first.multiplier, "multipliers": [], "converged": False,
               "iterations": 0, "relaxation": relaxation, "rtol": rtol, "stopped_by": None}
     if first.status != "optimal" or first.multiplier is None:
@@ -183,7 +284,7 @@ def solve_non_associative(m: RigidModel, facets: int = friction.DEFAULT_FACETS, 
     last = first
     solve_s = first.times_s["solve"]
     for i in range(1, max_iterations + 1):
-        sol = solve_limit(m, facets, tension=tension, normal_limit=nbar)
+        sol = solve_limit(m, facets, tension=tension, normal_limit=nbar, solver=solver)
         solve_s += sol.times_s["solve"]
         record["iterations"] = i
         if sol.status != "optimal" or sol.multiplier is None:
