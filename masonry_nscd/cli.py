@@ -761,6 +761,59 @@ def bench_detection_cmd(
         typer.echo(line)
 
 
+@app.command("bench-limit")
+def bench_limit_cmd(
+    case_file: Annotated[Path | None, typer.Argument(
+        metavar="[CASE.yaml]", help="The case file (default cases/dome_hemispherical.yaml).")
+    ] = None,
+    params: Annotated[list[str] | None, typer.Option(
+        "--param", metavar="PATH", help="Case field set to each value (repeatable: all are set; "
+        "default dome.courses and dome.voussoirs).")] = None,
+    values: Annotated[str, typer.Option(
+        "--values", metavar="V1,V2,...", help="The values, comma-separated.")] = "10,32,100",
+    facets: Annotated[int, typer.Option(
+        "--facets", help="0: Coulomb's cone; 3 or more: the friction pyramid.")] = 0,
+    solver: Annotated[str, typer.Option(
+        "--solver", help="clarabel or highs (pyramid only).")] = "clarabel",
+    overrides: SetOption = None,
+) -> None:
+    """Time the limit analysis of a case scaled by a parameter: blocks, points, multiplier and
+    the times of the scene, the model, the programme and its solve.
+
+    By default the shipped dome of 10 x 10, 32 x 32 and 100 x 100 voussoirs (100, 1,024 and
+    10,000 blocks); a vault: --param vault.voussoirs --values 24,96 --set vault.rings=10
+    (docs/limit.md)."""
+    from masonry_nscd.case import CaseError, load_case
+    from masonry_nscd.limit.lp import SOLVERS
+    from masonry_nscd.studies import limit_bench as lb
+
+    case_file = case_file or Path(__file__).resolve().parents[1] / "cases" / \
+        "dome_hemispherical.yaml"
+    names = list(params or lb.DEFAULT_PARAMS)
+    try:
+        vals = [float(v) for v in values.split(",") if v.strip()]
+    except ValueError:
+        _fail(f"--values: numbers separated by commas, got {values!r}", 2)
+    if not vals:
+        _fail("--values: at least one value", 2)
+    if solver not in SOLVERS or (solver == "highs" and not facets):
+        _fail(f"--solver: one of {', '.join(SOLVERS)} (highs with --facets 3 or more)", 2)
+    _load_case_or_exit(case_file, overrides)
+
+    def load(value: float):
+        text = repr(int(value)) if float(value).is_integer() else repr(float(value))
+        return load_case(case_file, [*(overrides or ()), *(f"{p}={text}" for p in names)])
+
+    typer.echo(f"limit analysis of {case_file.name}, {' and '.join(names)} set to each value; "
+               + ("Coulomb's cone" if not facets else f"pyramid of {facets} facets")
+               + f", {solver}; times in s")
+    typer.echo(lb.format_header())
+    try:
+        lb.bench_limit(load, vals, facets=facets, solver=solver, echo=typer.echo)
+    except CaseError as exc:
+        _fail(f"invalid value: {'; '.join(exc.messages)}", 2)
+
+
 @app.command("bench-scaling")
 def bench_scaling_cmd(
     case_file: Annotated[Path, typer.Argument(metavar="CASE.yaml", help="The case file (YAML).")],

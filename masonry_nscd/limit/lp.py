@@ -128,10 +128,14 @@ def _programme(m: RigidModel, facets: int, tension: bool, with_lambda: bool,
     if normal_limit is not None:  # a fixed capacity mu Nbar, no dilatancy
         capacity = capacity + m.mu * np.maximum(normal_limit, 0.0) / W
         mu_eff = np.zeros(npt)
-    # N >= -f_t A  as  -N <= f_t A
+    # N >= -f_t A  as  -N <= f_t A; with the cone, mu N >= |(T, S)| >= 0 already says N >= 0
+    # where there is no capacity (the row would only add to the factorisation)
     tensile = m.tensile_Pa[joint] * m.area[joint] / W if tension else np.zeros(nj)
-    G_n = sp.csr_matrix((-np.ones(nj), (np.arange(nj), 3 * joint)), shape=(nj, nvar))
-    h_n = tensile
+    bound = np.ones(nj, bool) if facets else (capacity[joint] > 0.0) | (mu_eff[joint] <= 0.0)
+    rows_n = np.flatnonzero(bound)
+    G_n = sp.csr_matrix((-np.ones(len(rows_n)), (np.arange(len(rows_n)), 3 * joint[rows_n])),
+                        shape=(len(rows_n), nvar))
+    h_n = tensile[rows_n]
     if facets:  # the pyramid's rows (module friction)
         normals = friction.facet_normals(facets)
         k = len(normals)
