@@ -159,6 +159,56 @@ def four_hinge_multiplier(n: int, radius: float, thickness: float,
     return best
 
 
+def statics_thrust_line(n: int, radius: float, thickness: float, lam: float, hinges):
+    """The line of thrust of the four-hinge mechanism by statics alone: the force ``S`` that
+    the voussoirs below the first hinge's joint i press on those above, through its hinge
+    point, is fixed by the moments about the second and third hinges of the voussoirs
+    between; the force across any joint j is then ``S`` plus the loads of the voussoirs
+    between i and j, and its moment about the origin fixes where it crosses the joint.
+    Returns per joint the eccentricity over half the joint (1 at the extrados)."""
+    a, b, _, W, c = chord_voussoirs(n, radius, thickness)
+    ends = {"intrados": a, "extrados": b}
+    (i, fi), (j, fj), (k, fk) = hinges[:3]
+    P, Q, R = ends[fi][i], ends[fj][j], ends[fk][k]
+    L = np.column_stack([lam * W, -W])  # the loads of the voussoirs, (lambda W, -W)
+    m = c[:, 0] * L[:, 1] - c[:, 1] * L[:, 0]  # their moments about the origin
+
+    def rows(lo, hi, O):  # moment about O of S at P and of voussoirs lo..hi-1: M0 + S x ...
+        r = P - O
+        const = ((c[lo:hi] - O)[:, 0] * L[lo:hi, 1] - (c[lo:hi] - O)[:, 1] * L[lo:hi, 0]).sum()
+        return [-r[1], r[0]], -const
+
+    (r1, c1), (r2, c2) = rows(i, j, Q), rows(i, k, R)
+    S_i = np.linalg.solve(np.array([r1, r2]), np.array([c1, c2]))
+    M_i = P[0] * S_i[1] - P[1] * S_i[0]
+    out = []
+    for q in range(n + 1):
+        lo, hi, sign = (i, q, 1.0) if q >= i else (q, i, -1.0)
+        S = S_i + sign * L[lo:hi].sum(axis=0)
+        M = M_i + sign * m[lo:hi].sum()
+        d = b[q] - a[q]
+        s = (M - (a[q][0] * S[1] - a[q][1] * S[0])) / (d[0] * S[1] - d[1] * S[0])
+        out.append(2.0 * s - 1.0)
+    return np.array(out)
+
+
+def test_thrust_line_of_the_arch_at_collapse():
+    """The line of thrust of the shipped arch at its horizontal collapse multiplier: the
+    eccentricity of every joint's resultant is that of the statics of the four-hinge
+    mechanism (the kinematic theorem's multiplier and hinges), within the joint everywhere
+    and on the hinged face at the four hinges."""
+    result = analyse(load_case(ARCH))
+    lam, hinges = four_hinge_multiplier(24, 1.0, 0.15)
+    expected = statics_thrust_line(24, 1.0, 0.15, lam, hinges)
+    line = result.record["thrust_line"]
+    assert [r["joint"] for r in line] == list(range(25))
+    got = np.array([r["relative_eccentricity"] for r in line])
+    assert got == pytest.approx(expected, abs=1e-6)
+    assert np.all(np.abs(got) <= 1.0 + 1e-7)
+    for joint, side in hinges:
+        assert got[joint] == pytest.approx(1.0 if side == "extrados" else -1.0, abs=1e-6)
+
+
 def test_collapse_load_of_a_point_load():
     """A downward force on the extrados of voussoir 7 of the shipped arch: the programme's
     force is the kinematic theorem's least over the four-hinge mechanisms, with its hinges."""
@@ -284,7 +334,8 @@ def test_the_command_writes_its_files(tmp_path):
     assert rec["multiplier"]["kind"].startswith("associative")
     assert rec["friction"]["facets"] == friction.DEFAULT_FACETS
     assert len(rec["hinges"]) == 4
-    for name in ("mechanism.vtu", "joint_forces.csv", "joint_forces.vtu", "mechanism.png"):
+    for name in ("mechanism.vtu", "joint_forces.csv", "joint_forces.vtu", "thrust_line.csv",
+                 "mechanism.png"):
         assert (out / name).stat().st_size > 0
     rows = (out / "joint_forces.csv").read_text().splitlines()
     assert len(rows) == 1 + rec["counts"]["points"]

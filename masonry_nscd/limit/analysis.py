@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from masonry_nscd.io import limit_analysis as files
-from masonry_nscd.limit import friction, mechanism
+from masonry_nscd.limit import friction, mechanism, thrust
 from masonry_nscd.limit.lp import SOLVERS, LimitSolution, solve_limit, solve_non_associative
 from masonry_nscd.limit.picture import draw_mechanism
 from masonry_nscd.limit.statics import RigidModel, rigid_model
@@ -65,8 +65,12 @@ def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = Fals
         sol = solve_limit(model, facets, tension=tension, solver=solver)
     else:
         sol, iteration = solve_non_associative(model, facets, tension=tension, solver=solver)
-    found = mechanism.joints(model, sol.point_velocity, scene.info()) \
-        if sol.multiplier is not None else []
+    info = scene.info()
+    optimal = sol.status == "optimal"
+    every = mechanism.joints(model, sol.point_velocity, info) if optimal else []
+    # the line of thrust of the static solution (also of the dead loads alone)
+    line = thrust.thrust_line(model, sol.forces, every, info.get("arch"))
+    found = every if sol.multiplier is not None else []
     named = mechanism.summary(found)
     if sol.multiplier is None:
         named["mechanism"] = None
@@ -86,6 +90,7 @@ def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = Fals
         "tension": tension,
         **named,
         "counts": {**sol.counts, "joints": len(found)},
+        "thrust_line": line,
         "times_s": {"scene": t1 - t0, "model": t2 - t1, **sol.times_s},
     }
     if model.factor is None:
@@ -124,6 +129,8 @@ def write_outputs(result: LimitResult, outdir: Path | str) -> list[Path]:
         "antagonist": [m.names[b] for b in m.pair[:, 1]],
         "group": group_names, "x": m.x, "frame": m.frame, "area": m.area,
         "forces": sol.forces, "velocity": sol.point_velocity})
+    if result.record.get("thrust_line"):
+        paths.append(files.write_thrust_line(out, result.record["thrust_line"]))
     value = sol.multiplier
     rec = result.record
     title = (f"{rec['case']}: {m.factor or 'multiplier'} = {value:.5g} "
