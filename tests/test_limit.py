@@ -342,3 +342,18 @@ def test_the_command_writes_its_files(tmp_path):
     r = CliRunner().invoke(app, ["limit", str(ARCH), "-o", str(tmp_path / "x"),
                                  "--flow", "sideways"])
     assert r.exit_code == 2
+
+
+def test_the_dome_rests_on_its_ring_only_through_its_bed():
+    """The shipped dome on its fixed ring: the lowest course touches the ring on its bed faces
+    only (every base point's normal vertical; the faces between the ring's hexahedra are
+    inside the ring, not joints level with the head joints above them), so the whole dome
+    sliding on the ring, lifted by mu times its slip, is a mechanism of the associative
+    model with lambda = mu: the kinematic theorem bounds the multiplier by mu."""
+    case = load_case(CASES / "dome_hemispherical.yaml")
+    scene = build_scene(case)
+    base = scene.groups.index("base")
+    normals = np.array([p.frame[0] for p in scene.points if p.group == base])
+    assert len(normals) and np.allclose(np.abs(normals[:, 1]), 1.0, atol=1e-12)
+    result = analyse(case)
+    assert 0.0 < result.solution.multiplier <= case.joint.mu * (1.0 + 1e-6)
