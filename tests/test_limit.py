@@ -357,3 +357,14 @@ def test_the_dome_rests_on_its_ring_only_through_its_bed():
     assert len(normals) and np.allclose(np.abs(normals[:, 1]), 1.0, atol=1e-12)
     result = analyse(case)
     assert 0.0 < result.solution.multiplier <= case.joint.mu * (1.0 + 1e-6)
+
+
+def test_non_associative_sliding_block():
+    """A block that slides on its base (mu below b/h), on the exact cone: lifted by mu times
+    its slip against its weight (associative) or held by the friction mu W (non-associative),
+    it slides at lambda = mu either way, and the proximal iteration converges on it."""
+    m = rigid_model(tilting_block(width=0.3, height=0.4, mu=0.5))
+    sol, record = solve_non_associative(m)
+    assert record["converged"]
+    assert record["associative"] == pytest.approx(0.5, rel=1e-6)
+    assert sol.multiplier == pytest.approx(0.5, rel=1e-6)

@@ -47,7 +47,7 @@ def _kind(flow: str, iteration: dict | None) -> str:
                 "dilates); an upper bound of the non-associative one where sliding matters")
     done = "converged" if iteration and iteration.get("converged") else "not converged"
     return ("non-associative: fixed friction capacities iterated from the associative "
-            f"solution (Gilbert, Casapulla and Ahmed 2006), {done}")
+            f"solution (Gilbert, Casapulla and Ahmed 2006), proximal steps, {done}")
 
 
 def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = False,
@@ -172,6 +172,8 @@ def format_result(record: dict[str, Any]) -> list[str]:
         lines.append(f"non-associative iteration: {it['iterations']} steps, "
                      f"{'converged' if it['converged'] else 'not converged'}"
                      + (f" ({it['stopped_by']})" if it.get("stopped_by") else "")
+                     + (f"; last {len(it['multipliers'][-5:])} multipliers within "
+                        f"{it['band'][0]:.6g} to {it['band'][1]:.6g}" if it.get("band") else "")
                      + (f"; associative multiplier {it['associative']:.6g}"
                         if it.get("associative") is not None else ""))
     lines.append(f"times: scene {t['scene']:.3f} s, programme {t['assemble']:.3f} s, "

@@ -102,10 +102,11 @@ class _Programme:
     row_scale: np.ndarray  # of the equilibrium rows (N, N m)
     lam_scale: float  # lambda = x[-1] * lam_scale
     W: float
+    P_diag: np.ndarray | None = None  # a quadratic term (1/2) x P x, P diagonal (proximal)
 
 
 def _programme(m: RigidModel, facets: int, tension: bool, with_lambda: bool,
-               normal_limit: np.ndarray | None) -> _Programme:
+               normal_limit: np.ndarray | None, proximal: float = 0.0) -> _Programme:
     npt = m.points
     W, L = _scales(m)
     row_scale = np.tile([W, W, W, W * L, W * L, W * L], m.bodies)[m.free]
@@ -160,7 +161,14 @@ def _programme(m: RigidModel, facets: int, tension: bool, with_lambda: bool,
     c = np.zeros(nvar)
     if with_lambda:
         c[-1] = -1.0
-    return _Programme(c, A_eq, b_eq, G_lin, h_lin, G_soc, h_soc, row_scale, lam_scale, W)
+    P_diag = None
+    if proximal > 0.0 and normal_limit is not None:
+        # (proximal / 2) sum (N - Nbar)^2 in units of W: the force set nearest Nbar
+        P_diag = np.zeros(nvar)
+        P_diag[3 * joint] = proximal
+        c[3 * joint] -= proximal * np.maximum(normal_limit[joint], 0.0) / W
+    return _Programme(c, A_eq, b_eq, G_lin, h_lin, G_soc, h_soc, row_scale, lam_scale, W,
+                      P_diag)
 
 
 def _solve_clarabel(p: _Programme) -> tuple[str, str, np.ndarray | None, np.ndarray | None]:
@@ -179,7 +187,8 @@ def _solve_clarabel(p: _Programme) -> tuple[str, str, np.ndarray | None, np.ndar
     settings.tol_gap_abs = settings.tol_gap_rel = CLARABEL_TOLERANCE
     settings.tol_feas = CLARABEL_TOLERANCE
     settings.max_threads = 1
-    sol = clarabel.DefaultSolver(sp.csc_matrix((n, n)), p.c, A, b, cones, settings).solve()
+    P = sp.csc_matrix((n, n)) if p.P_diag is None else sp.diags(p.P_diag).tocsc()
+    sol = clarabel.DefaultSolver(P, p.c, A, b, cones, settings).solve()
     name = str(sol.status).split(".")[-1]
     status = CLARABEL_STATUS.get(name, "numerical difficulties")
     message = f"Clarabel: {name} after {sol.iterations} iterations"
@@ -191,8 +200,9 @@ def _solve_clarabel(p: _Programme) -> tuple[str, str, np.ndarray | None, np.ndar
 def _solve_highs(p: _Programme) -> tuple[str, str, np.ndarray | None, np.ndarray | None]:
     from scipy.optimize import linprog
 
-    if p.G_soc.shape[0]:
-        raise ValueError("the solver highs takes the friction pyramid only (facets >= 3)")
+    if p.G_soc.shape[0] or p.P_diag is not None:
+        raise ValueError("the solver highs takes the friction pyramid only (facets >= 3) and "
+                         "no proximal term")
     bounds = np.column_stack([np.full(len(p.c), -np.inf), np.full(len(p.c), np.inf)])
     res = linprog(p.c, A_ub=p.G_lin if p.G_lin.shape[0] else None,
                   b_ub=p.h_lin if p.G_lin.shape[0] else None, A_eq=p.A_eq, b_eq=p.b_eq,
@@ -205,7 +215,7 @@ def _solve_highs(p: _Programme) -> tuple[str, str, np.ndarray | None, np.ndarray
 
 def solve_limit(m: RigidModel, facets: int = friction.DEFAULT_FACETS, *, tension: bool = False,
                 dead_only: bool = False, normal_limit: np.ndarray | None = None,
-                solver: str = SOLVERS[0]) -> LimitSolution:
+                solver: str = SOLVERS[0], proximal: float = 0.0) -> LimitSolution:
     """The programme of the module docstring for the rigid model ``m``; ``facets``: 0 for
     Coulomb's cone, ``k >= 3`` for the pyramid of ``k`` facets; ``tension``: the joints'
     tensile strength and cohesion (:mod:`.statics`) count; ``dead_only`` (or a model with no
@@ -219,7 +229,7 @@ def solve_limit(m: RigidModel, facets: int = friction.DEFAULT_FACETS, *, tension
     t0 = time.perf_counter()
     npt = m.points
     with_lambda = not dead_only and m.factor is not None
-    prog = _programme(m, facets, tension, with_lambda, normal_limit)
+    prog = _programme(m, facets, tension, with_lambda, normal_limit, proximal)
     t1 = time.perf_counter()
     run = _solve_clarabel if solver == "clarabel" else _solve_highs
     status, message, x, y = run(prog)
@@ -259,48 +269,76 @@ def _mechanism(m: RigidModel, marginals: np.ndarray, row_scale: np.ndarray) -> n
 
 
 
-#: The non-associative iteration has converged when its multiplier stays within ``rtol`` over
-#: this many steps.
-STEADY_STEPS = 3
+#: The non-associative iteration: the first and the largest weight of its proximal term (in
+#: the programme's units: forces in ``W``, the multiplier of order 1), the steps over which
+#: its multiplier must stay within ``rtol`` to have converged, and that tolerance.
+PROXIMAL = 0.002
+PROXIMAL_MAX = 0.05
+STEADY_STEPS = 5
+NON_ASSOCIATIVE_RTOL = 5e-3
 
 
 def solve_non_associative(m: RigidModel, facets: int = friction.DEFAULT_FACETS, *,
-                          tension: bool = False, relaxation: float = 0.5,
-                          rtol: float = 1e-4, max_iterations: int = 60,
+                          tension: bool = False, proximal: float = PROXIMAL,
+                          rtol: float = NON_ASSOCIATIVE_RTOL, max_iterations: int = 60,
                           solver: str = SOLVERS[0]) -> tuple[LimitSolution, dict]:
     r"""The multiplier with Coulomb friction that does not dilate, by the iteration of fixed
-    friction capacities (Gilbert, Casapulla and Ahmed, Computers & Structures 84, 2006):
-    from the associative solution's normal forces ``N^0``, each step solves the programme with
-    the friction of each point bounded by ``mu Nbar_i`` (a capacity that does not depend on
-    the unknown ``N``, so the flow rule has no dilatancy), then updates
-    ``Nbar_{i+1} = Nbar_i + relaxation (N_i - Nbar_i)``, until the multiplier and the normal
-    the multiplier stays within ``rtol`` over :data:`STEADY_STEPS` steps (the normal forces of
-    a statically indeterminate assembly need not settle: many sets carry the same load). A step
-    whose programme has no solution (the fixed capacities too small for the dead loads) ends
-    the iteration at the step before. Returns the last optimal solution and the iteration's record: ``converged``, ``iterations``,
-    ``multipliers`` (one per step), ``associative`` (the first multiplier)."""
+    friction capacities (Gilbert, Casapulla and Ahmed, Computers & Structures 84, 2006) made
+    proximal: from the associative solution's normal forces ``N^0``, step ``i`` solves the
+    programme with the friction of each point bounded by the fixed capacity ``mu Nbar_i`` (a
+    capacity that does not depend on the unknown ``N``: the flow rule has no dilatancy) and,
+    among the force sets that carry nearly the most, takes the one nearest ``Nbar_i``: it
+    maximises ``lambda - (proximal / 2) sum ((N - Nbar_i) / W)^2``; then ``Nbar_{i+1} = N_i``.
+    The weight starts at ``proximal`` and doubles (up to :data:`PROXIMAL_MAX`) at each step
+    where the multiplier turns back (it rose after falling, or fell after rising): a
+    monotone approach keeps its pace, an oscillation is damped.
+    A fixed point (``N = Nbar``) is a state of the non-associative model: its forces are
+    admissible with the friction their own normal forces give, and the proximal term, zero
+    there, leaves the multiplier that of the programme. The term keeps a statically
+    indeterminate assembly (the dome, the vault), whose normal forces are not unique, from
+    jumping from one force set to another between steps, the cause of the plain iteration's
+    wandering. The iteration has converged when the multiplier stays within ``rtol`` over
+    :data:`STEADY_STEPS` steps; the normal forces of an indeterminate assembly may still move
+    (``normal_change``, the largest change over the largest force, per step). A step without
+    solution ends it at the step before. Returns the last optimal solution and the record:
+    ``converged``, ``iterations``, ``multipliers`` and ``normal_change`` (one per step),
+    ``associative`` (the first multiplier), ``band`` (the least and largest multiplier of the
+    last :data:`STEADY_STEPS` steps)."""
     first = solve_limit(m, facets, tension=tension, solver=solver)
-    record = {"associative": first.multiplier, "multipliers": [], "converged": False,
-              "iterations": 0, "relaxation": relaxation, "rtol": rtol, "stopped_by": None}
+    record = {"method": "fixed friction capacities, proximal", "associative": first.multiplier,
+              "multipliers": [], "normal_change": [], "converged": False, "iterations": 0,
+              "proximal": proximal, "rtol": rtol, "steady_steps": STEADY_STEPS,
+              "band": None, "stopped_by": None}
     if first.status != "optimal" or first.multiplier is None:
         return first, record
     nbar = first.forces[:, 0].copy()
     last = first
     solve_s = first.times_s["solve"]
+    weight = proximal
+    record["weights"] = []
     for i in range(1, max_iterations + 1):
-        sol = solve_limit(m, facets, tension=tension, normal_limit=nbar, solver=solver)
+        lams = record["multipliers"]
+        if len(lams) >= 3 and (lams[-1] - lams[-2]) * (lams[-2] - lams[-3]) < 0.0:
+            weight = min(2.0 * weight, max(PROXIMAL_MAX, proximal))
+        record["weights"].append(weight)
+        sol = solve_limit(m, facets, tension=tension, normal_limit=nbar, solver=solver,
+                          proximal=weight)
         solve_s += sol.times_s["solve"]
         record["iterations"] = i
         if sol.status != "optimal" or sol.multiplier is None:
             record["stopped_by"] = f"step {i}: {sol.status}"
             break
+        N = sol.forces[:, 0]
         record["multipliers"].append(sol.multiplier)
+        record["normal_change"].append(
+            float(np.abs(N - nbar).max() / max(float(np.abs(N).max()), 1e-300)))
         last = sol
         recent = record["multipliers"][-STEADY_STEPS:]
+        record["band"] = [min(recent), max(recent)]
         if len(recent) == STEADY_STEPS and \
                 max(recent) - min(recent) <= rtol * max(abs(sol.multiplier), 1e-12):
             record["converged"] = True
             break
-        nbar = nbar + relaxation * (sol.forces[:, 0] - nbar)
+        nbar = N.copy()
     last.times_s = {**last.times_s, "solve": solve_s}
     return last, record
