@@ -368,3 +368,21 @@ def test_non_associative_sliding_block():
     assert record["converged"]
     assert record["associative"] == pytest.approx(0.5, rel=1e-6)
     assert sol.multiplier == pytest.approx(0.5, rel=1e-6)
+
+
+def test_the_dry_stone_wall_pushed_by_its_beam():
+    """The dry stone wall with rigid units, driven by its top beam: the push is the growing
+    load (a horizontal force on the beam, N), and by the kinematic theorem it is at most the
+    force that turns the wall above its first course (glued to the ground beam) as one piece
+    about its toe: (N + W) x 0.5 m / 0.9 m, N the beam's 100 kN and W the 8 courses' weight
+    (1.0 x 0.1 x 0.2 m each at 2300 kg/m^3), the beam's reference point 0.9 m above the toe;
+    a wall that steps and slides within carries less."""
+    case = load_case(CASES / "dry_stone_wall.yaml", ["blocks.material=rigid"])
+    result = analyse(case)
+    m = result.model
+    assert m.factor == "push_force_N"
+    beam = m.names.index("upper beam")
+    assert m.dead[6 * beam + 1] == pytest.approx(-100e3)
+    W = 8 * 1.0 * 0.1 * 0.2 * 2300.0 * 9.81
+    bound = (100e3 + W) * 0.5 / (m.reference[beam, 1] - 0.1)
+    assert 0.0 < result.solution.multiplier <= bound * (1 + 1e-9)
