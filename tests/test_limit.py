@@ -386,3 +386,13 @@ def test_the_dry_stone_wall_pushed_by_its_beam():
     W = 8 * 1.0 * 0.1 * 0.2 * 2300.0 * 9.81
     bound = (100e3 + W) * 0.5 / (m.reference[beam, 1] - 0.1)
     assert 0.0 < result.solution.multiplier <= bound * (1 + 1e-9)
+
+
+def test_the_two_solvers_agree_on_the_pyramid():
+    """The same pyramid programme (8 facets) on the sliding block and the arch: Clarabel's
+    interior point and HiGHS's interior point with crossover find the same multiplier."""
+    for m in (rigid_model(tilting_block(width=0.3, height=0.4, mu=0.5)),
+              rigid_model(build_scene(load_case(ARCH)))):
+        a = solve_limit(m, 8, solver="clarabel").multiplier
+        b = solve_limit(m, 8, solver="highs").multiplier
+        assert a == pytest.approx(b, rel=1e-7)

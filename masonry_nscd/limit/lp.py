@@ -103,6 +103,7 @@ class _Programme:
     lam_scale: float  # lambda = x[-1] * lam_scale
     W: float
     P_diag: np.ndarray | None = None  # a quadratic term (1/2) x P x, P diagonal (proximal)
+    normal_cols: np.ndarray | None = None  # the variables N of the first rows of G_lin
 
 
 def _programme(m: RigidModel, facets: int, tension: bool, with_lambda: bool,
@@ -168,7 +169,7 @@ def _programme(m: RigidModel, facets: int, tension: bool, with_lambda: bool,
         P_diag[3 * joint] = proximal
         c[3 * joint] -= proximal * np.maximum(normal_limit[joint], 0.0) / W
     return _Programme(c, A_eq, b_eq, G_lin, h_lin, G_soc, h_soc, row_scale, lam_scale, W,
-                      P_diag)
+                      P_diag, 3 * joint[rows_n])
 
 
 def _solve_clarabel(p: _Programme) -> tuple[str, str, np.ndarray | None, np.ndarray | None]:
@@ -204,9 +205,12 @@ def _solve_highs(p: _Programme) -> tuple[str, str, np.ndarray | None, np.ndarray
         raise ValueError("the solver highs takes the friction pyramid only (facets >= 3) and "
                          "no proximal term")
     bounds = np.column_stack([np.full(len(p.c), -np.inf), np.full(len(p.c), np.inf)])
-    res = linprog(p.c, A_ub=p.G_lin if p.G_lin.shape[0] else None,
-                  b_ub=p.h_lin if p.G_lin.shape[0] else None, A_eq=p.A_eq, b_eq=p.b_eq,
-                  bounds=bounds, method=HIGHS_METHOD)
+    # the rows -N <= f_t A as bounds of the variables (HiGHS takes them at no cost)
+    k = len(p.normal_cols)
+    bounds[p.normal_cols, 0] = -p.h_lin[:k]
+    G, h = p.G_lin[k:], p.h_lin[k:]
+    res = linprog(p.c, A_ub=G if G.shape[0] else None, b_ub=h if G.shape[0] else None,
+                  A_eq=p.A_eq, b_eq=p.b_eq, bounds=bounds, method=HIGHS_METHOD)
     status = LP_STATUS.get(res.status, f"status {res.status}")
     if res.status != 0:
         return status, str(res.message), None, None
