@@ -485,6 +485,9 @@ def limit_cmd(
     solver: Annotated[str, typer.Option(
         "--solver", help="clarabel (interior point, direct factorisation; cone or pyramid) or "
         "highs (interior point with crossover; pyramid only).")] = "clarabel",
+    compressive: Annotated[float | None, typer.Option(
+        "--compressive-strength", metavar="PA", help="Bound the compression of each interface "
+        "point by this stress times its area (default: infinite strength).")] = None,
     tension: Annotated[bool, typer.Option(
         "--tension", help="The joints carry the tensile strength and cohesion of the case's "
         "joint law (as built); without it, no tension and no cohesion.")] = False,
@@ -515,7 +518,10 @@ def limit_cmd(
         _fail(f"--solver: one of {', '.join(SOLVERS)} (highs with --facets 3 or more), "
               f"got {solver!r}", 2)
     outdir = _study_outdir(output, Path("results") / f"{case.name}_limit", overwrite)
-    result = analyse(case, facets=facets, tension=tension, flow=flow, solver=solver)
+    if compressive is not None and not compressive > 0.0:
+        _fail(f"--compressive-strength: a stress > 0 Pa, got {compressive:g}", 2)
+    result = analyse(case, facets=facets, tension=tension, flow=flow, solver=solver,
+                     compressive_Pa=compressive)
     for line in format_result(result.record):
         typer.echo(line)
     paths = write_outputs(result, outdir)

@@ -396,3 +396,23 @@ def test_the_two_solvers_agree_on_the_pyramid():
         a = solve_limit(m, 8, solver="clarabel").multiplier
         b = solve_limit(m, 8, solver="highs").multiplier
         assert a == pytest.approx(b, rel=1e-7)
+
+
+@pytest.mark.parametrize("ratio", [0.6, 0.8, 2.0])
+def test_compressive_strength_of_a_toppling_block(ratio):
+    """The block b x h x d (0.1 x 0.4 x 0.15 m) on its four base corners (each a quarter of
+    the base's area A), with the compression of a point bounded by f_c times its area: it
+    topples about its toe, whose two points carry N_toe = min(W, f_c A / 2), the heel the rest;
+    the moment about the base's middle, lambda W h / 2 = (N_toe - N_heel) b / 2, gives
+    lambda = (2 N_toe - W) b / (W h) (b/h when the toe is strong enough: ratio >= 1, with
+    f_c = ratio x 2 W / A)."""
+    b, h, d = 0.1, 0.4, 0.15
+    W = 2000.0 * 9.81 * b * h * d
+    A = b * d
+    f_c = ratio * 2.0 * W / A
+    m = rigid_model(tilting_block(width=b, height=h, depth=d, mu=2.0))
+    n_toe = min(W, f_c * A / 2.0)
+    expected = (2.0 * n_toe - W) * b / (W * h)
+    for solver, facets in (("clarabel", 0), ("highs", 8)):
+        sol = solve_limit(m, facets, solver=solver, compressive_Pa=f_c)
+        assert sol.multiplier == pytest.approx(expected, rel=1e-6)

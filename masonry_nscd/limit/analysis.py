@@ -51,7 +51,8 @@ def _kind(flow: str, iteration: dict | None) -> str:
 
 
 def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = False,
-            flow: str = "associative", solver: str = SOLVERS[0]) -> LimitResult:
+            flow: str = "associative", solver: str = SOLVERS[0],
+            compressive_Pa: float | None = None) -> LimitResult:
     """The limit analysis of ``case`` (module docstring)."""
     if flow not in FLOWS:
         raise ValueError(f"flow: one of {', '.join(FLOWS)}, got {flow!r}")
@@ -62,9 +63,11 @@ def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = Fals
     t2 = time.perf_counter()
     iteration = None
     if flow == "associative":
-        sol = solve_limit(model, facets, tension=tension, solver=solver)
+        sol = solve_limit(model, facets, tension=tension, solver=solver,
+                          compressive_Pa=compressive_Pa)
     else:
-        sol, iteration = solve_non_associative(model, facets, tension=tension, solver=solver)
+        sol, iteration = solve_non_associative(model, facets, tension=tension, solver=solver,
+                                               compressive_Pa=compressive_Pa)
     info = scene.info()
     optimal = sol.status == "optimal"
     every = mechanism.joints(model, sol.point_velocity, info) if optimal else []
@@ -87,6 +90,7 @@ def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = Fals
                      else "Coulomb's cone (second-order cone)",
                      "cone_error_bound": friction.cone_error_bound(facets)},
         "solver": solver,
+        "compressive_strength_Pa": compressive_Pa,
         "tension": tension,
         **named,
         "counts": {**sol.counts, "joints": len(found)},

@@ -7,8 +7,11 @@ multiplier ``lambda`` (the unit of the growing load factor). The programme
     maximise lambda   subject to   B f + lambda F_live = -F_dead     (free dofs, 6 per body)
                                    N >= -f_t A                      (f_t = 0: no tension)
                                    |(T, S)| <= c A + mu N           (Coulomb's cone)
+                                   N <= f_c A                       (optional: crushing)
 
-Glued points carry any force. Coulomb's cone is taken exactly, as a second-order cone
+Glued points carry any force. The optional bound ``f_c`` (Pa) caps the compression of each
+point by its tributary area: a joint's resultant can then not reach its edge, the hinges move
+inwards. Coulomb's cone is taken exactly, as a second-order cone
 (``facets = 0``, the default), or as the pyramid of ``k`` facets of :mod:`.friction`
 (``facets = k``, a linear programme). Its optimum is the largest multiplier that admissible
 forces equilibrate: the collapse multiplier of the associative (normality) model, in which a
@@ -104,10 +107,12 @@ class _Programme:
     W: float
     P_diag: np.ndarray | None = None  # a quadratic term (1/2) x P x, P diagonal (proximal)
     normal_cols: np.ndarray | None = None  # the variables N of the first rows of G_lin
+    crush_cols: np.ndarray | None = None  # the variables N of the crushing rows after them
 
 
 def _programme(m: RigidModel, facets: int, tension: bool, with_lambda: bool,
-               normal_limit: np.ndarray | None, proximal: float = 0.0) -> _Programme:
+               normal_limit: np.ndarray | None, proximal: float = 0.0,
+               compressive_Pa: float | None = None) -> _Programme:
     npt = m.points
     W, L = _scales(m)
     row_scale = np.tile([W, W, W, W * L, W * L, W * L], m.bodies)[m.free]
@@ -138,6 +143,12 @@ def _programme(m: RigidModel, facets: int, tension: bool, with_lambda: bool,
     G_n = sp.csr_matrix((-np.ones(len(rows_n)), (np.arange(len(rows_n)), 3 * joint[rows_n])),
                         shape=(len(rows_n), nvar))
     h_n = tensile[rows_n]
+    crush_cols = np.zeros(0, np.int64)
+    if compressive_Pa is not None:  # N <= f_c A
+        crush_cols = 3 * joint
+        G_c = sp.csr_matrix((np.ones(nj), (np.arange(nj), crush_cols)), shape=(nj, nvar))
+        G_n = sp.vstack([G_n, G_c]).tocsr()
+        h_n = np.concatenate([h_n, compressive_Pa * m.area[joint] / W])
     if facets:  # the pyramid's rows (module friction)
         normals = friction.facet_normals(facets)
         k = len(normals)
@@ -169,7 +180,7 @@ def _programme(m: RigidModel, facets: int, tension: bool, with_lambda: bool,
         P_diag[3 * joint] = proximal
         c[3 * joint] -= proximal * np.maximum(normal_limit[joint], 0.0) / W
     return _Programme(c, A_eq, b_eq, G_lin, h_lin, G_soc, h_soc, row_scale, lam_scale, W,
-                      P_diag, 3 * joint[rows_n])
+                      P_diag, 3 * joint[rows_n], crush_cols)
 
 
 def _solve_clarabel(p: _Programme) -> tuple[str, str, np.ndarray | None, np.ndarray | None]:
@@ -206,9 +217,10 @@ def _solve_highs(p: _Programme) -> tuple[str, str, np.ndarray | None, np.ndarray
                          "no proximal term")
     bounds = np.column_stack([np.full(len(p.c), -np.inf), np.full(len(p.c), np.inf)])
     # the rows -N <= f_t A as bounds of the variables (HiGHS takes them at no cost)
-    k = len(p.normal_cols)
+    k, kc = len(p.normal_cols), len(p.crush_cols)
     bounds[p.normal_cols, 0] = -p.h_lin[:k]
-    G, h = p.G_lin[k:], p.h_lin[k:]
+    bounds[p.crush_cols, 1] = p.h_lin[k:k + kc]
+    G, h = p.G_lin[k + kc:], p.h_lin[k + kc:]
     res = linprog(p.c, A_ub=G if G.shape[0] else None, b_ub=h if G.shape[0] else None,
                   A_eq=p.A_eq, b_eq=p.b_eq, bounds=bounds, method=HIGHS_METHOD)
     status = LP_STATUS.get(res.status, f"status {res.status}")
@@ -219,13 +231,15 @@ def _solve_highs(p: _Programme) -> tuple[str, str, np.ndarray | None, np.ndarray
 
 def solve_limit(m: RigidModel, facets: int = friction.DEFAULT_FACETS, *, tension: bool = False,
                 dead_only: bool = False, normal_limit: np.ndarray | None = None,
-                solver: str = SOLVERS[0], proximal: float = 0.0) -> LimitSolution:
+                solver: str = SOLVERS[0], proximal: float = 0.0,
+                compressive_Pa: float | None = None) -> LimitSolution:
     """The programme of the module docstring for the rigid model ``m``; ``facets``: 0 for
     Coulomb's cone, ``k >= 3`` for the pyramid of ``k`` facets; ``tension``: the joints'
     tensile strength and cohesion (:mod:`.statics`) count; ``dead_only`` (or a model with no
     growing load): whether the dead loads alone can be carried (no multiplier);
     ``normal_limit`` (p,) N: friction of fixed capacity ``mu normal_limit`` instead of
-    ``mu N`` (a step of :func:`solve_non_associative`); ``solver``: one of :data:`SOLVERS`."""
+    ``mu N`` (a step of :func:`solve_non_associative`); ``solver``: one of :data:`SOLVERS`;
+    ``compressive_Pa``: the compressive strength ``f_c`` (None: infinite)."""
     if solver not in SOLVERS:
         raise ValueError(f"solver: one of {', '.join(SOLVERS)}, got {solver!r}")
     if facets and facets < 3:
@@ -233,7 +247,7 @@ def solve_limit(m: RigidModel, facets: int = friction.DEFAULT_FACETS, *, tension
     t0 = time.perf_counter()
     npt = m.points
     with_lambda = not dead_only and m.factor is not None
-    prog = _programme(m, facets, tension, with_lambda, normal_limit, proximal)
+    prog = _programme(m, facets, tension, with_lambda, normal_limit, proximal, compressive_Pa)
     t1 = time.perf_counter()
     run = _solve_clarabel if solver == "clarabel" else _solve_highs
     status, message, x, y = run(prog)
@@ -285,7 +299,8 @@ NON_ASSOCIATIVE_RTOL = 5e-3
 def solve_non_associative(m: RigidModel, facets: int = friction.DEFAULT_FACETS, *,
                           tension: bool = False, proximal: float = PROXIMAL,
                           rtol: float = NON_ASSOCIATIVE_RTOL, max_iterations: int = 60,
-                          solver: str = SOLVERS[0]) -> tuple[LimitSolution, dict]:
+                          solver: str = SOLVERS[0], compressive_Pa: float | None = None
+                          ) -> tuple[LimitSolution, dict]:
     r"""The multiplier with Coulomb friction that does not dilate, by the iteration of fixed
     friction capacities (Gilbert, Casapulla and Ahmed, Computers & Structures 84, 2006) made
     proximal: from the associative solution's normal forces ``N^0``, step ``i`` solves the
@@ -308,7 +323,8 @@ def solve_non_associative(m: RigidModel, facets: int = friction.DEFAULT_FACETS, 
     ``converged``, ``iterations``, ``multipliers`` and ``normal_change`` (one per step),
     ``associative`` (the first multiplier), ``band`` (the least and largest multiplier of the
     last :data:`STEADY_STEPS` steps)."""
-    first = solve_limit(m, facets, tension=tension, solver=solver)
+    first = solve_limit(m, facets, tension=tension, solver=solver,
+                        compressive_Pa=compressive_Pa)
     record = {"method": "fixed friction capacities, proximal", "associative": first.multiplier,
               "multipliers": [], "normal_change": [], "converged": False, "iterations": 0,
               "proximal": proximal, "rtol": rtol, "steady_steps": STEADY_STEPS,
@@ -326,7 +342,7 @@ def solve_non_associative(m: RigidModel, facets: int = friction.DEFAULT_FACETS, 
             weight = min(2.0 * weight, max(PROXIMAL_MAX, proximal))
         record["weights"].append(weight)
         sol = solve_limit(m, facets, tension=tension, normal_limit=nbar, solver=solver,
-                          proximal=weight)
+                          proximal=weight, compressive_Pa=compressive_Pa)
         solve_s += sol.times_s["solve"]
         record["iterations"] = i
         if sol.status != "optimal" or sol.multiplier is None:
