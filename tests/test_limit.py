@@ -416,3 +416,17 @@ def test_compressive_strength_of_a_toppling_block(ratio):
     for solver, facets in (("clarabel", 0), ("highs", 8)):
         sol = solve_limit(m, facets, solver=solver, compressive_Pa=f_c)
         assert sol.multiplier == pytest.approx(expected, rel=1e-6)
+
+
+def test_bench_limit_prints_a_row_per_value():
+    """``masonry bench-limit``: one row per value of the scaled parameter, with its blocks
+    (the arch's voussoirs) and its multiplier; a value the case refuses exits with 2."""
+    r = CliRunner().invoke(app, ["bench-limit", str(ARCH), "--param", "arch.voussoirs",
+                                 "--values", "12,24"])
+    assert r.exit_code == 0, r.output
+    rows = [line.split() for line in r.output.splitlines()[2:]]
+    assert [(float(v[0]), int(v[1])) for v in rows] == [(12.0, 12), (24.0, 24)]
+    assert float(rows[1][3]) == pytest.approx(0.146723, rel=1e-4)  # printed to 5 digits
+    r = CliRunner().invoke(app, ["bench-limit", str(ARCH), "--param", "arch.voussoirs",
+                                 "--values", "-3"])
+    assert r.exit_code == 2
