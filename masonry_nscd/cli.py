@@ -509,8 +509,14 @@ def limit_cmd(
         help="Folder of limit.json, the mechanism and the joint forces "
         "(default results/\\<case name>_limit/).")] = None,
     facets: Annotated[int, typer.Option(
-        "--facets", help="Facets of the friction pyramid (error bound 1 - cos(pi/facets)).")
-    ] = 16,
+        "--facets", help="0: Coulomb's cone exactly (a second-order cone); 3 or more: the "
+        "friction pyramid of that many facets (error bound 1 - cos(pi/facets)).")] = 0,
+    solver: Annotated[str, typer.Option(
+        "--solver", help="clarabel (interior point, direct factorisation; cone or pyramid) or "
+        "highs (interior point with crossover; pyramid only).")] = "clarabel",
+    compressive: Annotated[float | None, typer.Option(
+        "--compressive-strength", metavar="PA", help="Bound the compression of each interface "
+        "point by this stress times its area (default: infinite strength).")] = None,
     tension: Annotated[bool, typer.Option(
         "--tension", help="The joints carry the tensile strength and cohesion of the case's "
         "joint law (as built); without it, no tension and no cohesion.")] = False,
@@ -526,17 +532,25 @@ def limit_cmd(
     Every body is taken as rigid and the scene's contact points as the joints' interface
     points, with no tension and Coulomb friction; the largest multiplier of the growing load
     (body force, point load) that admissible joint forces equilibrate, with the other loads
-    dead, by a linear programme (HiGHS); the mechanism from its dual. Writes limit.json,
+    dead, by a conic programme (Clarabel; Coulomb's cone or its pyramid); the mechanism from its
+    dual. Writes limit.json,
     mechanism.vtu, joint_forces.csv, joint_forces.vtu and mechanism.png (docs/limit.md)."""
     case = _load_case_or_exit(case_file, overrides)
     from masonry_nscd.limit.analysis import FLOWS, analyse, format_result, write_outputs
+    from masonry_nscd.limit.lp import SOLVERS
 
     if flow not in FLOWS:
         _fail(f"--flow: one of {', '.join(FLOWS)}, got {flow!r}", 2)
-    if not 3 <= facets <= 1024:
-        _fail(f"--facets: from 3 to 1024, got {facets}", 2)
+    if not (facets == 0 or 3 <= facets <= 1024):
+        _fail(f"--facets: 0 (the cone) or from 3 to 1024, got {facets}", 2)
+    if solver not in SOLVERS or (solver == "highs" and not facets):
+        _fail(f"--solver: one of {', '.join(SOLVERS)} (highs with --facets 3 or more), "
+              f"got {solver!r}", 2)
     outdir = _study_outdir(output, Path("results") / f"{case.name}_limit", overwrite)
-    result = analyse(case, facets=facets, tension=tension, flow=flow)
+    if compressive is not None and not compressive > 0.0:
+        _fail(f"--compressive-strength: a stress > 0 Pa, got {compressive:g}", 2)
+    result = analyse(case, facets=facets, tension=tension, flow=flow, solver=solver,
+                     compressive_Pa=compressive)
     for line in format_result(result.record):
         typer.echo(line)
     paths = write_outputs(result, outdir)
@@ -780,6 +794,59 @@ def bench_detection_cmd(
     case = _load_case_or_exit(case_file, overrides)
     for line in detection_times(case, repeats).lines():
         typer.echo(line)
+
+
+@app.command("bench-limit")
+def bench_limit_cmd(
+    case_file: Annotated[Path | None, typer.Argument(
+        metavar="[CASE.yaml]", help="The case file (default cases/dome_hemispherical.yaml).")
+    ] = None,
+    params: Annotated[list[str] | None, typer.Option(
+        "--param", metavar="PATH", help="Case field set to each value (repeatable: all are set; "
+        "default dome.courses and dome.voussoirs).")] = None,
+    values: Annotated[str, typer.Option(
+        "--values", metavar="V1,V2,...", help="The values, comma-separated.")] = "10,32,100",
+    facets: Annotated[int, typer.Option(
+        "--facets", help="0: Coulomb's cone; 3 or more: the friction pyramid.")] = 0,
+    solver: Annotated[str, typer.Option(
+        "--solver", help="clarabel or highs (pyramid only).")] = "clarabel",
+    overrides: SetOption = None,
+) -> None:
+    """Time the limit analysis of a case scaled by a parameter: blocks, points, multiplier and
+    the times of the scene, the model, the programme and its solve.
+
+    By default the shipped dome of 10 x 10, 32 x 32 and 100 x 100 voussoirs (100, 1,024 and
+    10,000 blocks); a vault: --param vault.voussoirs --values 24,96 --set vault.rings=10
+    (docs/limit.md)."""
+    from masonry_nscd.case import CaseError, load_case
+    from masonry_nscd.limit.lp import SOLVERS
+    from masonry_nscd.studies import limit_bench as lb
+
+    case_file = case_file or Path(__file__).resolve().parents[1] / "cases" / \
+        "dome_hemispherical.yaml"
+    names = list(params or lb.DEFAULT_PARAMS)
+    try:
+        vals = [float(v) for v in values.split(",") if v.strip()]
+    except ValueError:
+        _fail(f"--values: numbers separated by commas, got {values!r}", 2)
+    if not vals:
+        _fail("--values: at least one value", 2)
+    if solver not in SOLVERS or (solver == "highs" and not facets):
+        _fail(f"--solver: one of {', '.join(SOLVERS)} (highs with --facets 3 or more)", 2)
+    _load_case_or_exit(case_file, overrides)
+
+    def load(value: float):
+        text = repr(int(value)) if float(value).is_integer() else repr(float(value))
+        return load_case(case_file, [*(overrides or ()), *(f"{p}={text}" for p in names)])
+
+    typer.echo(f"limit analysis of {case_file.name}, {' and '.join(names)} set to each value; "
+               + ("Coulomb's cone" if not facets else f"pyramid of {facets} facets")
+               + f", {solver}; times in s")
+    typer.echo(lb.format_header())
+    try:
+        lb.bench_limit(load, vals, facets=facets, solver=solver, echo=typer.echo)
+    except CaseError as exc:
+        _fail(f"invalid value: {'; '.join(exc.messages)}", 2)
 
 
 @app.command("bench-scaling")

@@ -159,6 +159,56 @@ def four_hinge_multiplier(n: int, radius: float, thickness: float,
     return best
 
 
+def statics_thrust_line(n: int, radius: float, thickness: float, lam: float, hinges):
+    """The line of thrust of the four-hinge mechanism by statics alone: the force ``S`` that
+    the voussoirs below the first hinge's joint i press on those above, through its hinge
+    point, is fixed by the moments about the second and third hinges of the voussoirs
+    between; the force across any joint j is then ``S`` plus the loads of the voussoirs
+    between i and j, and its moment about the origin fixes where it crosses the joint.
+    Returns per joint the eccentricity over half the joint (1 at the extrados)."""
+    a, b, _, W, c = chord_voussoirs(n, radius, thickness)
+    ends = {"intrados": a, "extrados": b}
+    (i, fi), (j, fj), (k, fk) = hinges[:3]
+    P, Q, R = ends[fi][i], ends[fj][j], ends[fk][k]
+    L = np.column_stack([lam * W, -W])  # the loads of the voussoirs, (lambda W, -W)
+    m = c[:, 0] * L[:, 1] - c[:, 1] * L[:, 0]  # their moments about the origin
+
+    def rows(lo, hi, O):  # moment about O of S at P and of voussoirs lo..hi-1: M0 + S x ...
+        r = P - O
+        const = ((c[lo:hi] - O)[:, 0] * L[lo:hi, 1] - (c[lo:hi] - O)[:, 1] * L[lo:hi, 0]).sum()
+        return [-r[1], r[0]], -const
+
+    (r1, c1), (r2, c2) = rows(i, j, Q), rows(i, k, R)
+    S_i = np.linalg.solve(np.array([r1, r2]), np.array([c1, c2]))
+    M_i = P[0] * S_i[1] - P[1] * S_i[0]
+    out = []
+    for q in range(n + 1):
+        lo, hi, sign = (i, q, 1.0) if q >= i else (q, i, -1.0)
+        S = S_i + sign * L[lo:hi].sum(axis=0)
+        M = M_i + sign * m[lo:hi].sum()
+        d = b[q] - a[q]
+        s = (M - (a[q][0] * S[1] - a[q][1] * S[0])) / (d[0] * S[1] - d[1] * S[0])
+        out.append(2.0 * s - 1.0)
+    return np.array(out)
+
+
+def test_thrust_line_of_the_arch_at_collapse():
+    """The line of thrust of the shipped arch at its horizontal collapse multiplier: the
+    eccentricity of every joint's resultant is that of the statics of the four-hinge
+    mechanism (the kinematic theorem's multiplier and hinges), within the joint everywhere
+    and on the hinged face at the four hinges."""
+    result = analyse(load_case(ARCH))
+    lam, hinges = four_hinge_multiplier(24, 1.0, 0.15)
+    expected = statics_thrust_line(24, 1.0, 0.15, lam, hinges)
+    line = result.record["thrust_line"]
+    assert [r["joint"] for r in line] == list(range(25))
+    got = np.array([r["relative_eccentricity"] for r in line])
+    assert got == pytest.approx(expected, abs=1e-6)
+    assert np.all(np.abs(got) <= 1.0 + 1e-7)
+    for joint, side in hinges:
+        assert got[joint] == pytest.approx(1.0 if side == "extrados" else -1.0, abs=1e-6)
+
+
 def test_collapse_load_of_a_point_load():
     """A downward force on the extrados of voussoir 7 of the shipped arch: the programme's
     force is the kinematic theorem's least over the four-hinge mechanisms, with its hinges."""
@@ -284,10 +334,99 @@ def test_the_command_writes_its_files(tmp_path):
     assert rec["multiplier"]["kind"].startswith("associative")
     assert rec["friction"]["facets"] == friction.DEFAULT_FACETS
     assert len(rec["hinges"]) == 4
-    for name in ("mechanism.vtu", "joint_forces.csv", "joint_forces.vtu", "mechanism.png"):
+    for name in ("mechanism.vtu", "joint_forces.csv", "joint_forces.vtu", "thrust_line.csv",
+                 "mechanism.png"):
         assert (out / name).stat().st_size > 0
     rows = (out / "joint_forces.csv").read_text().splitlines()
     assert len(rows) == 1 + rec["counts"]["points"]
     r = CliRunner().invoke(app, ["limit", str(ARCH), "-o", str(tmp_path / "x"),
                                  "--flow", "sideways"])
+    assert r.exit_code == 2
+
+
+def test_the_dome_rests_on_its_ring_only_through_its_bed():
+    """The shipped dome on its fixed ring: the lowest course touches the ring on its bed faces
+    only (every base point's normal vertical; the faces between the ring's hexahedra are
+    inside the ring, not joints level with the head joints above them), so the whole dome
+    sliding on the ring, lifted by mu times its slip, is a mechanism of the associative
+    model with lambda = mu: the kinematic theorem bounds the multiplier by mu."""
+    case = load_case(CASES / "dome_hemispherical.yaml")
+    scene = build_scene(case)
+    base = scene.groups.index("base")
+    normals = np.array([p.frame[0] for p in scene.points if p.group == base])
+    assert len(normals) and np.allclose(np.abs(normals[:, 1]), 1.0, atol=1e-12)
+    result = analyse(case)
+    assert 0.0 < result.solution.multiplier <= case.joint.mu * (1.0 + 1e-6)
+
+
+def test_non_associative_sliding_block():
+    """A block that slides on its base (mu below b/h), on the exact cone: lifted by mu times
+    its slip against its weight (associative) or held by the friction mu W (non-associative),
+    it slides at lambda = mu either way, and the proximal iteration converges on it."""
+    m = rigid_model(tilting_block(width=0.3, height=0.4, mu=0.5))
+    sol, record = solve_non_associative(m)
+    assert record["converged"]
+    assert record["associative"] == pytest.approx(0.5, rel=1e-6)
+    assert sol.multiplier == pytest.approx(0.5, rel=1e-6)
+
+
+def test_the_dry_stone_wall_pushed_by_its_beam():
+    """The dry stone wall with rigid units, driven by its top beam: the push is the growing
+    load (a horizontal force on the beam, N), and by the kinematic theorem it is at most the
+    force that turns the wall above its first course (glued to the ground beam) as one piece
+    about its toe: (N + W) x 0.5 m / 0.9 m, N the beam's 100 kN and W the 8 courses' weight
+    (1.0 x 0.1 x 0.2 m each at 2300 kg/m^3), the beam's reference point 0.9 m above the toe;
+    a wall that steps and slides within carries less."""
+    case = load_case(CASES / "dry_stone_wall.yaml", ["blocks.material=rigid"])
+    result = analyse(case)
+    m = result.model
+    assert m.factor == "push_force_N"
+    beam = m.names.index("upper beam")
+    assert m.dead[6 * beam + 1] == pytest.approx(-100e3)
+    W = 8 * 1.0 * 0.1 * 0.2 * 2300.0 * 9.81
+    bound = (100e3 + W) * 0.5 / (m.reference[beam, 1] - 0.1)
+    assert 0.0 < result.solution.multiplier <= bound * (1 + 1e-9)
+
+
+def test_the_two_solvers_agree_on_the_pyramid():
+    """The same pyramid programme (8 facets) on the sliding block and the arch: Clarabel's
+    interior point and HiGHS's interior point with crossover find the same multiplier."""
+    for m in (rigid_model(tilting_block(width=0.3, height=0.4, mu=0.5)),
+              rigid_model(build_scene(load_case(ARCH)))):
+        a = solve_limit(m, 8, solver="clarabel").multiplier
+        b = solve_limit(m, 8, solver="highs").multiplier
+        assert a == pytest.approx(b, rel=1e-7)
+
+
+@pytest.mark.parametrize("ratio", [0.6, 0.8, 2.0])
+def test_compressive_strength_of_a_toppling_block(ratio):
+    """The block b x h x d (0.1 x 0.4 x 0.15 m) on its four base corners (each a quarter of
+    the base's area A), with the compression of a point bounded by f_c times its area: it
+    topples about its toe, whose two points carry N_toe = min(W, f_c A / 2), the heel the rest;
+    the moment about the base's middle, lambda W h / 2 = (N_toe - N_heel) b / 2, gives
+    lambda = (2 N_toe - W) b / (W h) (b/h when the toe is strong enough: ratio >= 1, with
+    f_c = ratio x 2 W / A)."""
+    b, h, d = 0.1, 0.4, 0.15
+    W = 2000.0 * 9.81 * b * h * d
+    A = b * d
+    f_c = ratio * 2.0 * W / A
+    m = rigid_model(tilting_block(width=b, height=h, depth=d, mu=2.0))
+    n_toe = min(W, f_c * A / 2.0)
+    expected = (2.0 * n_toe - W) * b / (W * h)
+    for solver, facets in (("clarabel", 0), ("highs", 8)):
+        sol = solve_limit(m, facets, solver=solver, compressive_Pa=f_c)
+        assert sol.multiplier == pytest.approx(expected, rel=1e-6)
+
+
+def test_bench_limit_prints_a_row_per_value():
+    """``masonry bench-limit``: one row per value of the scaled parameter, with its blocks
+    (the arch's voussoirs) and its multiplier; a value the case refuses exits with 2."""
+    r = CliRunner().invoke(app, ["bench-limit", str(ARCH), "--param", "arch.voussoirs",
+                                 "--values", "12,24"])
+    assert r.exit_code == 0, r.output
+    rows = [line.split() for line in r.output.splitlines()[2:]]
+    assert [(float(v[0]), int(v[1])) for v in rows] == [(12.0, 12), (24.0, 24)]
+    assert float(rows[1][3]) == pytest.approx(0.146723, rel=1e-4)  # printed to 5 digits
+    r = CliRunner().invoke(app, ["bench-limit", str(ARCH), "--param", "arch.voussoirs",
+                                 "--values", "-3"])
     assert r.exit_code == 2

@@ -17,8 +17,15 @@
     ``slip_rate`` (normalised as the VTU's).
 ``joint_forces.vtu``
     The interface points with the same fields (``force_N`` as a global vector).
+``thrust_line.csv``
+    For an arch, one row per joint: where the resultant of the joint's forces crosses it
+    (:mod:`masonry_nscd.limit.thrust`): ``joint``, ``angle_from_crown_deg``, ``x_m``, ``y_m``,
+    ``eccentricity_m`` (from the joint's middle towards the extrados), ``relative_eccentricity``
+    (over half the joint's length), ``thickness_m``, ``N_N``, ``V_N``. The same rows are
+    ``thrust_line`` of ``limit.json``.
 ``mechanism.png``
-    The picture of the mechanism (:mod:`masonry_nscd.limit.picture`).
+    The picture of the mechanism (:mod:`masonry_nscd.limit.picture`), with the line of thrust
+    of an arch.
 
 ``masonry threshold --method limit`` writes in its study folder ``threshold.json``: the
 parameter, its threshold, the bracket and each step (:mod:`masonry_nscd.limit.thickness`).
@@ -43,9 +50,11 @@ MECHANISM_VTU = "mechanism.vtu"
 MECHANISM_PNG = "mechanism.png"
 JOINT_FORCES_CSV = "joint_forces.csv"
 JOINT_FORCES_VTU = "joint_forces.vtu"
+THRUST_LINE_CSV = "thrust_line.csv"
 THRESHOLD_JSON = "threshold.json"
 #: Every file of the folder, for the CLI's report.
-FILES = (LIMIT_JSON, MECHANISM_VTU, JOINT_FORCES_CSV, JOINT_FORCES_VTU, MECHANISM_PNG)
+FILES = (LIMIT_JSON, MECHANISM_VTU, JOINT_FORCES_CSV, JOINT_FORCES_VTU, THRUST_LINE_CSV,
+         MECHANISM_PNG)
 
 
 def prepare(outdir: Path | str) -> Path:
@@ -117,6 +126,24 @@ def write_joint_forces(outdir: Path | str, rows: Mapping[str, Any]) -> tuple[Pat
         "force_N": force, "normal_force_N": f[:, 0] if len(f) else np.zeros(0),
         "opening_rate": u[:, 0] if len(u) else np.zeros(0), "slip_rate": slip})
     return csv_path, vtu_path
+
+
+def write_thrust_line(outdir: Path | str, rows: Sequence[Mapping[str, Any]]) -> Path:
+    """``thrust_line.csv`` from the rows of :func:`masonry_nscd.limit.thrust.thrust_line`."""
+    from masonry_nscd.limit.thrust import COLUMNS
+
+    path = Path(outdir) / THRUST_LINE_CSV
+
+    def write(tmp) -> None:
+        with open(tmp, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(COLUMNS)
+            for r in rows:
+                w.writerow(["" if r[k] is None else (r[k] if isinstance(r[k], int)
+                                                     else repr(float(r[k]))) for k in COLUMNS])
+
+    atomic_write(path, write)
+    return path
 
 
 def write_threshold(outdir: Path | str, record: Mapping[str, Any]) -> Path:

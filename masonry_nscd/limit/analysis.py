@@ -19,14 +19,14 @@ from typing import Any
 import numpy as np
 
 from masonry_nscd.io import limit_analysis as files
-from masonry_nscd.limit import friction, mechanism
-from masonry_nscd.limit.lp import LimitSolution, solve_limit, solve_non_associative
+from masonry_nscd.limit import friction, mechanism, thrust
+from masonry_nscd.limit.lp import SOLVERS, LimitSolution, solve_limit, solve_non_associative
 from masonry_nscd.limit.picture import draw_mechanism
 from masonry_nscd.limit.statics import RigidModel, rigid_model
 from masonry_nscd.scenes import build_scene
 
 FLOWS = ("associative", "non-associative")
-METHOD = "rigid-block limit analysis: static linear programme (HiGHS), mechanism from its dual"
+METHOD = "rigid-block limit analysis: static programme (Coulomb's cone or its pyramid), mechanism from its dual"
 
 
 @dataclass
@@ -47,11 +47,12 @@ def _kind(flow: str, iteration: dict | None) -> str:
                 "dilates); an upper bound of the non-associative one where sliding matters")
     done = "converged" if iteration and iteration.get("converged") else "not converged"
     return ("non-associative: fixed friction capacities iterated from the associative "
-            f"solution (Gilbert, Casapulla and Ahmed 2006), {done}")
+            f"solution (Gilbert, Casapulla and Ahmed 2006), proximal steps, {done}")
 
 
 def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = False,
-            flow: str = "associative") -> LimitResult:
+            flow: str = "associative", solver: str = SOLVERS[0],
+            compressive_Pa: float | None = None) -> LimitResult:
     """The limit analysis of ``case`` (module docstring)."""
     if flow not in FLOWS:
         raise ValueError(f"flow: one of {', '.join(FLOWS)}, got {flow!r}")
@@ -62,11 +63,17 @@ def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = Fals
     t2 = time.perf_counter()
     iteration = None
     if flow == "associative":
-        sol = solve_limit(model, facets, tension=tension)
+        sol = solve_limit(model, facets, tension=tension, solver=solver,
+                          compressive_Pa=compressive_Pa)
     else:
-        sol, iteration = solve_non_associative(model, facets, tension=tension)
-    found = mechanism.joints(model, sol.point_velocity, scene.info()) \
-        if sol.multiplier is not None else []
+        sol, iteration = solve_non_associative(model, facets, tension=tension, solver=solver,
+                                               compressive_Pa=compressive_Pa)
+    info = scene.info()
+    optimal = sol.status == "optimal"
+    every = mechanism.joints(model, sol.point_velocity, info) if optimal else []
+    # the line of thrust of the static solution (also of the dead loads alone)
+    line = thrust.thrust_line(model, sol.forces, every, info.get("arch"))
+    found = every if sol.multiplier is not None else []
     named = mechanism.summary(found)
     if sol.multiplier is None:
         named["mechanism"] = None
@@ -78,11 +85,16 @@ def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = Fals
         "multiplier": {"name": model.factor, "unit": model.factor_unit,
                        "value": sol.multiplier, "kind": _kind(flow, iteration)},
         "flow": flow,
-        "friction": {"facets": facets, "pyramid": "inscribed",
+        "friction": {"facets": facets,
+                     "model": f"pyramid of {facets} facets, inscribed" if facets
+                     else "Coulomb's cone (second-order cone)",
                      "cone_error_bound": friction.cone_error_bound(facets)},
+        "solver": solver,
+        "compressive_strength_Pa": compressive_Pa,
         "tension": tension,
         **named,
         "counts": {**sol.counts, "joints": len(found)},
+        "thrust_line": line,
         "times_s": {"scene": t1 - t0, "model": t2 - t1, **sol.times_s},
     }
     if model.factor is None:
@@ -93,11 +105,13 @@ def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = Fals
     return LimitResult(model, sol, found, record, tuple(scene.groups))
 
 
-def stands(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = False) -> bool:
+def stands(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = False,
+           solver: str = SOLVERS[0]) -> bool:
     """Whether admissible forces carry the dead loads of ``case`` alone (its growing load at
     zero): the static programme is feasible."""
     model = rigid_model(build_scene(case))
-    return solve_limit(model, facets, tension=tension, dead_only=True).status == "optimal"
+    return solve_limit(model, facets, tension=tension, dead_only=True,
+                       solver=solver).status == "optimal"
 
 
 def node_velocities(m: RigidModel, velocity: np.ndarray) -> list[np.ndarray]:
@@ -119,6 +133,8 @@ def write_outputs(result: LimitResult, outdir: Path | str) -> list[Path]:
         "antagonist": [m.names[b] for b in m.pair[:, 1]],
         "group": group_names, "x": m.x, "frame": m.frame, "area": m.area,
         "forces": sol.forces, "velocity": sol.point_velocity})
+    if result.record.get("thrust_line"):
+        paths.append(files.write_thrust_line(out, result.record["thrust_line"]))
     value = sol.multiplier
     rec = result.record
     title = (f"{rec['case']}: {m.factor or 'multiplier'} = {value:.5g} "
@@ -133,10 +149,12 @@ def format_result(record: dict[str, Any]) -> list[str]:
     """The lines that ``masonry limit`` prints."""
     mult = record["multiplier"]
     c, t = record["counts"], record["times_s"]
+    fr = record["friction"]
+    cone = (f"friction pyramid of {fr['facets']} facets (error bound "
+            f"{100 * fr['cone_error_bound']:.2f} %)" if fr["facets"] else "Coulomb's cone")
     lines = [(f"{record['case']}: {c['bodies']} bodies ({c['free_bodies']} free), "
-             f"{c['points']} interface points, {c['joints']} joints; friction pyramid of "
-             f"{record['friction']['facets']} facets (error bound "
-             f"{100 * record['friction']['cone_error_bound']:.2f} %)")]
+             f"{c['points']} interface points, {c['joints']} joints; {cone}, "
+             f"{record.get('solver', SOLVERS[0])}")]
     if mult["name"] is None:
         carried = "carried" if record["status"] == "optimal" else "not carried"
         lines.append(f"dead loads: {carried} ({record['status']})")
@@ -158,6 +176,8 @@ def format_result(record: dict[str, Any]) -> list[str]:
         lines.append(f"non-associative iteration: {it['iterations']} steps, "
                      f"{'converged' if it['converged'] else 'not converged'}"
                      + (f" ({it['stopped_by']})" if it.get("stopped_by") else "")
+                     + (f"; last {len(it['multipliers'][-5:])} multipliers within "
+                        f"{it['band'][0]:.6g} to {it['band'][1]:.6g}" if it.get("band") else "")
                      + (f"; associative multiplier {it['associative']:.6g}"
                         if it.get("associative") is not None else ""))
     lines.append(f"times: scene {t['scene']:.3f} s, programme {t['assemble']:.3f} s, "

@@ -23,8 +23,9 @@ import math
 
 import numpy as np
 
-#: The facets of the pyramid unless asked otherwise.
-DEFAULT_FACETS = 16
+#: The friction unless asked otherwise: 0, Coulomb's cone itself (a second-order cone of the
+#: programme, :mod:`.lp`); ``k >= 3`` asks for the pyramid of ``k`` facets.
+DEFAULT_FACETS = 0
 
 
 def facet_normals(k: int) -> np.ndarray:
@@ -36,10 +37,12 @@ def facet_normals(k: int) -> np.ndarray:
 
 
 def inscribed_fraction(k: int) -> float:
-    """``cos(pi/k)``: the polygon's inscribed radius over the cone's radius."""
-    return math.cos(math.pi / k)
+    """``cos(pi/k)``: the polygon's inscribed radius over the cone's radius (1 for the cone
+    itself, ``k = 0``)."""
+    return math.cos(math.pi / k) if k else 1.0
 
 
 def cone_error_bound(k: int) -> float:
-    """``1 - cos(pi/k)``: the largest relative under-estimate of the friction resistance."""
+    """``1 - cos(pi/k)``: the largest relative under-estimate of the friction resistance (0
+    for the cone itself, ``k = 0``)."""
     return 1.0 - inscribed_fraction(k)

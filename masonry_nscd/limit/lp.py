@@ -1,4 +1,4 @@
-r"""The static theorem of limit analysis for rigid blocks as a linear programme, and its dual,
+r"""The static theorem of limit analysis for rigid blocks as a conic programme, and its dual,
 the collapse mechanism.
 
 Unknowns: the force ``(N, T, S)`` (N) of every interface point (:mod:`.statics`) and the load
@@ -6,14 +6,29 @@ multiplier ``lambda`` (the unit of the growing load factor). The programme
 
     maximise lambda   subject to   B f + lambda F_live = -F_dead     (free dofs, 6 per body)
                                    N >= -f_t A                      (f_t = 0: no tension)
-                                   pyramid rows of the friction     (:mod:`.friction`)
+                                   |(T, S)| <= c A + mu N           (Coulomb's cone)
+                                   N <= f_c A                       (optional: crushing)
 
-is solved by HiGHS (``scipy.optimize.linprog``, :data:`METHOD`). Glued points carry any force.
-Its optimum is the largest multiplier that admissible forces equilibrate: the collapse
-multiplier of the associative (normality) model, in which a sliding joint also dilates by
-``mu`` times its slip. With the frictional capacity exact (a joint that does not slide) it is
-the collapse multiplier itself; where sliding takes part, the associative multiplier is an
-upper bound of the one with non-associative Coulomb friction (no dilatancy).
+Glued points carry any force. The optional bound ``f_c`` (Pa) caps the compression of each
+point by its tributary area: a joint's resultant can then not reach its edge, the hinges move
+inwards. Coulomb's cone is taken exactly, as a second-order cone
+(``facets = 0``, the default), or as the pyramid of ``k`` facets of :mod:`.friction`
+(``facets = k``, a linear programme). Its optimum is the largest multiplier that admissible
+forces equilibrate: the collapse multiplier of the associative (normality) model, in which a
+sliding joint also dilates by ``mu`` times its slip. With the frictional capacity exact (a
+joint that does not slide) it is the collapse multiplier itself; where sliding takes part, the
+associative multiplier is an upper bound of the one with non-associative Coulomb friction (no
+dilatancy).
+
+**Solvers** (:data:`SOLVERS`). ``clarabel`` (the default): Clarabel's interior point for
+conic programmes, whose every step factorises the sparse KKT system directly (QDLDL, or faer's
+supernodal LDL for large programmes, :data:`SUPERNODAL_FROM`); it takes the exact cone and the
+pyramid alike. The equilibrium rows couple only bodies in contact, so the system is sparse,
+but its factor fills in and the cost grows faster than the points. ``highs``: HiGHS's
+interior point with crossover through ``scipy.optimize.linprog``, the pyramid only; its
+interior point solves its normal equations iteratively (conjugate gradients), which on
+thousands of points is 5 to 30 times slower, but its crossover ends on a vertex: an
+independent check of the same programme.
 
 The **mechanism** is the dual: the multipliers of the equilibrium rows are the virtual
 velocities ``(v, omega)`` (m/s, rad/s per unit) of the bodies' reference points, normalised so
@@ -32,17 +47,29 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.optimize import linprog
 
 from masonry_nscd.limit import friction
 from masonry_nscd.limit.statics import RigidModel, equilibrium_matrix, point_velocities
 
-#: HiGHS's method: its interior point with crossover (a vertex, whose duals are the
-#: mechanism); its dual simplex is slower on the larger scenes (docs/choices.md).
-METHOD = "highs-ipm"
+#: The solvers of the programme (module docstring), the default first.
+SOLVERS = ("clarabel", "highs")
+#: HiGHS's method when asked for: its interior point with crossover (a vertex, whose duals are
+#: the mechanism).
+HIGHS_METHOD = "highs-ipm"
+#: Clarabel's tolerances (relative gap, feasibility): tighter than its defaults, so that the
+#: multiplier is good to about 1e-9 and the mechanism's small velocities are read clearly.
+CLARABEL_TOLERANCE = 1e-10
+#: Clarabel's factorisation: QDLDL (a simple LDL) below this many unknowns, faer's supernodal
+#: LDL from there, where its fill-reducing supernodes pay (docs/limit.md, the timing table).
+SUPERNODAL_FROM = 100_000
 #: ``linprog``'s status codes, by name.
 LP_STATUS = {0: "optimal", 1: "iteration limit", 2: "infeasible", 3: "unbounded",
              4: "numerical difficulties"}
+#: Clarabel's statuses, by the names of :data:`LP_STATUS`.
+CLARABEL_STATUS = {"Solved": "optimal", "AlmostSolved": "optimal",
+                   "PrimalInfeasible": "infeasible", "AlmostPrimalInfeasible": "infeasible",
+                   "DualInfeasible": "unbounded", "AlmostDualInfeasible": "unbounded",
+                   "MaxIterations": "iteration limit", "MaxTime": "time limit"}
 
 
 @dataclass
@@ -68,19 +95,31 @@ def _scales(m: RigidModel) -> tuple[float, float]:
     return W, max(L, 1e-6)
 
 
-def solve_limit(m: RigidModel, facets: int = friction.DEFAULT_FACETS, *, tension: bool = False,
-                dead_only: bool = False, normal_limit: np.ndarray | None = None
-                ) -> LimitSolution:
-    """The programme of the module docstring for the rigid model ``m``; ``tension``: the
-    joints' tensile strength and cohesion (:mod:`.statics`) count; ``dead_only`` (or a model
-    with no growing load): whether the dead loads alone can be carried (no multiplier);
-    ``normal_limit`` (p,) N: friction of fixed capacity ``mu normal_limit`` instead of
-    ``mu N`` (a step of :func:`solve_non_associative`)."""
-    t0 = time.perf_counter()
+@dataclass
+class _Programme:
+    """The scaled programme: ``min c x`` subject to ``A_eq x = b_eq``, ``G x <= h`` (rows
+    ``G_lin``) and, per cone ``i``, ``h_i - G_i x`` in the second-order cone of dimension 3."""
+
+    c: np.ndarray
+    A_eq: sp.csr_matrix
+    b_eq: np.ndarray
+    G_lin: sp.csr_matrix
+    h_lin: np.ndarray
+    G_soc: sp.csr_matrix  # (3 q, n)
+    h_soc: np.ndarray
+    row_scale: np.ndarray  # of the equilibrium rows (N, N m)
+    lam_scale: float  # lambda = x[-1] * lam_scale
+    W: float
+    P_diag: np.ndarray | None = None  # a quadratic term (1/2) x P x, P diagonal (proximal)
+    normal_cols: np.ndarray | None = None  # the variables N of the first rows of G_lin
+    crush_cols: np.ndarray | None = None  # the variables N of the crushing rows after them
+
+
+def _programme(m: RigidModel, facets: int, tension: bool, with_lambda: bool,
+               normal_limit: np.ndarray | None, proximal: float = 0.0,
+               compressive_Pa: float | None = None) -> _Programme:
     npt = m.points
     W, L = _scales(m)
-    with_lambda = not dead_only and m.factor is not None
-    # equilibrium rows of the free dofs, scaled
     row_scale = np.tile([W, W, W, W * L, W * L, W * L], m.bodies)[m.free]
     B = equilibrium_matrix(m)[m.free]
     A_eq = sp.diags(1.0 / row_scale) @ B * W  # the forces in units of W
@@ -89,50 +128,150 @@ def solve_limit(m: RigidModel, facets: int = friction.DEFAULT_FACETS, *, tension
     lam_scale = 1.0
     if with_lambda:
         lam_scale = 1.0 / max(float(np.abs(live).max()), 1e-300)
-        A_eq = sp.hstack([A_eq, sp.csr_matrix(live[:, None] * lam_scale)]).tocsr()
+        A_eq = sp.hstack([A_eq, sp.csr_matrix(live[:, None] * lam_scale)])
+    A_eq = sp.csr_matrix(A_eq)
     nvar = 3 * npt + int(with_lambda)
-    # friction pyramid rows
     joint = np.flatnonzero(~m.glued)
-    normals = friction.facet_normals(facets)
-    k = len(normals)
-    cosk = friction.inscribed_fraction(facets)
-    rows = np.repeat(np.arange(len(joint) * k), 3)
-    pcol = np.repeat(3 * joint, k)
-    cols = np.stack([pcol, pcol + 1, pcol + 2], axis=1).ravel()
-    mu = np.repeat(m.mu[joint], k) * (normal_limit is None)
-    vals = np.stack([-mu * cosk, np.tile(normals[:, 0], len(joint)),
-                     np.tile(normals[:, 1], len(joint))], axis=1).ravel()
-    A_ub = sp.csr_matrix((vals, (rows, cols)), shape=(len(joint) * k, nvar))
+    nj = len(joint)
+    # the cone's radius: capacity + mu_eff N (in units of W)
     cohesion = m.cohesion_Pa if tension else np.zeros(npt)
-    capacity = cohesion * m.area
-    if normal_limit is not None:
-        capacity = capacity + m.mu * np.maximum(normal_limit, 0.0)
-    b_ub = np.repeat(capacity[joint] * cosk / W, k)
-    lower = np.full((npt, 3), -np.inf)
-    lower[joint, 0] = -(m.tensile_Pa[joint] * m.area[joint] / W if tension else 0.0)
-    bounds = np.column_stack([lower.ravel(), np.full(3 * npt, np.inf)])
+    capacity = cohesion * m.area / W
+    mu_eff = m.mu.copy()
+    if normal_limit is not None:  # a fixed capacity mu Nbar, no dilatancy
+        capacity = capacity + m.mu * np.maximum(normal_limit, 0.0) / W
+        mu_eff = np.zeros(npt)
+    # N >= -f_t A  as  -N <= f_t A; with the cone, mu N >= |(T, S)| >= 0 already says N >= 0
+    # where there is no capacity (the row would only add to the factorisation)
+    tensile = m.tensile_Pa[joint] * m.area[joint] / W if tension else np.zeros(nj)
+    bound = np.ones(nj, bool) if facets else (capacity[joint] > 0.0) | (mu_eff[joint] <= 0.0)
+    rows_n = np.flatnonzero(bound)
+    G_n = sp.csr_matrix((-np.ones(len(rows_n)), (np.arange(len(rows_n)), 3 * joint[rows_n])),
+                        shape=(len(rows_n), nvar))
+    h_n = tensile[rows_n]
+    crush_cols = np.zeros(0, np.int64)
+    if compressive_Pa is not None:  # N <= f_c A
+        crush_cols = 3 * joint
+        G_c = sp.csr_matrix((np.ones(nj), (np.arange(nj), crush_cols)), shape=(nj, nvar))
+        G_n = sp.vstack([G_n, G_c]).tocsr()
+        h_n = np.concatenate([h_n, compressive_Pa * m.area[joint] / W])
+    if facets:  # the pyramid's rows (module friction)
+        normals = friction.facet_normals(facets)
+        k = len(normals)
+        cosk = friction.inscribed_fraction(facets)
+        rows = np.repeat(np.arange(nj * k), 3)
+        pcol = np.repeat(3 * joint, k)
+        cols = np.stack([pcol, pcol + 1, pcol + 2], axis=1).ravel()
+        vals = np.stack([-np.repeat(mu_eff[joint], k) * cosk, np.tile(normals[:, 0], nj),
+                         np.tile(normals[:, 1], nj)], axis=1).ravel()
+        G_f = sp.csr_matrix((vals, (rows, cols)), shape=(nj * k, nvar))
+        G_lin = sp.vstack([G_n, G_f]).tocsr()
+        h_lin = np.concatenate([h_n, np.repeat(capacity[joint] * cosk, k)])
+        G_soc, h_soc = sp.csr_matrix((0, nvar)), np.zeros(0)
+    else:  # (capacity + mu N, T, S) in the second-order cone: h - G x
+        G_lin, h_lin = G_n, h_n
+        rows = np.arange(3 * nj)
+        cols = (3 * joint[:, None] + np.arange(3)).ravel()
+        vals = -np.stack([mu_eff[joint], np.ones(nj), np.ones(nj)], axis=1).ravel()
+        G_soc = sp.csr_matrix((vals, (rows, cols)), shape=(3 * nj, nvar))
+        h_soc = np.zeros(3 * nj)
+        h_soc[0::3] = capacity[joint]
     c = np.zeros(nvar)
     if with_lambda:
-        bounds = np.vstack([bounds, [-np.inf, np.inf]])
         c[-1] = -1.0
-    t1 = time.perf_counter()
-    res = linprog(c, A_ub=A_ub if A_ub.shape[0] else None, b_ub=b_ub if A_ub.shape[0] else None,
-                  A_eq=A_eq, b_eq=b_eq, bounds=bounds, method=METHOD)
-    t2 = time.perf_counter()
+    P_diag = None
+    if proximal > 0.0 and normal_limit is not None:
+        # (proximal / 2) sum (N - Nbar)^2 in units of W: the force set nearest Nbar
+        P_diag = np.zeros(nvar)
+        P_diag[3 * joint] = proximal
+        c[3 * joint] -= proximal * np.maximum(normal_limit[joint], 0.0) / W
+    return _Programme(c, A_eq, b_eq, G_lin, h_lin, G_soc, h_soc, row_scale, lam_scale, W,
+                      P_diag, 3 * joint[rows_n], crush_cols)
+
+
+def _solve_clarabel(p: _Programme) -> tuple[str, str, np.ndarray | None, np.ndarray | None]:
+    """Status, message, the solution ``x`` and the equilibrium rows' multipliers."""
+    import clarabel
+
+    n = len(p.c)
+    A = sp.vstack([p.A_eq, p.G_lin, p.G_soc]).tocsc()
+    b = np.concatenate([p.b_eq, p.h_lin, p.h_soc])
+    cones = [clarabel.ZeroConeT(p.A_eq.shape[0])]
+    if p.G_lin.shape[0]:
+        cones.append(clarabel.NonnegativeConeT(p.G_lin.shape[0]))
+    cones += [clarabel.SecondOrderConeT(3)] * (p.G_soc.shape[0] // 3)
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    settings.tol_gap_abs = settings.tol_gap_rel = CLARABEL_TOLERANCE
+    settings.tol_feas = CLARABEL_TOLERANCE
+    settings.max_threads = 1
+    settings.direct_solve_method = "faer" if n >= SUPERNODAL_FROM else "qdldl"
+    P = sp.csc_matrix((n, n)) if p.P_diag is None else sp.diags(p.P_diag).tocsc()
+    sol = clarabel.DefaultSolver(P, p.c, A, b, cones, settings).solve()
+    name = str(sol.status).split(".")[-1]
+    status = CLARABEL_STATUS.get(name, "numerical difficulties")
+    message = f"Clarabel: {name} after {sol.iterations} iterations"
+    if status != "optimal":
+        return status, message, None, None
+    return status, message, np.asarray(sol.x), np.asarray(sol.z[:p.A_eq.shape[0]])
+
+
+def _solve_highs(p: _Programme) -> tuple[str, str, np.ndarray | None, np.ndarray | None]:
+    from scipy.optimize import linprog
+
+    if p.G_soc.shape[0] or p.P_diag is not None:
+        raise ValueError("the solver highs takes the friction pyramid only (facets >= 3) and "
+                         "no proximal term")
+    bounds = np.column_stack([np.full(len(p.c), -np.inf), np.full(len(p.c), np.inf)])
+    # the rows -N <= f_t A as bounds of the variables (HiGHS takes them at no cost)
+    k, kc = len(p.normal_cols), len(p.crush_cols)
+    bounds[p.normal_cols, 0] = -p.h_lin[:k]
+    bounds[p.crush_cols, 1] = p.h_lin[k:k + kc]
+    G, h = p.G_lin[k + kc:], p.h_lin[k + kc:]
+    res = linprog(p.c, A_ub=G if G.shape[0] else None, b_ub=h if G.shape[0] else None,
+                  A_eq=p.A_eq, b_eq=p.b_eq, bounds=bounds, method=HIGHS_METHOD)
     status = LP_STATUS.get(res.status, f"status {res.status}")
+    if res.status != 0:
+        return status, str(res.message), None, None
+    return status, str(res.message), np.asarray(res.x), np.asarray(res.eqlin.marginals)
+
+
+def solve_limit(m: RigidModel, facets: int = friction.DEFAULT_FACETS, *, tension: bool = False,
+                dead_only: bool = False, normal_limit: np.ndarray | None = None,
+                solver: str = SOLVERS[0], proximal: float = 0.0,
+                compressive_Pa: float | None = None) -> LimitSolution:
+    """The programme of the module docstring for the rigid model ``m``; ``facets``: 0 for
+    Coulomb's cone, ``k >= 3`` for the pyramid of ``k`` facets; ``tension``: the joints'
+    tensile strength and cohesion (:mod:`.statics`) count; ``dead_only`` (or a model with no
+    growing load): whether the dead loads alone can be carried (no multiplier);
+    ``normal_limit`` (p,) N: friction of fixed capacity ``mu normal_limit`` instead of
+    ``mu N`` (a step of :func:`solve_non_associative`); ``solver``: one of :data:`SOLVERS`;
+    ``compressive_Pa``: the compressive strength ``f_c`` (None: infinite)."""
+    if solver not in SOLVERS:
+        raise ValueError(f"solver: one of {', '.join(SOLVERS)}, got {solver!r}")
+    if facets and facets < 3:
+        raise ValueError(f"facets: 0 (the cone) or at least 3, got {facets}")
+    t0 = time.perf_counter()
+    npt = m.points
+    with_lambda = not dead_only and m.factor is not None
+    prog = _programme(m, facets, tension, with_lambda, normal_limit, proximal, compressive_Pa)
+    t1 = time.perf_counter()
+    run = _solve_clarabel if solver == "clarabel" else _solve_highs
+    status, message, x, y = run(prog)
+    t2 = time.perf_counter()
     forces = np.zeros((npt, 3))
     velocity = np.zeros((m.bodies, 6))
     multiplier = None
-    if res.status == 0:
-        forces = res.x[:3 * npt].reshape(npt, 3) * W
+    if status == "optimal":
+        forces = x[:3 * npt].reshape(npt, 3) * prog.W
         if with_lambda:
-            multiplier = float(res.x[-1] * lam_scale)
-            velocity = _mechanism(m, res.eqlin.marginals, row_scale)
+            multiplier = float(x[-1] * prog.lam_scale)
+            velocity = _mechanism(m, y, prog.row_scale)
     counts = {"bodies": m.bodies, "free_bodies": int((~m.support).sum()), "points": npt,
-              "glued_points": int(m.glued.sum()), "variables": nvar,
-              "equations": int(A_eq.shape[0]), "inequalities": int(A_ub.shape[0]),
+              "glued_points": int(m.glued.sum()), "variables": len(prog.c),
+              "equations": int(prog.A_eq.shape[0]),
+              "inequalities": int(prog.G_lin.shape[0]), "cones": int(prog.G_soc.shape[0] // 3),
               "facets": facets}
-    return LimitSolution(status, str(res.message), multiplier, forces, velocity,
+    return LimitSolution(status, message, multiplier, forces, velocity,
                          point_velocities(m, velocity), counts,
                          {"assemble": t1 - t0, "solve": t2 - t1})
 
@@ -154,48 +293,78 @@ def _mechanism(m: RigidModel, marginals: np.ndarray, row_scale: np.ndarray) -> n
 
 
 
-#: The non-associative iteration has converged when its multiplier stays within ``rtol`` over
-#: this many steps.
-STEADY_STEPS = 3
+#: The non-associative iteration: the first and the largest weight of its proximal term (in
+#: the programme's units: forces in ``W``, the multiplier of order 1), the steps over which
+#: its multiplier must stay within ``rtol`` to have converged, and that tolerance.
+PROXIMAL = 0.002
+PROXIMAL_MAX = 0.05
+STEADY_STEPS = 5
+NON_ASSOCIATIVE_RTOL = 5e-3
 
 
 def solve_non_associative(m: RigidModel, facets: int = friction.DEFAULT_FACETS, *,
-                          tension: bool = False, relaxation: float = 0.5,
-                          rtol: float = 1e-4, max_iterations: int = 60
+                          tension: bool = False, proximal: float = PROXIMAL,
+                          rtol: float = NON_ASSOCIATIVE_RTOL, max_iterations: int = 60,
+                          solver: str = SOLVERS[0], compressive_Pa: float | None = None
                           ) -> tuple[LimitSolution, dict]:
     r"""The multiplier with Coulomb friction that does not dilate, by the iteration of fixed
-    friction capacities (Gilbert, Casapulla and Ahmed, Computers & Structures 84, 2006):
-    from the associative solution's normal forces ``N^0``, each step solves the programme with
-    the friction of each point bounded by ``mu Nbar_i`` (a capacity that does not depend on
-    the unknown ``N``, so the flow rule has no dilatancy), then updates
-    ``Nbar_{i+1} = Nbar_i + relaxation (N_i - Nbar_i)``, until the multiplier and the normal
-    the multiplier stays within ``rtol`` over :data:`STEADY_STEPS` steps (the normal forces of
-    a statically indeterminate assembly need not settle: many sets carry the same load). A step
-    whose programme has no solution (the fixed capacities too small for the dead loads) ends
-    the iteration at the step before. Returns the last optimal solution and the iteration's record: ``converged``, ``iterations``,
-    ``multipliers`` (one per step), ``associative`` (the first multiplier)."""
-    first = solve_limit(m, facets, tension=tension)
-    record = {"associative": first.multiplier, "multipliers": [], "converged": False,
-              "iterations": 0, "relaxation": relaxation, "rtol": rtol, "stopped_by": None}
+    friction capacities (Gilbert, Casapulla and Ahmed, Computers & Structures 84, 2006) made
+    proximal: from the associative solution's normal forces ``N^0``, step ``i`` solves the
+    programme with the friction of each point bounded by the fixed capacity ``mu Nbar_i`` (a
+    capacity that does not depend on the unknown ``N``: the flow rule has no dilatancy) and,
+    among the force sets that carry nearly the most, takes the one nearest ``Nbar_i``: it
+    maximises ``lambda - (proximal / 2) sum ((N - Nbar_i) / W)^2``; then ``Nbar_{i+1} = N_i``.
+    The weight starts at ``proximal`` and doubles (up to :data:`PROXIMAL_MAX`) at each step
+    where the multiplier turns back (it rose after falling, or fell after rising): a
+    monotone approach keeps its pace, an oscillation is damped.
+    A fixed point (``N = Nbar``) is a state of the non-associative model: its forces are
+    admissible with the friction their own normal forces give, and the proximal term, zero
+    there, leaves the multiplier that of the programme. The term keeps a statically
+    indeterminate assembly (the dome, the vault), whose normal forces are not unique, from
+    jumping from one force set to another between steps, the cause of the plain iteration's
+    wandering. The iteration has converged when the multiplier stays within ``rtol`` over
+    :data:`STEADY_STEPS` steps; the normal forces of an indeterminate assembly may still move
+    (``normal_change``, the largest change over the largest force, per step). A step without
+    solution ends it at the step before. Returns the last optimal solution and the record:
+    ``converged``, ``iterations``, ``multipliers`` and ``normal_change`` (one per step),
+    ``associative`` (the first multiplier), ``band`` (the least and largest multiplier of the
+    last :data:`STEADY_STEPS` steps)."""
+    first = solve_limit(m, facets, tension=tension, solver=solver,
+                        compressive_Pa=compressive_Pa)
+    record = {"method": "fixed friction capacities, proximal", "associative": first.multiplier,
+              "multipliers": [], "normal_change": [], "converged": False, "iterations": 0,
+              "proximal": proximal, "rtol": rtol, "steady_steps": STEADY_STEPS,
+              "band": None, "stopped_by": None}
     if first.status != "optimal" or first.multiplier is None:
         return first, record
     nbar = first.forces[:, 0].copy()
     last = first
     solve_s = first.times_s["solve"]
+    weight = proximal
+    record["weights"] = []
     for i in range(1, max_iterations + 1):
-        sol = solve_limit(m, facets, tension=tension, normal_limit=nbar)
+        lams = record["multipliers"]
+        if len(lams) >= 3 and (lams[-1] - lams[-2]) * (lams[-2] - lams[-3]) < 0.0:
+            weight = min(2.0 * weight, max(PROXIMAL_MAX, proximal))
+        record["weights"].append(weight)
+        sol = solve_limit(m, facets, tension=tension, normal_limit=nbar, solver=solver,
+                          proximal=weight, compressive_Pa=compressive_Pa)
         solve_s += sol.times_s["solve"]
         record["iterations"] = i
         if sol.status != "optimal" or sol.multiplier is None:
             record["stopped_by"] = f"step {i}: {sol.status}"
             break
+        N = sol.forces[:, 0]
         record["multipliers"].append(sol.multiplier)
+        record["normal_change"].append(
+            float(np.abs(N - nbar).max() / max(float(np.abs(N).max()), 1e-300)))
         last = sol
         recent = record["multipliers"][-STEADY_STEPS:]
+        record["band"] = [min(recent), max(recent)]
         if len(recent) == STEADY_STEPS and \
                 max(recent) - min(recent) <= rtol * max(abs(sol.multiplier), 1e-12):
             record["converged"] = True
             break
-        nbar = nbar + relaxation * (sol.forces[:, 0] - nbar)
+        nbar = N.copy()
     last.times_s = {**last.times_s, "solve": solve_s}
     return last, record

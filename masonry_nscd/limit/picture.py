@@ -4,7 +4,9 @@ Every hexahedron of every body is drawn as the outline of its projected nodes (t
 hull): the supports grey, the other bodies at rest in light grey and moved by the mechanism's
 velocity times ``magnify`` (by default so that the fastest node moves by 6 % of the scene's
 width) in colour; hinges are red dots at their pivots, sliding joints blue crosses at their
-centres, open joints orange squares. The title gives the multiplier and the mechanism's name.
+centres, open joints orange squares; an arch's line of thrust (:mod:`.thrust`) in purple
+through the points where each joint's resultant crosses it. The title gives the multiplier
+and the mechanism's name.
 Matplotlib through its object-oriented API (Agg), as the other figures.
 """
 
@@ -67,11 +69,16 @@ def draw_mechanism(path: Path, meshes, node_velocity, support: np.ndarray,
         pts = np.array([j["pivot_m"] or j["centre_m"] for j in joints]).reshape(-1, 3)
         if len(pts):
             ax.scatter(pts[:, 0], pts[:, 1], zorder=5, label=f"{label} ({len(pts)})", **style)
+    line = found.get("thrust_line") or []
+    if line:
+        xy = np.array([[r["x_m"], r["y_m"]] for r in line])
+        ax.plot(xy[:, 0], xy[:, 1], "-", color="tab:purple", lw=1.2, marker=".", ms=4,
+                zorder=6, label="line of thrust")
     ax.autoscale_view()
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_title(title, fontsize=10)
-    if any(found.get(k) for k in ("hinges", "sliding_joints", "open_joints")):
+    if any(found.get(k) for k in ("hinges", "sliding_joints", "open_joints", "thrust_line")):
         ax.legend(loc="upper right", fontsize=8)
     return save_png(fig, path)

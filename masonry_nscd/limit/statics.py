@@ -4,9 +4,11 @@ equilibrium matrix that links them.
 Every body is rigid. A rigid body of the scene keeps its reference point ``x_b`` (m) and its
 six dofs; a deformable block becomes the rigid body of its mesh
 (:meth:`masonry_nscd.model.RigidBody.from_mesh`: mass, centre of mass, inertia), whose reference
-point is its centre of mass. A body is a **support** when it is marked so or when all its dofs
-are imposed; an imposed dof of a free body (or a dof held by the scene) has no equilibrium row
-(its reaction is free).
+point is its centre of mass. A body is a **support** (fixed) when all its dofs are imposed; an
+imposed dof of another body (or a dof held by the scene) has no equilibrium row (its reaction
+is free). The scene's mark ``support`` says only on which side of a joint its points sit: a
+beam so marked whose vertical displacement and rotation are free (the dry stone wall's top
+beam) keeps their equilibrium rows.
 
 Interface points are the scene's contact points (:mod:`masonry_nscd.model.points`): position
 ``x_p`` (m), frame ``(n, t, s)`` with ``n`` from the antagonist (body ``a``) to the candidate
@@ -26,7 +28,10 @@ factor of the scene (``lambda``, the body-force multiplier; ``point_load_N``, a 
 once every ramp is over, so ``F_live`` is the load per unit of that factor and ``F_dead`` the
 rest (self-weight and the other loads); a deformable block's nodal loads are reduced to their
 resultant and moment about its reference point. A scene with no growing factor (a factor of
-rate zero) has only dead loads.
+rate zero) has only dead loads, unless it is a **push**: its driven body's x dof imposed and
+some other dof free (a wall sheared by its top beam). The push's growing load is then a
+horizontal force (``push_force_N``, N) on the driven body at its reference point, its x dof
+freed: the force the wall carries when the beam is pushed, the NSCD curve's ``F_x``.
 
 Blocks removed at a time (``Scene.removal``, ``loading.removal``) are out of the model whatever
 the time: no equilibrium rows, no interface points, no loads; the analysis is that of the
@@ -82,7 +87,7 @@ def _as_rigid(body) -> tuple[np.ndarray, bool, np.ndarray]:
     """Reference point, support flag and imposed-dof mask (6,) of a body taken as rigid."""
     if isinstance(body, RigidBody):
         imposed = np.asarray(body.dof_mode) == DOF_IMPOSED
-        return np.asarray(body.reference, float), bool(body.support or imposed.all()), imposed
+        return np.asarray(body.reference, float), bool(imposed.all()), imposed
     rigid = RigidBody.from_mesh(body.X, body.conn, body.density)
     return rigid.center, False, np.zeros(6, bool)
 
@@ -122,6 +127,30 @@ def split_loads(scene) -> tuple[np.ndarray, np.ndarray, str | None, str]:
     return F1, np.zeros(ndof), None, ""
 
 
+#: The growing load of a scene driven by a displacement (a push), by name and unit.
+PUSH_FACTOR = ("push_force_N", "N")
+
+
+def _push(scene, free: np.ndarray, live: np.ndarray) -> tuple[str | None, str]:
+    """Where a scene has no growing load but its driven body is pushed along x (its x dof
+    imposed, others free: the dry stone wall's top beam), the push as a growing force: the
+    dof is freed and a unit force along +x at the body's reference point is the live load
+    (``live`` and ``free`` changed in place). Returns the factor's name and unit, or
+    ``(None, "")`` when there is no such push."""
+    d = getattr(scene, "driven", None)
+    if d is None or scene.removal is not None and d in scene.removal.bodies:
+        return None, ""
+    body = scene.bodies[d]
+    if not isinstance(body, RigidBody):
+        return None, ""
+    imposed = np.asarray(body.dof_mode) == DOF_IMPOSED
+    if not imposed[0] or imposed.all() or any(h.body == d and h.dof == 0 for h in scene.holds):
+        return None, ""
+    free[6 * d] = True
+    live[6 * d] = 1.0
+    return PUSH_FACTOR
+
+
 def rigid_model(scene) -> RigidModel:
     """The scene as rigid blocks (module docstring)."""
     nb = len(scene.bodies)
@@ -144,6 +173,9 @@ def rigid_model(scene) -> RigidModel:
     law = np.array([p.law for p in pts], dtype=np.int64)
     P = np.asarray(scene.params)[law] if len(pts) else np.zeros((0, 16))
     dead, live, factor, unit = split_loads(scene)
+    live = _reduce(scene, live, ref)
+    if factor is None:  # a push: the driven dof's force grows (module docstring)
+        factor, unit = _push(scene, free, live)
     return RigidModel(
         names=[b.name or f"body {i}" for i, b in enumerate(scene.bodies)],
         reference=ref, support=support, free=free,
@@ -156,7 +188,7 @@ def rigid_model(scene) -> RigidModel:
         cohesion_Pa=P[:, P_B] * P[:, P_KII] * P[:, P_D2],
         glued=np.array([p.kind == KIND_GLUED for p in pts], bool),
         group=np.array([p.group for p in pts], np.int64),
-        dead=_reduce(scene, dead, ref), live=_reduce(scene, live, ref),
+        dead=_reduce(scene, dead, ref), live=live,
         factor=factor, factor_unit=unit, meshes=meshes)
 
 

@@ -25,7 +25,7 @@ class BracketError(ValueError):
 
 def threshold(load: Callable[[float], Any], bounds: tuple[float, float], *, rtol: float = 1e-5,
               max_steps: int = 60, facets: int = friction.DEFAULT_FACETS,
-              tension: bool = False) -> dict[str, Any]:
+              tension: bool = False, solver: str = "clarabel") -> dict[str, Any]:
     """The threshold of the module docstring; ``load(value)`` is the case at ``value``.
     Returns ``value`` (the middle of the last bracket), ``standing`` and ``falling`` (its
     ends), ``uncertainty`` (half its width), ``steps`` (one per case solved, each ``value``
@@ -34,7 +34,7 @@ def threshold(load: Callable[[float], Any], bounds: tuple[float, float], *, rtol
     steps = []
 
     def ok(v: float) -> bool:
-        s = stands(load(v), facets=facets, tension=tension)
+        s = stands(load(v), facets=facets, tension=tension, solver=solver)
         steps.append({"value": v, "stands": s})
         return s
 

@@ -86,18 +86,21 @@ def voussoir_mesh(d, alpha0: float, alpha1: float, halves: list[int]
 
 def base_ring(d) -> tuple[np.ndarray, np.ndarray]:
     """The fixed ring under the lowest course: ``2 n`` hexahedra whose top faces are the bed
-    faces of the lowest course's halves, ``thickness`` deep (m)."""
+    faces of the lowest course's halves, ``thickness`` deep (m). Neighbouring hexahedra share
+    their nodes, so the faces between them are inside the ring: they are no faces of its
+    boundary, where the detection would find them level with the head joints of the lowest
+    course, and make joints along the springing line that hold its voussoirs sideways."""
     radii = (d.radius_m - d.thickness_m / 2.0, d.radius_m + d.thickness_m / 2.0)
-    X, conn = [], []
-    for h in range(2 * d.voussoirs):
-        index = {}
-        for a, phi in enumerate((math.pi * h / d.voussoirs, math.pi * (h + 1) / d.voussoirs)):
-            for r, rho in enumerate(radii):
-                top = shell_point(d, rho, 0.0, phi)
-                for g, y in enumerate((-d.thickness_m, 0.0)):
-                    index[a, r, g] = len(X)
-                    X.append(np.array([top[0], y, top[2]]))
-        conn.append([index[c] for c in _HEX_CORNERS])
+    halves = 2 * d.voussoirs
+    X, index = [], {}
+    for h in range(halves):
+        phi = math.pi * h / d.voussoirs
+        for r, rho in enumerate(radii):
+            top = shell_point(d, rho, 0.0, phi)
+            for g, y in enumerate((-d.thickness_m, 0.0)):
+                index[h, r, g] = len(X)
+                X.append(np.array([top[0], y, top[2]]))
+    conn = [[index[(h + a) % halves, r, g] for a, r, g in _HEX_CORNERS] for h in range(halves)]
     return np.array(X), np.array(conn, dtype=np.int64)
 
 
