@@ -294,7 +294,8 @@ def stone_meshes(v, sec: ArchSection):
                     yield (f"{web} web {half} course {j} stone {m + 1}", mesh,
                            {"role": "web", "web": web, "half": half, "course": j})
     tol = 1e-9 * max(v.span_x_m, v.span_z_m)
-    for (corner, j), meshes in sorted(ribs.items(), key=lambda item: item[0] == "boss"):
+    for (corner, j), meshes in sorted(ribs.items(), key=lambda item: (item[0][0] == "boss",
+                                                                        item[0])):
         name = "boss" if corner == "boss" else f"diagonal rib {corner} voussoir {j - k}"
         yield name, merged(meshes, tol), {"role": "rib", "corner": corner, "course": j}
 
