@@ -126,7 +126,17 @@ def candidate_pairs(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         other = other[other != b]
         found.append(np.stack([np.minimum(other, b), np.maximum(other, b)], axis=1))
     pairs = np.concatenate(found).reshape(-1, 2)
-    return np.unique(pairs, axis=0) if len(pairs) else pairs
+    return _unique_pairs(pairs, n)
+
+
+def _unique_pairs(pairs: np.ndarray, n: int) -> np.ndarray:
+    """The distinct rows of ``pairs`` (k, 2) of indices below ``n``, sorted by ``i`` then
+    ``j``: as ``np.unique(pairs, axis=0)``, through the one integer ``i n + j`` per pair."""
+    if not len(pairs):
+        return pairs
+    key = np.sort(pairs[:, 0] * np.int64(n) + pairs[:, 1])  # a sort: np.unique hashes first,
+    key = key[np.r_[True, key[1:] != key[:-1]]]  # many times slower on millions of keys
+    return np.stack([key // n, key % n], axis=1)
 
 
 def _grid_pairs(lo: np.ndarray, hi: np.ndarray, cell: float) -> np.ndarray:
@@ -159,11 +169,15 @@ def _grid_pairs(lo: np.ndarray, hi: np.ndarray, cell: float) -> np.ndarray:
     first = np.repeat(np.arange(len(key)), later)
     offs = np.arange(len(first)) - np.repeat(np.cumsum(later) - later, later) + 1
     i, j = owner[first], owner[first + offs]
-    pairs = np.unique(np.stack([np.minimum(i, j), np.maximum(i, j)], axis=1), axis=0)
-    pairs = pairs[pairs[:, 0] != pairs[:, 1]]
-    ok = np.all((lo[pairs[:, 0]] <= hi[pairs[:, 1]]) & (lo[pairs[:, 1]] <= hi[pairs[:, 0]]),
-                axis=1)
-    return pairs[ok]
+    # a pair of boxes shares every cell of their common box: keep it in one, the cell of the
+    # common box's lowest corner, so that no pair comes twice
+    cm = np.maximum(c0[i], c0[j])
+    home = (cm[:, 2] * shape[1] + cm[:, 1]) * shape[0] + cm[:, 0] == key[first]
+    i, j = i[home], j[home]
+    ok = (i != j) & np.all((lo[i] <= hi[j]) & (lo[j] <= hi[i]), axis=1)
+    a, b = np.minimum(i[ok], j[ok]), np.maximum(i[ok], j[ok])
+    order = np.argsort(a * np.int64(n) + b)
+    return np.stack([a[order], b[order]], axis=1)
 
 
 def _is_candidate(a: Patch, b: Patch, bodies) -> bool:
@@ -195,7 +209,15 @@ def find_joints(bodies: Sequence, *, max_gap: float, gap_tol: float = 1e-6,
     cos_tol = np.cos(angle_tol)
     facing: dict[int, list[int]] = {}
     skewed = []
-    for i, j in candidate_pairs(lo, hi):
+    pairs = candidate_pairs(lo, hi)
+    # most pairs of boxes are faces of one body or faces that do not face each other: drop
+    # them at once, with a margin, before the exact tests below
+    body = np.array([p.body for p in patches])
+    normal = np.array([p.normal for p in patches])
+    dots = np.einsum("kd,kd->k", normal[pairs[:, 0]], normal[pairs[:, 1]])
+    widest = min(cos_tol, np.cos(SKEW_REPORTED))
+    pairs = pairs[(body[pairs[:, 0]] != body[pairs[:, 1]]) & (dots <= -widest + 1e-9)]
+    for i, j in pairs:
         a, b = patches[i], patches[j]
         if a.body == b.body:
             continue
@@ -377,6 +399,8 @@ def _merge_shared(xs: np.ndarray, areas: np.ndarray) -> tuple[np.ndarray, np.nda
     """Points of the quads of one face that coincide (within 1e-9 of the face's size): the
     areas (nq, k) with each first occurrence carrying the sum of its twins', and a mask
     (nq, k) of the later occurrences."""
+    if len(xs) == 1:  # the points of one quad are distinct
+        return areas, np.zeros(areas.shape, dtype=bool)
     flat = xs.reshape(-1, 3)
     size = float(np.ptp(flat, axis=0).max()) or 1.0
     keys = np.round((flat - flat.min(axis=0)) / (1e-9 * size)).astype(np.int64)

@@ -83,7 +83,7 @@ def face_frame(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     quadrilaterals, ``(P_1 - P_0) x (P_2 - P_0)`` and the mean of the corners for triangles."""
     if P.shape[-2] == 4:
         return quad_frame(P)
-    n = np.cross(P[..., 1, :] - P[..., 0, :], P[..., 2, :] - P[..., 0, :])
+    n = cross(P[..., 1, :] - P[..., 0, :], P[..., 2, :] - P[..., 0, :])
     return n / np.linalg.norm(n, axis=-1, keepdims=True), P.mean(axis=-2)
 
 
@@ -94,9 +94,19 @@ def shape4(xi, eta) -> np.ndarray:
                             (1 - xi) * (1 + eta)], axis=-1)
 
 
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a x b`` of vectors (..., 3), component by component: ``np.cross`` without its
+    axis handling, which costs more than the product on the few vectors of one face."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
+
 def quad_frame(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unit normal (from the diagonals, right-hand rule) and centre of quads ``P`` (..., 4, 3)."""
-    n = np.cross(P[..., 2, :] - P[..., 0, :], P[..., 3, :] - P[..., 1, :])
+    n = cross(P[..., 2, :] - P[..., 0, :], P[..., 3, :] - P[..., 1, :])
     return n / np.linalg.norm(n, axis=-1, keepdims=True), P.mean(axis=-2)
 
 
@@ -132,36 +142,41 @@ def gauss_points(P: np.ndarray, order: int, rule: str = "gauss"
     deta = 0.25 * np.stack([-(1 - xi), -(1 + xi), (1 + xi), (1 - xi)], axis=-1)
     a = np.einsum("ki,qid->qkd", dxi, P)
     b = np.einsum("ki,qid->qkd", deta, P)
-    return x, wt * np.linalg.norm(np.cross(a, b), axis=-1), np.stack([xi, eta], axis=1)
+    return x, wt * np.linalg.norm(cross(a, b), axis=-1), np.stack([xi, eta], axis=1)
 
 
 def locate(P: np.ndarray, x: np.ndarray, tol: float = 1e-9, iterations: int = 8):
     """Reference coordinates of points ``x`` (k, 3) in each of the quads ``P`` (m, 4, 3).
 
     Returns ``(xi, eta, inside)``, each (k, m): the points are projected on each quad's plane
-    and the bilinear map inverted; ``inside`` where ``|xi|, |eta| <= 1 + tol``.
+    and the bilinear map ``x(xi, eta) = c + xi a_1 + eta a_2 + xi eta a_3`` (in the plane)
+    inverted by Newton's method, ``J = [a_1 + eta a_3, a_2 + xi a_3]``; ``inside`` where
+    ``|xi|, |eta| <= 1 + tol``.
     """
     n, c = quad_frame(P)  # (m, 3)
     e1 = P[:, 1] - P[:, 0]
     e1 = e1 / np.linalg.norm(e1, axis=-1, keepdims=True)
-    e2 = np.cross(n, e1)
+    e2 = cross(n, e1)
     basis = np.stack([e1, e2], axis=1)  # (m, 2, 3)
-    p2 = np.einsum("mjd,mid->mij", basis, P - c[:, None, :])  # (m, 4, 2) corners in plane
+    p = np.einsum("mjd,mid->mij", basis, P - c[:, None, :])  # (m, 4, 2) corners in plane
     x2 = np.einsum("mjd,kmd->kmj", basis, x[:, None, :] - c[None, :, :])  # (k, m, 2)
-    ref = np.zeros(x2.shape)
+    a1 = 0.25 * (-p[:, 0] + p[:, 1] + p[:, 2] - p[:, 3])  # (m, 2)
+    a2 = 0.25 * (-p[:, 0] - p[:, 1] + p[:, 2] + p[:, 3])
+    a3 = 0.25 * (p[:, 0] - p[:, 1] + p[:, 2] - p[:, 3])
+    c0 = 0.25 * p.sum(axis=1)
+    xi = np.zeros(x2.shape[:2])
+    eta = np.zeros(x2.shape[:2])
     for _ in range(iterations):
-        xi, eta = ref[..., 0], ref[..., 1]
-        N = shape4(xi, eta)  # (k, m, 4)
-        r = np.einsum("kmi,mij->kmj", N, p2) - x2
-        dxi = 0.25 * np.stack([-(1 - eta), (1 - eta), (1 + eta), -(1 + eta)], axis=-1)
-        deta = 0.25 * np.stack([-(1 - xi), -(1 + xi), (1 + xi), (1 - xi)], axis=-1)
-        J = np.stack([np.einsum("kmi,mij->kmj", dxi, p2),
-                      np.einsum("kmi,mij->kmj", deta, p2)], axis=-1)  # (k, m, 2, 2)
-        step = np.linalg.solve(J, r[..., None])[..., 0]
-        ref = ref - step
-        if np.abs(step).max(initial=0.0) < 1e-14:
+        ja = a1 + eta[..., None] * a3  # d x / d xi, (k, m, 2)
+        jb = a2 + xi[..., None] * a3  # d x / d eta
+        r = c0 + xi[..., None] * a1 + eta[..., None] * a2 + (xi * eta)[..., None] * a3 - x2
+        det = ja[..., 0] * jb[..., 1] - ja[..., 1] * jb[..., 0]
+        d_xi = (jb[..., 1] * r[..., 0] - jb[..., 0] * r[..., 1]) / det
+        d_eta = (ja[..., 0] * r[..., 1] - ja[..., 1] * r[..., 0]) / det
+        xi = xi - d_xi
+        eta = eta - d_eta
+        if max(np.abs(d_xi).max(initial=0.0), np.abs(d_eta).max(initial=0.0)) < 1e-14:
             break
-    xi, eta = ref[..., 0], ref[..., 1]
     inside = (np.abs(xi) <= 1.0 + tol) & (np.abs(eta) <= 1.0 + tol)
     return xi, eta, inside
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from masonry_nscd.model.bodies import RigidBody
-from masonry_nscd.model.faces import face_shape
+from masonry_nscd.model.faces import cross, face_shape
 
 
 @dataclass
@@ -46,7 +46,7 @@ def frame_from(normal, tangent) -> np.ndarray:
     t = np.asarray(tangent, dtype=float)
     t = t - np.dot(t, n) * n
     t = t / np.linalg.norm(t)
-    return np.array([n, t, np.cross(n, t)])
+    return np.array([n, t, cross(n, t)])
 
 
 def joint_frame(normal) -> np.ndarray:
