@@ -58,6 +58,7 @@ from masonry_nscd.model.faces import (
     corner_count,
     gauss_points,
     locate,
+    locate_pairs,
     planar_patches,
     triangle_coordinates,
 )
@@ -263,21 +264,43 @@ def joint_points(bodies: Sequence, joints: Sequence[Joint],
                     f"body {patch.body}{f' ({b.name!r})' if b.name else ''} has triangular "
                     f"faces (a tetrahedral mesh): its joints take the contact-point rule "
                     f"'overlap', not {rule!r}")
-    out: list[ContactPoint] = []
-    faces = 0  # element faces of the candidates, numbered joint after joint
+    # first the points of every candidate face and their projections on its antagonists,
+    # then every point located in every antagonist quad at once (locate_pairs)
+    placed = []  # per joint: xs (nq, k, 3), areas (nq, k), ref (k, 2), [(gap, xa)] per antagonist
+    pair_quads, pair_points = [], []
     for jt in joints:
         cand = jt.candidate
-        cb = bodies[cand.body]
-        frame = joint_frame(jt.normal)
         n_out = cand.normal  # outward normal of the candidate face
-        xs, areas, ref = gauss_points(cb.X[cand.quads], n_gauss, rule)  # (nq, k, 3), (nq, k)
-        taken = np.zeros(xs.shape[:2], dtype=bool)
-        located = []
+        xs, areas, ref = gauss_points(bodies[cand.body].X[cand.quads], n_gauss, rule)
+        projected = []
         for ant in jt.antagonists:
             # distance from each point to the antagonist's plane, along the candidate's normal
             gap = (ant.offset - xs @ ant.normal) / (n_out @ ant.normal)
             xa = xs + gap[..., None] * n_out
-            located.append((gap, xa, *locate(bodies[ant.body].X[ant.quads], xa.reshape(-1, 3))))
+            projected.append((gap, xa))
+            P = bodies[ant.body].X[ant.quads]  # (m, 4, 3)
+            k = xa.shape[0] * xa.shape[1]
+            pair_quads.append(np.broadcast_to(P, (k, *P.shape)).reshape(-1, 4, 3))
+            pair_points.append(np.repeat(xa.reshape(-1, 3), len(P), axis=0))
+        placed.append((xs, areas, ref, projected))
+    xi_all, eta_all, inside_all = (locate_pairs(np.concatenate(pair_quads),
+                                                np.concatenate(pair_points))
+                                   if pair_quads else (None, None, None))
+    out: list[ContactPoint] = []
+    faces = 0  # element faces of the candidates, numbered joint after joint
+    at = 0  # the next located pair
+    for jt, (xs, areas, ref, projected) in zip(joints, placed, strict=True):
+        cand = jt.candidate
+        cb = bodies[cand.body]
+        frame = joint_frame(jt.normal)
+        taken = np.zeros(xs.shape[:2], dtype=bool)
+        located = []
+        for ant, (gap, xa) in zip(jt.antagonists, projected, strict=True):
+            k, m = xs.shape[0] * xs.shape[1], len(ant.quads)
+            sl = slice(at, at + k * m)
+            located.append((gap, xa, xi_all[sl].reshape(k, m), eta_all[sl].reshape(k, m),
+                            inside_all[sl].reshape(k, m)))
+            at += k * m
         shares = np.ones(xs.shape[:2])
         if rule != "gauss":
             areas, taken = _merge_shared(xs, areas)

@@ -148,31 +148,43 @@ def gauss_points(P: np.ndarray, order: int, rule: str = "gauss"
 def locate(P: np.ndarray, x: np.ndarray, tol: float = 1e-9, iterations: int = 8):
     """Reference coordinates of points ``x`` (k, 3) in each of the quads ``P`` (m, 4, 3).
 
-    Returns ``(xi, eta, inside)``, each (k, m): the points are projected on each quad's plane
-    and the bilinear map ``x(xi, eta) = c + xi a_1 + eta a_2 + xi eta a_3`` (in the plane)
+    Returns ``(xi, eta, inside)``, each (k, m): :func:`locate_pairs` of every point with
+    every quad."""
+    k, m = len(x), len(P)
+    xi, eta, inside = locate_pairs(np.broadcast_to(P, (k, m, 4, 3)).reshape(-1, 4, 3),
+                                   np.repeat(x, m, axis=0), tol, iterations)
+    return xi.reshape(k, m), eta.reshape(k, m), inside.reshape(k, m)
+
+
+def locate_pairs(P: np.ndarray, x: np.ndarray, tol: float = 1e-9, iterations: int = 8):
+    """Reference coordinates of each point ``x[i]`` (n, 3) in its quad ``P[i]`` (n, 4, 3).
+
+    Returns ``(xi, eta, inside)``, each (n,): the point is projected on the quad's plane and
+    the bilinear map ``x(xi, eta) = c + xi a_1 + eta a_2 + xi eta a_3`` (in the plane)
     inverted by Newton's method, ``J = [a_1 + eta a_3, a_2 + xi a_3]``; ``inside`` where
     ``|xi|, |eta| <= 1 + tol``.
     """
-    n, c = quad_frame(P)  # (m, 3)
+    n, c = quad_frame(P)  # (n, 3)
     e1 = P[:, 1] - P[:, 0]
     e1 = e1 / np.linalg.norm(e1, axis=-1, keepdims=True)
     e2 = cross(n, e1)
-    basis = np.stack([e1, e2], axis=1)  # (m, 2, 3)
-    p = np.einsum("mjd,mid->mij", basis, P - c[:, None, :])  # (m, 4, 2) corners in plane
-    x2 = np.einsum("mjd,kmd->kmj", basis, x[:, None, :] - c[None, :, :])  # (k, m, 2)
-    a1 = 0.25 * (-p[:, 0] + p[:, 1] + p[:, 2] - p[:, 3])  # (m, 2)
+    d = P - c[:, None, :]
+    p = np.stack([np.einsum("nd,nid->ni", e1, d), np.einsum("nd,nid->ni", e2, d)], axis=-1)
+    r0 = x - c
+    x2 = np.stack([np.einsum("nd,nd->n", e1, r0), np.einsum("nd,nd->n", e2, r0)], axis=-1)
+    a1 = 0.25 * (-p[:, 0] + p[:, 1] + p[:, 2] - p[:, 3])  # (n, 2), in the plane
     a2 = 0.25 * (-p[:, 0] - p[:, 1] + p[:, 2] + p[:, 3])
     a3 = 0.25 * (p[:, 0] - p[:, 1] + p[:, 2] - p[:, 3])
     c0 = 0.25 * p.sum(axis=1)
-    xi = np.zeros(x2.shape[:2])
-    eta = np.zeros(x2.shape[:2])
+    xi = np.zeros(len(x))
+    eta = np.zeros(len(x))
     for _ in range(iterations):
-        ja = a1 + eta[..., None] * a3  # d x / d xi, (k, m, 2)
-        jb = a2 + xi[..., None] * a3  # d x / d eta
-        r = c0 + xi[..., None] * a1 + eta[..., None] * a2 + (xi * eta)[..., None] * a3 - x2
-        det = ja[..., 0] * jb[..., 1] - ja[..., 1] * jb[..., 0]
-        d_xi = (jb[..., 1] * r[..., 0] - jb[..., 0] * r[..., 1]) / det
-        d_eta = (ja[..., 0] * r[..., 1] - ja[..., 1] * r[..., 0]) / det
+        ja = a1 + eta[:, None] * a3  # d x / d xi
+        jb = a2 + xi[:, None] * a3  # d x / d eta
+        r = c0 + xi[:, None] * a1 + eta[:, None] * a2 + (xi * eta)[:, None] * a3 - x2
+        det = ja[:, 0] * jb[:, 1] - ja[:, 1] * jb[:, 0]
+        d_xi = (jb[:, 1] * r[:, 0] - jb[:, 0] * r[:, 1]) / det
+        d_eta = (ja[:, 0] * r[:, 1] - ja[:, 1] * r[:, 0]) / det
         xi = xi - d_xi
         eta = eta - d_eta
         if max(np.abs(d_xi).max(initial=0.0), np.abs(d_eta).max(initial=0.0)) < 1e-14:
