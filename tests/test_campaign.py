@@ -149,3 +149,13 @@ def test_failure_class():
     assert campaign.failure_class("rocking, diagonal stair-step") == 0.5
     assert campaign.failure_class("n/a") is None
     assert math.isclose(campaign.relative_error(115.0, 100.0), 0.15)
+
+
+def test_envelope_of_a_backbone():
+    # a curve listed from the largest pull to the largest push is its own envelope
+    u = np.array([-3, -1, 0, 2, 4.0])
+    f = np.array([-9, -5, 0, 6, 8.0])
+    eu, ef = campaign.envelope(u, f, 1.0)
+    assert eu.tolist() == [2, 4] and ef.tolist() == [6, 8]
+    eu, ef = campaign.envelope(u, f, -1.0)
+    assert eu.tolist() == [1, 3] and ef.tolist() == [5, 9]

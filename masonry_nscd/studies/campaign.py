@@ -28,7 +28,8 @@ Outputs: ``runs/<test>/`` (the usual run folders of a batch, :mod:`~masonry_nscd
 ``cases/<test>.yaml`` (the cases as run), ``campaign.csv`` (per test: measured and predicted
 peak, drift at the peak, initial stiffness and failure class, the relative errors; the
 statistics in ``campaign_stats.json``), ``peaks.png`` (predicted against measured peaks) and
-``curves/<test>.png`` (the predicted curve over the measured envelope).
+``curves/<test>.png`` (the predicted curve over the measured one and its envelopes) and
+``curves.png`` (all of them, one panel each).
 
 Definitions. Measured peak: the mean of the two directions' peaks where both are measured.
 Initial stiffness: the secant at 15 % of the peak (the tables' definition), of the predicted
@@ -65,6 +66,7 @@ CAMPAIGN_MARKER = "campaign.json"
 TABLE_FILE = "campaign.csv"
 STATS_FILE = "campaign_stats.json"
 PEAKS_FILE = "peaks.png"
+CURVES_FILE = "curves.png"
 #: Shear span over height above which a test is a cantilever.
 CANTILEVER_RATIO = 0.75
 #: Push to this multiple of the larger measured drift at the peak.
@@ -238,8 +240,14 @@ def secant_stiffness(u_mm: np.ndarray, f_kN: np.ndarray, fraction: float = SECAN
 
 def envelope(u_mm: np.ndarray, f_kN: np.ndarray, sign: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """The envelope of a cyclic curve in one direction: the points where ``sign * u`` passes
-    its largest earlier value (the first excursions), as positive numbers."""
+    its largest earlier value (the first excursions), as positive numbers. A curve whose
+    displacements never decrease is already an envelope (a backbone listed from the largest
+    pull to the largest push): its points on the ``sign`` side, from the origin out."""
     u, f = sign * np.asarray(u_mm, float), sign * np.asarray(f_kN, float)
+    if len(u) > 1 and np.all(np.diff(sign * u) >= 0):
+        side = np.flatnonzero(u > 0)
+        order = side[np.argsort(u[side], kind="stable")]
+        return u[order], f[order]
     keep, top = [], 0.0
     for k, x in enumerate(u):
         if x > top:
@@ -405,6 +413,34 @@ def plot_curve(name: str, record: Any, measured_curve: tuple[np.ndarray, np.ndar
     return path
 
 
+def plot_all_curves(names: Sequence[str], records: Sequence[Any],
+                    measured_curves: Sequence[tuple[np.ndarray, np.ndarray] | None],
+                    path: Path) -> Path:
+    """Every test's predicted curve over its measured envelopes, one panel each."""
+    from matplotlib.figure import Figure
+
+    cols = 4
+    rows_n = -(-len(names) // cols)
+    fig = Figure(figsize=(3.2 * cols, 2.5 * rows_n), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(rows_n, cols)).ravel()
+    for ax, name, rec, meas in zip(axes, names, records, measured_curves, strict=False):
+        if meas is not None and len(meas[0]):
+            for sign, style in ((1.0, "-"), (-1.0, "--")):
+                eu, ef = envelope(*meas, sign)
+                if len(eu):
+                    ax.plot(eu, ef, "k" + style, lw=1.0)
+        if rec is not None and rec.ok and rec.curve:
+            ax.plot(rec.curve["ux_mm"], rec.curve["fx_kN"], "C3-", lw=1.3)
+        ax.set_title(name, fontsize=9)
+        ax.tick_params(labelsize=7)
+    for ax in axes[len(names):]:
+        ax.set_axis_off()
+    fig.supxlabel("top displacement (mm)")
+    fig.supylabel("horizontal force (kN): model red, measured envelopes black (pull dashed)")
+    fig.savefig(path, dpi=100)
+    return path
+
+
 @dataclass
 class CampaignResult:
     """The rows of ``campaign.csv``, its statistics and the files written."""
@@ -445,11 +481,14 @@ def run_campaign(tests: Path, template: Path, outdir: Path, *, only: Sequence[st
     try:
         plot_peaks(out, outdir / PEAKS_FILE)
         (outdir / "curves").mkdir(exist_ok=True)
+        curves = []
         for p, r in zip(points, records, strict=True):
             curve_file = rows[p.name].get("curve", "").strip()
             path = Path(tests).parent / curve_file if curve_file else None
             meas = read_measured_curve(path) if path is not None and path.is_file() else None
+            curves.append(meas)
             plot_curve(p.name, r, meas, outdir / "curves" / f"{p.name}.png")
+        plot_all_curves([p.name for p in points], records, curves, outdir / CURVES_FILE)
     except (OSError, ValueError) as exc:  # the table is written: a figure must not lose it
         echo(f"no figure: {type(exc).__name__}: {exc}")
     return CampaignResult(out, stats, table)
