@@ -16,7 +16,7 @@ from masonry_nscd.studies import campaign
 
 ROOT = Path(__file__).resolve().parents[1]
 TESTS_CSV = ROOT / "tests" / "data" / "stone_walls_tests.csv"
-TEMPLATE = ROOT / "cases" / "campaign_stone_walls.yaml"
+TEMPLATE = ROOT / "cases" / "campaign" / "stone_walls.yaml"
 
 
 def _row(name: str) -> dict[str, str]:
