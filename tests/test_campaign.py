@@ -159,3 +159,18 @@ def test_envelope_of_a_backbone():
     assert eu.tolist() == [2, 4] and ef.tolist() == [6, 8]
     eu, ef = campaign.envelope(u, f, -1.0)
     assert eu.tolist() == [1, 3] and ef.tolist() == [5, 9]
+
+
+def test_command_dry_run_and_bad_only(tmp_path):
+    from typer.testing import CliRunner
+
+    from masonry_nscd.cli import app
+
+    runner = CliRunner()
+    res = runner.invoke(app, ["campaign", str(TESTS_CSV), "--template", str(TEMPLATE), "-o",
+                              str(tmp_path / "c"), "--only", "SC7,R4", "--dry-run"])
+    assert res.exit_code == 0, res.output
+    assert sorted(p.stem for p in (tmp_path / "c" / "cases").glob("*.yaml")) == ["R4", "SC7"]
+    res = runner.invoke(app, ["campaign", str(TESTS_CSV), "--template", str(TEMPLATE), "-o",
+                              str(tmp_path / "d"), "--only", "XX", "--dry-run"])
+    assert res.exit_code == 2 and "XX" in res.output
