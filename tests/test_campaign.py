@@ -174,3 +174,26 @@ def test_command_dry_run_and_bad_only(tmp_path):
     res = runner.invoke(app, ["campaign", str(TESTS_CSV), "--template", str(TEMPLATE), "-o",
                               str(tmp_path / "d"), "--only", "XX", "--dry-run"])
     assert res.exit_code == 2 and "XX" in res.output
+
+
+def test_result_row_of_a_made_up_run():
+    from masonry_nscd.studies.point import RunRecord
+
+    point = campaign.campaign_points(TESTS_CSV, TEMPLATE, ["SC7"])[0]
+    record = RunRecord("SC7", "ok", curve={"ux_mm": [0.0, 0.5, 1.0, 2.0],
+                                           "fx_kN": [0.0, 50.0, 100.0, 80.0]},
+                       outputs={"failure_mode_at_peak": {"mode": "diagonal stair-step"}})
+    row = campaign.result_row(_row("SC7"), point, record)
+    assert row["rig"] == "fixed-fixed"
+    assert row["predicted_peak_kN"] == 100.0
+    assert row["peak_error"] == pytest.approx(100 / 103 - 1)
+    assert row["predicted_drift_pct"] == pytest.approx(1.0 / 900 * 100)    # 1 mm of 0.9 m
+    assert row["drift_ratio"] == pytest.approx((1.0 / 9) / 0.64)
+    assert row["predicted_stiffness_kN_mm"] == pytest.approx(100.0)      # 15 kN at 0.15 mm
+    assert row["stiffness_ratio"] == pytest.approx(100 / 216)
+    assert row["predicted_class"] == 0.0 == row["measured_class"]
+    stats = campaign.campaign_statistics([row, {**row, "drift_ratio": 1.9, "stiffness_ratio": 1.6,
+                                                "predicted_class": 1.0, "peak_error": 0.3}])
+    assert stats["peak"]["within"] == 1 and stats["peak"]["count"] == 2    # -2.9 % and +30 %
+    assert stats["drift_within_factor_2"] == 1 and stats["stiffness_within_factor_1.5"] == 0
+    assert stats["class_right"] == 1
