@@ -24,7 +24,8 @@ Materials
     The rules of :mod:`masonry_nscd.materials.rules` (joint and ENDO3D units), the same for
     every row.
 
-Outputs: ``runs/<test>/`` (the usual run folders of a batch, :mod:`~masonry_nscd.studies.batch`),
+Outputs: ``runs/<test>/`` (the usual run folders of a batch, :mod:`~masonry_nscd.studies.batch`,
+kept when the same campaign runs again; ``runs.csv`` the batch's own table of them),
 ``cases/<test>.yaml`` (the cases as run), ``campaign.csv`` (per test: measured and predicted
 peak, drift at the peak, initial stiffness and failure class, the relative errors; the
 statistics in ``campaign_stats.json``), ``peaks.png`` (predicted against measured peaks) and
