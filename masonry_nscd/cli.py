@@ -1018,6 +1018,54 @@ def sweep_cmd(
               + ", ".join(f"{r.name} ({r.status})" for r in result.failed), 1)
 
 
+@app.command("campaign")
+def campaign_cmd(
+    tests: Annotated[Path, typer.Argument(metavar="TESTS.csv",
+                                          help="Table of tested walls (stone_walls/tests.csv).")],
+    template: Annotated[Path, typer.Option(
+        "--template", metavar="CASE.yaml",
+        help="Case whose mesh, solver and outputs every test's run takes.")],
+    output: Annotated[Path, typer.Option("-o", "--output", metavar="OUTDIR",
+                                         help="Campaign folder.")],
+    only: Annotated[str | None, typer.Option(
+        "--only", metavar="TEST,...", help="Run these tests only (names of the test column).")
+    ] = None,
+    dry_run: Annotated[bool, typer.Option(
+        "--dry-run", help="Write and validate the cases only.")] = False,
+    workers: WorkersOption = None,
+) -> None:
+    """Predict tested walls from their material tests: one monotonic run per row.
+
+    Writes OUTDIR/cases/TEST.yaml, OUTDIR/campaign.csv (predicted against measured peak, drift
+    at the peak, initial stiffness, failure class, errors), OUTDIR/campaign_stats.json,
+    OUTDIR/peaks.png and OUTDIR/curves/TEST.png (docs/campaign.md). Exit 1 when a run did not
+    finish.
+    """
+    _load_case_or_exit(template)
+    from masonry_nscd.studies.campaign import SweepError, run_campaign
+
+    names = [n.strip() for n in only.split(",") if n.strip()] if only else []
+    try:
+        result = run_campaign(tests, template, output, only=names, dry_run=dry_run,
+                              workers=workers, echo=typer.echo)
+    except SweepError as exc:
+        _fail_list("cannot start the campaign", exc.messages, 2)
+    except OSError as exc:
+        _fail(f"cannot read or write: {exc}", 2)
+    except KeyboardInterrupt:
+        _fail(f"interrupted; running the same command again keeps the finished runs in "
+              f"{output}", 130)
+    typer.echo(f"wrote {result.table}")
+    if not dry_run:
+        peak = result.stats.get("peak", {})
+        if peak.get("count"):
+            typer.echo(f"peak: median absolute error {100 * peak['median_abs_error']:.1f} %, "
+                       f"{peak['within']} of {peak['count']} within 15 %")
+        bad = [r["test"] for r in result.rows if r.get("status") != "ok"]
+        if bad:
+            _fail(f"{len(bad)} of {len(result.rows)} runs did not finish: {', '.join(bad)}", 1)
+
+
 @app.command("sensitivity")
 def sensitivity_cmd(
     case_file: Annotated[Path, typer.Argument(metavar="CASE.yaml", help="The case file (YAML).")],

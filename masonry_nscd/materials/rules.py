@@ -1,0 +1,139 @@
+"""Parameter rules: from a tested wall's material tests to the model's joint and unit parameters.
+
+Pure functions on plain numbers (inputs in the units of the test tables: MPa, mm; outputs in
+SI, as a case file takes them). The same rules for every wall: nothing here is fitted to a
+wall's own force-displacement curve. docs/campaign.md lists the rules with their sources.
+
+Joint (the project's ``fczm`` law, docs/model.md section 2):
+
+- normal stiffness from the series-spring relation of a prism of units and joints,
+  ``1/E_m = 1/E_u + 1/(h K_n)`` (h the unit height), so ``K_n = E_u E_m / (h (E_u - E_m))``;
+  the whole joint flexibility is the spring's (``d_spring = 0``);
+- shear stiffness ``K_t = K_n / (2 (1 + nu))``: the ratio G/E of an isotropic joint layer;
+- cohesive stiffnesses ten times the spring's, so that an uncracked joint is as stiff as its
+  spring within 10 %;
+- cohesion (mean initial shear strength) from the mortar's class by the characteristic
+  initial shear strength f_vk0 of Eurocode 6 (EN 1996-1-1, table 3.4, natural stone units)
+  divided by 0.8 (EN 1052-3: characteristic = 0.8 mean); tensile bond ``f_t = c / 1.4``
+  (Lourenco's micro-model parameters, c about 1.4 f_t); friction coefficient 0.7 (granite and
+  sandstone joints: Vasconcelos and Lourenco 2009 measured 0.63 to 0.74);
+- fracture energies by Lourenco's recommended ratios: ``G_fI = 0.029 f_t`` and
+  ``G_fII = 0.125 c`` (f_t, c in MPa, G in N/mm, i.e. kJ/m^2);
+- a virgin joint (``d_coh_initial = 0``): the joint's own strengths are the mortar's.
+
+Units (ENDO3D, docs/model.md section 3): ``E``, ``R_c`` the units' tested modulus and
+strength; ``R_t = 0.1 R_c``; tensile peak strain ``R_t / E``; tensile fracture energy of
+fib Model Code 2010 (``G_F = 73 f_c^0.18`` N/m); compressive peak strain ``2 R_c / E`` (the
+secant modulus at the peak half the initial one); the rest as the project's study wall.
+"""
+
+from __future__ import annotations
+
+#: Poisson's ratio of the joint layer and of the units (isotropic assumption).
+NU = 0.2
+#: Cohesive stiffness over spring stiffness (dimensionless).
+COHESIVE_OVER_SPRING = 10.0
+#: Characteristic over mean value of a strength (EN 1052-3).
+CHARACTERISTIC_OVER_MEAN = 0.8
+#: Cohesion over tensile bond strength (Lourenco's micro-model parameters).
+COHESION_OVER_TENSION = 1.4
+#: Friction coefficient of stone joints (Vasconcelos and Lourenco 2009: 0.63 to 0.74).
+FRICTION = 0.7
+#: Mode I and mode II fracture energies per unit strength (mm = kJ/m^2 per MPa; Lourenco).
+G_FI_PER_FT_MM = 0.029
+G_FII_PER_C_MM = 0.125
+#: Units' tensile over compressive strength.
+TENSION_OVER_COMPRESSION = 0.1
+#: Units' compressive peak strain over R_c / E.
+PEAK_STRAIN_FACTOR = 2.0
+#: Unit weight assumed by the test tables for the self-weight (N/m^3).
+UNIT_WEIGHT_N_M3 = 20e3
+GRAVITY_M_S2 = 9.81
+
+
+def joint_normal_stiffness(E_masonry_MPa: float, E_unit_MPa: float, unit_height_mm: float) -> float:
+    """Normal stiffness of a bed joint (Pa/m) from ``1/E_m = 1/E_u + 1/(h K_n)``.
+
+    A prism of units of height h and joints in series: the masonry's modulus E_m (compression
+    test of the masonry), the units' E_u (their own test). ``K_n = E_u E_m / (h (E_u - E_m))``.
+    Raises ValueError when E_m >= E_u (the joints cannot be stiffer than the units' rule
+    allows) or a value is not positive.
+    """
+    if min(E_masonry_MPa, E_unit_MPa, unit_height_mm) <= 0:
+        raise ValueError("moduli and unit height must be positive")
+    if E_masonry_MPa >= E_unit_MPa:
+        raise ValueError(f"masonry modulus {E_masonry_MPa} MPa not below the units' "
+                         f"{E_unit_MPa} MPa: the series-spring rule gives no joint stiffness")
+    h_m = unit_height_mm * 1e-3
+    return E_unit_MPa * E_masonry_MPa * 1e6 / (h_m * (E_unit_MPa - E_masonry_MPa))
+
+
+def joint_shear_stiffness(K_n_Pa_m: float, nu: float = NU) -> float:
+    """Shear stiffness of a joint (Pa/m): ``K_t = K_n / (2 (1 + nu))``, the ratio G/E of an
+    isotropic layer."""
+    return K_n_Pa_m / (2.0 * (1.0 + nu))
+
+
+def eurocode6_fvk0_MPa(mortar_fc_MPa: float) -> float:
+    """Characteristic initial shear strength f_vk0 (MPa) of natural stone units with general
+    purpose mortar by the mortar's strength class (EN 1996-1-1, table 3.4): M1-M2 (below
+    2.5 MPa) 0.10; M2.5-M9 0.15; M10-M20 0.20."""
+    if mortar_fc_MPa < 2.5:
+        return 0.10
+    if mortar_fc_MPa < 10.0:
+        return 0.15
+    return 0.20
+
+
+def joint_cohesion_MPa(mortar_fc_MPa: float) -> float:
+    """Mean cohesion c (MPa): ``f_vk0 / 0.8`` (:func:`eurocode6_fvk0_MPa`)."""
+    return eurocode6_fvk0_MPa(mortar_fc_MPa) / CHARACTERISTIC_OVER_MEAN
+
+
+def joint_tensile_bond_MPa(cohesion_MPa: float) -> float:
+    """Tensile bond strength f_t (MPa) = c / 1.4."""
+    return cohesion_MPa / COHESION_OVER_TENSION
+
+
+def fracture_energies_J_m2(ft_MPa: float, c_MPa: float) -> tuple[float, float]:
+    """Mode I and II fracture energies (J/m^2): ``G_fI = 0.029 f_t``, ``G_fII = 0.125 c``
+    (MPa -> N/mm; 1 N/mm = 1000 J/m^2)."""
+    return G_FI_PER_FT_MM * ft_MPa * 1e3, G_FII_PER_C_MM * c_MPa * 1e3
+
+
+def joint_parameters(E_masonry_MPa: float, E_unit_MPa: float, unit_height_mm: float,
+                     mortar_fc_MPa: float) -> dict[str, float]:
+    """The ``joint`` section (fczm law, SI) of the rules above."""
+    K_n = joint_normal_stiffness(E_masonry_MPa, E_unit_MPa, unit_height_mm)
+    K_t = joint_shear_stiffness(K_n)
+    c = joint_cohesion_MPa(mortar_fc_MPa)
+    ft = joint_tensile_bond_MPa(c)
+    G_I, G_II = fracture_energies_J_m2(ft, c)
+    return {
+        "law": "fczm", "K_I_spring_Pa_m": K_n, "K_II_spring_Pa_m": K_t, "d_spring": 0.0,
+        "sigma_I_e_Pa": ft * 1e6, "K_I_coh_Pa_m": COHESIVE_OVER_SPRING * K_n, "G_fI_J_m2": G_I,
+        "sigma_II_e_Pa": c * 1e6, "K_II_coh_Pa_m": COHESIVE_OVER_SPRING * K_t,
+        "G_fII_J_m2": G_II, "d_coh_initial": 0.0, "mu": FRICTION, "p": 1.0,
+    }
+
+
+def tensile_fracture_energy_J_m2(fc_MPa: float) -> float:
+    """Tensile fracture energy of the units (J/m^2): fib Model Code 2010, ``73 f_c^0.18``."""
+    return 73.0 * fc_MPa ** 0.18
+
+
+def unit_parameters(unit_fc_MPa: float, unit_E_MPa: float) -> dict[str, float]:
+    """The ENDO3D numbers of the units (SI) from their strength and modulus."""
+    E = unit_E_MPa * 1e6
+    R_c = unit_fc_MPa * 1e6
+    R_t = TENSION_OVER_COMPRESSION * R_c
+    return {
+        "E_Pa": E, "nu": NU, "R_t_Pa": R_t, "eps_pic_t": R_t / E,
+        "G_ft_J_m2": tensile_fracture_energy_J_m2(unit_fc_MPa), "R_c_Pa": R_c,
+        "eps_pic_c": PEAK_STRAIN_FACTOR * R_c / E,
+    }
+
+
+def density_kg_m3() -> float:
+    """Density of the units (kg/m^3): the tables' unit weight of 20 kN/m^3."""
+    return UNIT_WEIGHT_N_M3 / GRAVITY_M_S2

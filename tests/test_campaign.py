@@ -1,0 +1,199 @@
+"""The campaign of tested walls: the parameter rules on hand-computed numbers, the case made
+for a row, the dry run on the shipped table, the statistics on made-up numbers."""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from masonry_nscd.case import case_from_dict, read_yaml
+from masonry_nscd.materials import rules
+from masonry_nscd.studies import campaign
+
+ROOT = Path(__file__).resolve().parents[1]
+TESTS_CSV = ROOT / "tests" / "data" / "stone_walls_tests.csv"
+TEMPLATE = ROOT / "cases" / "campaign" / "stone_walls.yaml"
+
+
+def _row(name: str) -> dict[str, str]:
+    with open(TESTS_CSV, newline="") as f:
+        return next(r for r in csv.DictReader(f) if r["test"] == name)
+
+
+# --- the rules ------------------------------------------------------------------------------
+
+
+def test_joint_stiffness_series_spring():
+    # E_m = E_u / 2: the joints as compliant as the units, h K_n = E_u
+    assert rules.joint_normal_stiffness(5000, 10000, 100) == pytest.approx(1e11, rel=1e-12)
+    # the relation it inverts, on a tested row's numbers
+    K = rules.joint_normal_stiffness(360, 26000, 300)
+    assert 1 / 26000e6 + 1 / (0.3 * K) == pytest.approx(1 / 360e6, rel=1e-12)
+    assert rules.joint_shear_stiffness(1e11) == pytest.approx(1e11 / 2.4, rel=1e-12)
+    with pytest.raises(ValueError):
+        rules.joint_normal_stiffness(20000, 20000, 100)
+
+
+def test_joint_strengths_and_energies():
+    assert rules.joint_cohesion_MPa(1.0) == pytest.approx(0.125)      # M1: 0.10 / 0.8
+    assert rules.joint_cohesion_MPa(4.08) == pytest.approx(0.1875)    # M2.5-M9: 0.15 / 0.8
+    assert rules.joint_cohesion_MPa(12.0) == pytest.approx(0.25)      # M10-M20: 0.20 / 0.8
+    assert rules.joint_tensile_bond_MPa(0.14) == pytest.approx(0.1)
+    G_I, G_II = rules.fracture_energies_J_m2(0.1, 0.2)
+    assert G_I == pytest.approx(2.9) and G_II == pytest.approx(25.0)
+    j = rules.joint_parameters(5000, 10000, 100, 1.0)
+    assert j["K_I_spring_Pa_m"] == pytest.approx(1e11) and j["d_spring"] == 0.0
+    assert j["sigma_II_e_Pa"] == pytest.approx(1.25e5)
+    assert j["sigma_I_e_Pa"] == pytest.approx(1.25e5 / 1.4)
+    assert j["K_I_coh_Pa_m"] == pytest.approx(1e12) and j["d_coh_initial"] == 0.0
+
+
+def test_unit_parameters():
+    u = rules.unit_parameters(50.0, 20000.0)
+    assert u["E_Pa"] == 2e10 and u["R_c_Pa"] == 5e7 and u["R_t_Pa"] == pytest.approx(5e6)
+    assert u["eps_pic_t"] == pytest.approx(2.5e-4) and u["eps_pic_c"] == pytest.approx(5e-3)
+    assert rules.tensile_fracture_energy_J_m2(10.0) == pytest.approx(73 * 10 ** 0.18)
+    assert rules.tensile_fracture_energy_J_m2(10.0) == pytest.approx(110.49, rel=1e-4)
+    assert rules.density_kg_m3() * 9.81 == pytest.approx(20e3)
+
+
+# --- one row's case -------------------------------------------------------------------------
+
+
+def test_case_for_fixed_fixed_row():
+    base = read_yaml(TEMPLATE.read_text())
+    case = case_from_dict(campaign.case_for_row(base, _row("SC7")))
+    w = case.wall
+    # 900 x 900 mm with 10 mm joints: 7 courses of 120 mm, 5 units of 172 mm (units 110-140 x
+    # 150-200 mm: means 125 and 175)
+    assert (w.courses, w.units_per_course) == (7, 5)
+    assert w.unit_height_m == pytest.approx(0.120) and w.unit_length_m == pytest.approx(0.172)
+    assert w.half_unit_length_m == pytest.approx(0.081)
+    assert w.wall_length_m == pytest.approx(0.9) and w.wall_height_m == pytest.approx(0.9)
+    assert w.thickness_m == pytest.approx(0.2)
+    assert case.supports.top_rotation == "fixed"            # H0 = H / 2
+    assert case.loading.vertical_stress.value_Pa == pytest.approx(1.15e6)
+    assert case.loading.horizontal.target_m == pytest.approx(1.5 * 0.0064 * 0.9)
+    # K_n = E_u E_m / (h (E_u - E_m)) = 16900 x 5328 MPa^2 / (0.120 m x 11572 MPa)
+    assert case.joint.K_I_spring_Pa_m == pytest.approx(6.48428e10, rel=1e-5)
+    assert case.joint.sigma_II_e_Pa == pytest.approx(0.1875e6)   # mortar 4.08 MPa
+    assert case.blocks.E_Pa == pytest.approx(16.9e9)
+    assert case.blocks.endo3d.R_c_Pa == pytest.approx(65.6e6)
+
+
+def test_case_for_cantilever_row():
+    base = read_yaml(TEMPLATE.read_text())
+    case = case_from_dict(campaign.case_for_row(base, _row("R4")))
+    # 1200 mm long with 900 mm units: two units per course at least, (1200 - 10) / 2 each
+    assert (case.wall.courses, case.wall.units_per_course) == (4, 2)
+    assert case.wall.unit_length_m == pytest.approx(0.595)
+    assert case.supports.top_rotation == "free"             # H0 / H = 1950 / 1800
+    assert case.supports.load_height_m == pytest.approx(0.150)
+    # the larger drift at the peak, 1.01 %, of the 1.8 m wall, times 1.5
+    assert case.loading.horizontal.target_m == pytest.approx(1.5 * 0.0101 * 1.8)
+
+
+def test_number_and_measured():
+    assert campaign.number("110-140") == 125.0
+    assert campaign.number("") is None
+    assert campaign.measured(_row("PG1"))["peak_kN"] == pytest.approx((105.6 + 112.5) / 2)
+    assert campaign.measured(_row("SC7"))["peak_kN"] == pytest.approx(103.0)
+
+
+def test_dry_run_validates_every_row(tmp_path):
+    result = campaign.run_campaign(TESTS_CSV, TEMPLATE, tmp_path / "c", dry_run=True,
+                                   echo=lambda s: None)
+    assert len(result.rows) == 14
+    assert len(list((tmp_path / "c" / "cases").glob("*.yaml"))) == 14
+    assert (tmp_path / "c" / "campaign.csv").is_file()
+
+
+def test_only_refuses_an_unknown_test(tmp_path):
+    with pytest.raises(campaign.SweepError):
+        campaign.run_campaign(TESTS_CSV, TEMPLATE, tmp_path / "c", only=["XX"], dry_run=True,
+                              echo=lambda s: None)
+
+
+# --- curves and statistics ------------------------------------------------------------------
+
+
+def test_statistics_on_made_up_errors():
+    s = campaign.statistics_of([0.1, -0.2, 0.05, None, 0.15])
+    assert s["count"] == 4 and s["within"] == 3
+    assert s["median_abs_error"] == pytest.approx(0.125)
+    assert s["mean_error"] == pytest.approx(0.025)
+    assert campaign.statistics_of([None])["count"] == 0
+
+
+def test_secant_and_envelope():
+    # 15 % of 100 kN is reached half way between 1 and 2 mm
+    assert campaign.secant_stiffness(np.array([0, 1, 2, 3.0]),
+                                     np.array([0, 10, 20, 100.0])) == pytest.approx(10.0)
+    u = np.array([0, 1, 0, -1, 0, 2, 1, -2, 0.0])
+    f = np.array([0, 5, 0, -4, 0, 8, 2, -7, 0.0])
+    eu, ef = campaign.envelope(u, f, 1.0)
+    assert eu.tolist() == [1, 2] and ef.tolist() == [5, 8]
+    eu, ef = campaign.envelope(u, f, -1.0)
+    assert eu.tolist() == [1, 2] and ef.tolist() == [4, 7]
+
+
+def test_failure_class():
+    assert campaign.failure_class("diagonal stair-step") == 0.0
+    assert campaign.failure_class("base sliding") == 0.0
+    assert campaign.failure_class("rocking") == 1.0
+    assert campaign.failure_class("rocking, toe crushing") == 1.0
+    assert campaign.failure_class("rocking, diagonal stair-step") == 0.5
+    assert campaign.failure_class("n/a") is None
+    assert math.isclose(campaign.relative_error(115.0, 100.0), 0.15)
+
+
+def test_envelope_of_a_backbone():
+    # a curve listed from the largest pull to the largest push is its own envelope
+    u = np.array([-3, -1, 0, 2, 4.0])
+    f = np.array([-9, -5, 0, 6, 8.0])
+    eu, ef = campaign.envelope(u, f, 1.0)
+    assert eu.tolist() == [2, 4] and ef.tolist() == [6, 8]
+    eu, ef = campaign.envelope(u, f, -1.0)
+    assert eu.tolist() == [1, 3] and ef.tolist() == [5, 9]
+
+
+def test_command_dry_run_and_bad_only(tmp_path):
+    from typer.testing import CliRunner
+
+    from masonry_nscd.cli import app
+
+    runner = CliRunner()
+    res = runner.invoke(app, ["campaign", str(TESTS_CSV), "--template", str(TEMPLATE), "-o",
+                              str(tmp_path / "c"), "--only", "SC7,R4", "--dry-run"])
+    assert res.exit_code == 0, res.output
+    assert sorted(p.stem for p in (tmp_path / "c" / "cases").glob("*.yaml")) == ["R4", "SC7"]
+    res = runner.invoke(app, ["campaign", str(TESTS_CSV), "--template", str(TEMPLATE), "-o",
+                              str(tmp_path / "d"), "--only", "XX", "--dry-run"])
+    assert res.exit_code == 2 and "XX" in res.output
+
+
+def test_result_row_of_a_made_up_run():
+    from masonry_nscd.studies.point import RunRecord
+
+    point = campaign.campaign_points(TESTS_CSV, TEMPLATE, ["SC7"])[0]
+    record = RunRecord("SC7", "ok", curve={"ux_mm": [0.0, 0.5, 1.0, 2.0],
+                                           "fx_kN": [0.0, 50.0, 100.0, 80.0]},
+                       outputs={"failure_mode_at_peak": {"mode": "diagonal stair-step"}})
+    row = campaign.result_row(_row("SC7"), point, record)
+    assert row["rig"] == "fixed-fixed"
+    assert row["predicted_peak_kN"] == 100.0
+    assert row["peak_error"] == pytest.approx(100 / 103 - 1)
+    assert row["predicted_drift_pct"] == pytest.approx(1.0 / 900 * 100)    # 1 mm of 0.9 m
+    assert row["drift_ratio"] == pytest.approx((1.0 / 9) / 0.64)
+    assert row["predicted_stiffness_kN_mm"] == pytest.approx(100.0)      # 15 kN at 0.15 mm
+    assert row["stiffness_ratio"] == pytest.approx(100 / 216)
+    assert row["predicted_class"] == 0.0 == row["measured_class"]
+    stats = campaign.campaign_statistics([row, {**row, "drift_ratio": 1.9, "stiffness_ratio": 1.6,
+                                                "predicted_class": 1.0, "peak_error": 0.3}])
+    assert stats["peak"]["within"] == 1 and stats["peak"]["count"] == 2    # -2.9 % and +30 %
+    assert stats["drift_within_factor_2"] == 1 and stats["stiffness_within_factor_1.5"] == 0
+    assert stats["class_right"] == 1
