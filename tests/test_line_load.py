@@ -81,13 +81,8 @@ def test_the_resultant_is_the_load_per_metre_times_the_length_and_each_block_its
 def test_the_supports_carry_the_line_load_with_the_weights(tmp_path):
     """At rest under gravity and the line load (both ramped over 0.1 s), the ground carries
     both boxes' weights and the load's resultant, to the solver's tolerance."""
-    scene = build_scene(case_from_dict(_case(tmp_path)))
-    integ = scene.integrator(0.0)
-    for _ in range(150):
-        integ.step()
-    fy = scene.reaction_weights(integ.sys.side_body)["top"] @ integ.point_forces()
-    weights = sum(RHO * G * (x1 - x0) * (y1 - y0) * DEPTH for n, x0, x1, y0, y1 in BOXES
-                  if n != "ground")
+    fy = _ground_force_at_rest(build_scene(case_from_dict(_case(tmp_path))))
+    weights = _weights()
     load = -Q[1] * np.linalg.norm(np.subtract(TO, FROM))
     assert fy[1] == pytest.approx(weights + load, rel=1e-6)
     assert fy[0] == pytest.approx(0.0, abs=1e-6 * (weights + load))
@@ -114,15 +109,25 @@ def test_block_loads_put_the_force_on_each_named_block_and_the_ground_carries_th
     for i, b in enumerate(scene.bodies):
         expect = [0.0, -3000.0, 0.0] if b.name in ("left", "right") else [0.0, 0.0, 0.0]
         assert pattern[d0[i]:d0[i] + 3] == pytest.approx(expect, abs=1e-9)
-    integ = scene.integrator(0.0)
-    for _ in range(150):
-        integ.step()
-    fy = scene.reaction_weights(integ.sys.side_body)["top"] @ integ.point_forces()
-    weights = sum(RHO * G * (x1 - x0) * (y1 - y0) * DEPTH for n, x0, x1, y0, y1 in BOXES
-                  if n != "ground")
-    assert fy[1] == pytest.approx(weights + 6000.0, rel=1e-6)
+    fy = _ground_force_at_rest(scene)
+    assert fy[1] == pytest.approx(_weights() + 6000.0, rel=1e-6)
     path = tmp_path / "bad.yaml"
     d["loading"]["block_loads"][0]["blocks"] = ["left", "centre"]
     path.write_text(json.dumps(d))
     res = CliRunner().invoke(app, ["validate", str(path)])
     assert res.exit_code == 2 and "loading.block_loads[0].blocks[1]: got 'centre'" in res.output
+
+
+def _ground_force_at_rest(scene) -> np.ndarray:
+    """The force the ground carries after 150 steps (0.3 s: the loads' 0.1 s ramps and rest),
+    N."""
+    integ = scene.integrator(0.0)
+    for _ in range(150):
+        integ.step()
+    return scene.reaction_weights(integ.sys.side_body)["top"] @ integ.point_forces()
+
+
+def _weights() -> float:
+    """The boxes' weights (the ground aside), N."""
+    return sum(RHO * G * (x1 - x0) * (y1 - y0) * DEPTH for n, x0, x1, y0, y1 in BOXES
+               if n != "ground")
