@@ -1033,8 +1033,12 @@ def campaign_cmd(
     dry_run: Annotated[bool, typer.Option(
         "--dry-run", help="Write and validate the cases only.")] = False,
     workers: WorkersOption = None,
+    cyclic: Annotated[bool, typer.Option(
+        "--cyclic", help="Cyclic tests run reversed cycles (0.25, 0.5, 1 times the push's "
+        "target), with the energy of the last cycle against the measured.")] = False,
 ) -> None:
-    """Predict tested walls from their material tests: one monotonic run per row.
+    """Predict tested walls from their material tests: one run per row, monotonic (or cyclic
+    for cyclic tests with --cyclic).
 
     Writes OUTDIR/cases/TEST.yaml, OUTDIR/campaign.csv (predicted against measured peak, drift
     at the peak, initial stiffness, failure class, errors), OUTDIR/campaign_stats.json,
@@ -1047,7 +1051,7 @@ def campaign_cmd(
     names = [n.strip() for n in only.split(",") if n.strip()] if only else []
     try:
         result = run_campaign(tests, template, output, only=names, dry_run=dry_run,
-                              workers=workers, echo=typer.echo)
+                              workers=workers, cyclic=cyclic, echo=typer.echo)
     except SweepError as exc:
         _fail_list("cannot start the campaign", exc.messages, 2)
     except OSError as exc:

@@ -197,3 +197,32 @@ def test_result_row_of_a_made_up_run():
     assert stats["peak"]["within"] == 1 and stats["peak"]["count"] == 2    # -2.9 % and +30 %
     assert stats["drift_within_factor_2"] == 1 and stats["stiffness_within_factor_1.5"] == 0
     assert stats["class_right"] == 1
+
+
+def test_energy_per_cycle_of_a_rigid_plastic_and_an_elastic_loop():
+    """A rigid-plastic loop of force +-F0 between +-U takes 4 F0 U per cycle (ratio 1); an
+    elastic line takes none (ratio 0); cycles are cut at the upward crossings of u = 0."""
+    U, F0 = 2.0, 10.0
+    one = [(0.0, 0.0), (0.0, F0), (U, F0), (U, -F0), (-U, -F0), (-U, F0), (0.0, F0)]
+    u, f = (np.array(c) for c in zip(*(one + one[1:]), strict=True))
+    cycles = campaign.energy_per_cycle(u, f)
+    assert len(cycles) == 2
+    for c in cycles:
+        assert c["amplitude_mm"] == pytest.approx(U)
+        assert c["energy_J"] == pytest.approx(4.0 * F0 * U)
+        assert c["ratio"] == pytest.approx(1.0)
+    t = np.linspace(0.0, 2.0 * np.pi, 401)
+    (elastic,) = campaign.energy_per_cycle(U * np.sin(t), 5.0 * U * np.sin(t))
+    assert elastic["ratio"] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_cyclic_option_makes_cycles_of_a_cyclic_row_only():
+    """With ``cyclic`` a cyclic row's push is reversed cycles of 0.25, 0.5 and 1 times its
+    target; the monotonic test (SC7) stays monotonic."""
+    base = read_yaml(TEMPLATE.read_text())
+    h = case_from_dict(campaign.case_for_row(base, _row("R4"), cyclic=True)).loading.horizontal
+    target = 1.5 * 0.0101 * 1.8
+    assert h.history == "cyclic" and h.cycles_per_amplitude == 1
+    assert h.amplitudes_m == pytest.approx([0.25 * target, 0.5 * target, target])
+    mono = case_from_dict(campaign.case_for_row(base, _row("SC7"), cyclic=True))
+    assert mono.loading.horizontal.history == "monotonic"

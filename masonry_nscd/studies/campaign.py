@@ -17,9 +17,11 @@ Rig
 Loads
     The applied vertical stress (the self-weight comes from gravity and the units' density,
     the tables' 20 kN/m^3), and a monotonic push to 1.5 times the larger measured drift at the
-    peak. Cyclic tests run monotonic: the first step of the campaign compares the envelope of
-    the measured cycles with the monotonic curve. The push lasts as long as the template's
-    (its target over its rate), so a tall push is a faster one.
+    peak. Cyclic tests run monotonic, compared with the envelope of the measured cycles,
+    unless ``cyclic``: then reversed cycles of 0.25, 0.5 and 1 times that target, one each,
+    and the energy of the last cycle against ``4 F_max U_max`` beside the measured cycle of
+    the nearest amplitude. The push lasts as long as the template's (its target over its
+    rate), so a tall push is a faster one.
 Materials
     The rules of :mod:`masonry_nscd.materials.rules` (joint and ENDO3D units), the same for
     every row.
@@ -49,6 +51,7 @@ import math
 import statistics
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from itertools import pairwise
 from pathlib import Path
 from typing import Any
 
@@ -72,6 +75,9 @@ CURVES_FILE = "curves.png"
 CANTILEVER_RATIO = 0.75
 #: Push to this multiple of the larger measured drift at the peak.
 PUSH_FACTOR = 1.5
+#: ``--cyclic``: the amplitudes of a cyclic row's reversed cycles, one cycle each, as fractions
+#: of its push's target (the largest is the target itself)
+CYCLE_FRACTIONS = (0.25, 0.5, 1.0)
 #: Within this relative error a prediction "hits".
 HIT = 0.15
 #: Secant stiffness at this fraction of the peak.
@@ -142,8 +148,10 @@ def wall_layout(L_mm: float, H_mm: float, unit_length_mm: float, unit_height_mm:
             "unit_length_mm": length, "half_unit_length_mm": (length - joint_mm) / 2.0}
 
 
-def case_for_row(template: dict[str, Any], row: dict[str, str]) -> dict[str, Any]:
-    """The template's case (a mapping as read from YAML) made into the row's test."""
+def case_for_row(template: dict[str, Any], row: dict[str, str], cyclic: bool = False
+                 ) -> dict[str, Any]:
+    """The template's case (a mapping as read from YAML) made into the row's test; with
+    ``cyclic``, a cyclic row's push is reversed cycles of ``CYCLE_FRACTIONS`` of its target."""
     d = copy.deepcopy(template)
     name = row["test"].strip()
     H, L, t = number(row["H_mm"]), number(row["L_mm"]), number(row["t_mm"])
@@ -182,17 +190,22 @@ def case_for_row(template: dict[str, Any], row: dict[str, str]) -> dict[str, Any
     duration = float(hor.get("target_m", 0.010)) / float(hor.get("rate_m_s", 0.002))
     target = PUSH_FACTOR * measured(row)["max_drift_pct"] / 100.0 * H * 1e-3
     hor.update({"target_m": target, "rate_m_s": target / duration})
+    run_cyclic = cyclic and row.get("loading", "").strip().lower() == "cyclic"
+    if run_cyclic:
+        hor.update({"history": "cyclic", "cycles_per_amplitude": 1,
+                    "amplitudes_m": [f * target for f in CYCLE_FRACTIONS]})
     d["name"] = name
     d["description"] = (f"{row.get('reference', '').strip()} {name}: {L:g} x {H:g} x {t:g} mm, "
                         f"H0 {H0:g} mm, {row.get('loading', '').strip().lower()} test run "
-                        "monotonic, parameters from the material tests (masonry_nscd.materials."
-                        "rules)")
+                        f"{'cyclic' if run_cyclic else 'monotonic'}, parameters from the "
+                        "material tests (masonry_nscd.materials.rules)")
     return d
 
 
-def campaign_points(tests: Path, template: Path, only: Sequence[str] = ()) -> list[Point]:
-    """The validated case of every row (or of the rows ``only``); :class:`SweepError` listing
-    every problem."""
+def campaign_points(tests: Path, template: Path, only: Sequence[str] = (),
+                    cyclic: bool = False) -> list[Point]:
+    """The validated case of every row (or of the rows ``only``; cyclic rows cyclic with
+    ``cyclic``); :class:`SweepError` listing every problem."""
     rows = read_tests(tests)
     names = [r["test"].strip() for r in rows]
     unknown = [o for o in only if o not in names]
@@ -205,7 +218,8 @@ def campaign_points(tests: Path, template: Path, only: Sequence[str] = ()) -> li
         if only and name not in only:
             continue
         try:
-            case = case_from_dict(case_for_row(base, row), case_dir=Path(template).parent)
+            case = case_from_dict(case_for_row(base, row, cyclic),
+                                  case_dir=Path(template).parent)
         except CaseError as exc:
             problems += [f"{name}: {m}" for m in exc.messages]
             continue
@@ -256,6 +270,29 @@ def envelope(u_mm: np.ndarray, f_kN: np.ndarray, sign: float = 1.0) -> tuple[np.
             top = x
     keep = np.asarray(keep, int)
     return u[keep], f[keep]
+
+
+def energy_per_cycle(u_mm: np.ndarray, f_kN: np.ndarray) -> list[dict[str, float]]:
+    """The cycles of a history of top displacement ``u_mm`` and force ``f_kN``, each from an
+    upward crossing of u = 0 to the next: its amplitude ``U`` (the largest ``|u|``, mm), the
+    work the wall took ``E = oint F du`` (trapezoids, kN mm = J), and ``E / (4 F_max U)`` with
+    ``F_max`` its largest ``|F|`` (1 for a rigid-plastic loop, 0 for an elastic one)."""
+    u, f = np.asarray(u_mm, float), np.asarray(f_kN, float)
+    if len(u) < 2:
+        return []
+    up = np.flatnonzero((u[:-1] < 0.0) & (u[1:] >= 0.0)) + 1
+    moved = np.flatnonzero(u != 0.0)
+    first = max(int(moved[0]) - 1, 0) if len(moved) else 0  # the last sample at rest
+    ends = np.unique(np.r_[first, up, len(u) - 1])
+    out = []
+    for a, b in pairwise(ends):
+        uu, ff = u[a:b + 1], f[a:b + 1]
+        U, F = float(np.abs(uu).max()), float(np.abs(ff).max())
+        if U <= 0.0 or F <= 0.0 or uu.max() <= 0.0 or uu.min() >= 0.0:
+            continue  # not a reversed cycle
+        E = float(np.sum(0.5 * (ff[1:] + ff[:-1]) * np.diff(uu)))
+        out.append({"amplitude_mm": U, "energy_J": E, "ratio": E / (4.0 * F * U)})
+    return out
 
 
 def failure_class(mode: str | None) -> float | None:
@@ -311,11 +348,15 @@ def read_measured_curve(path: Path) -> tuple[np.ndarray, np.ndarray]:
 COLUMNS = ("test", "rig", "sigma0_MPa", "measured_peak_kN", "predicted_peak_kN", "peak_error",
            "measured_drift_pct", "predicted_drift_pct", "drift_ratio",
            "measured_stiffness_kN_mm", "predicted_stiffness_kN_mm", "stiffness_ratio",
-           "measured_class", "predicted_class", "failure_mode_at_peak", "status", "run_time_s")
+           "measured_class", "predicted_class", "failure_mode_at_peak",
+           "predicted_cycle_amplitude_mm", "predicted_cycle_ratio", "measured_cycle_amplitude_mm",
+           "measured_cycle_ratio", "status", "run_time_s")
 
 
-def result_row(row: dict[str, str], point: Point, record: Any) -> dict[str, Any]:
-    """One line of ``campaign.csv``."""
+def result_row(row: dict[str, str], point: Point, record: Any,
+               measured_curve: tuple[np.ndarray, np.ndarray] | None = None) -> dict[str, Any]:
+    """One line of ``campaign.csv``; for a cyclic run, the energy of its last cycle against
+    ``4 F_max U_max`` and the measured cycle nearest its amplitude (:func:`energy_per_cycle`)."""
     meas = measured(row)
     case = case_from_dict(read_yaml(point.case_yaml))
     H = case.wall.wall_height_m * 1e3
@@ -345,6 +386,16 @@ def result_row(row: dict[str, str], point: Point, record: Any) -> dict[str, Any]
             out["drift_ratio"] = out["predicted_drift_pct"] / meas["drift_pct"]
         if meas["stiffness_kN_mm"] and out["predicted_stiffness_kN_mm"]:
             out["stiffness_ratio"] = out["predicted_stiffness_kN_mm"] / meas["stiffness_kN_mm"]
+        cycles = energy_per_cycle(u, f) if case.loading.horizontal.history == "cyclic" else []
+        if cycles:
+            last = cycles[-1]
+            out["predicted_cycle_amplitude_mm"] = last["amplitude_mm"]
+            out["predicted_cycle_ratio"] = last["ratio"]
+            tested = energy_per_cycle(*measured_curve) if measured_curve is not None else []
+            if tested:
+                near = min(tested, key=lambda c: abs(c["amplitude_mm"] - last["amplitude_mm"]))
+                out["measured_cycle_amplitude_mm"] = near["amplitude_mm"]
+                out["measured_cycle_ratio"] = near["ratio"]
     return out
 
 
@@ -452,11 +503,11 @@ class CampaignResult:
 
 
 def run_campaign(tests: Path, template: Path, outdir: Path, *, only: Sequence[str] = (),
-                 dry_run: bool = False, workers: int | None = None,
+                 dry_run: bool = False, workers: int | None = None, cyclic: bool = False,
                  echo: Callable[[str], None] = print) -> CampaignResult:
     """Validate every row's case, write them to OUTDIR/cases, then (unless ``dry_run``) run
-    them and write the comparison (module docstring)."""
-    points = campaign_points(tests, template, only)
+    them and write the comparison (module docstring; cyclic rows cyclic with ``cyclic``)."""
+    points = campaign_points(tests, template, only, cyclic)
     rows = {r["test"].strip(): r for r in read_tests(tests)}
     outdir = Path(outdir)
     description = {"tests": str(tests), "template": str(template), "runs": [p.name for p in points]}
@@ -475,19 +526,20 @@ def run_campaign(tests: Path, template: Path, outdir: Path, *, only: Sequence[st
                               table=outdir / "runs.csv", param_paths=[],
                               intro=f"{len(points)} tested walls in {outdir / batch.RUNS_DIR}",
                               workers=workers, keep_curve=True, echo=echo)
-    out = [result_row(rows[p.name], p, r) for p, r in zip(points, records, strict=True)]
+    curves = []
+    for p in points:
+        curve_file = rows[p.name].get("curve", "").strip()
+        path = Path(tests).parent / curve_file if curve_file else None
+        curves.append(read_measured_curve(path) if path is not None and path.is_file() else None)
+    out = [result_row(rows[p.name], p, r, c)
+           for p, r, c in zip(points, records, curves, strict=True)]
     write_rows(table, out)
     stats = campaign_statistics(out)
     (outdir / STATS_FILE).write_text(json.dumps(stats, indent=2) + "\n")
     try:
         plot_peaks(out, outdir / PEAKS_FILE)
         (outdir / "curves").mkdir(exist_ok=True)
-        curves = []
-        for p, r in zip(points, records, strict=True):
-            curve_file = rows[p.name].get("curve", "").strip()
-            path = Path(tests).parent / curve_file if curve_file else None
-            meas = read_measured_curve(path) if path is not None and path.is_file() else None
-            curves.append(meas)
+        for p, r, meas in zip(points, records, curves, strict=True):
             plot_curve(p.name, r, meas, outdir / "curves" / f"{p.name}.png")
         plot_all_curves([p.name for p in points], records, curves, outdir / CURVES_FILE)
     except (OSError, ValueError) as exc:  # the table is written: a figure must not lose it
