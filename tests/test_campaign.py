@@ -226,3 +226,15 @@ def test_cyclic_option_makes_cycles_of_a_cyclic_row_only():
     assert h.amplitudes_m == pytest.approx([0.25 * target, 0.5 * target, target])
     mono = case_from_dict(campaign.case_for_row(base, _row("SC7"), cyclic=True))
     assert mono.loading.horizontal.history == "monotonic"
+
+
+def test_energy_per_cycle_ignores_noise_at_zero_and_envelopes():
+    """Jitter of a measured signal around u = 0 does not cut a cycle in pieces, and a curve
+    whose displacements never decrease (an envelope) has no cycles."""
+    t = np.linspace(0.0, 4.0 * np.pi, 2001)
+    u = 3.0 * np.sin(t) + 0.01 * np.cos(97.0 * t)
+    f = 10.0 * np.cos(t)  # a circle in (u/U, f/F): E = pi U F per cycle
+    cycles = campaign.energy_per_cycle(u, f)
+    assert len(cycles) == 2
+    assert cycles[0]["ratio"] == pytest.approx(np.pi / 4.0, rel=0.02)
+    assert campaign.energy_per_cycle(np.linspace(-3.0, 3.0, 50), np.linspace(-9.0, 9.0, 50)) == []

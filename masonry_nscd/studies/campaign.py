@@ -272,25 +272,45 @@ def envelope(u_mm: np.ndarray, f_kN: np.ndarray, sign: float = 1.0) -> tuple[np.
     return u[keep], f[keep]
 
 
-def energy_per_cycle(u_mm: np.ndarray, f_kN: np.ndarray) -> list[dict[str, float]]:
-    """The cycles of a history of top displacement ``u_mm`` and force ``f_kN``, each from an
-    upward crossing of u = 0 to the next: its amplitude ``U`` (the largest ``|u|``, mm), the
-    work the wall took ``E = oint F du`` (trapezoids, kN mm = J), and ``E / (4 F_max U)`` with
-    ``F_max`` its largest ``|F|`` (1 for a rigid-plastic loop, 0 for an elastic one)."""
+#: :func:`energy_per_cycle`: a cycle ends where u comes back to zero from below ``-BAND`` times
+#: the history's largest ``|u|`` (a measured signal crosses zero many times in its noise)
+CYCLE_BAND = 0.02
+
+
+def energy_per_cycle(u_mm: np.ndarray, f_kN: np.ndarray, band: float = CYCLE_BAND
+                     ) -> list[dict[str, float]]:
+    """The reversed cycles of a history of top displacement ``u_mm`` and force ``f_kN``, each
+    from one upward return of u to zero to the next (a return counts after u went below
+    ``-band max|u|``): its amplitude ``U`` (the largest ``|u|``, mm), the work the wall took
+    ``E = oint F du`` (trapezoids, kN mm = J), and ``E / (4 F_max U)`` with ``F_max`` its
+    largest ``|F|`` (1 for a rigid-plastic loop, 0 for an elastic one). A closed loop encloses
+    at most its bounding box, ``4 F_max U``: a stretch of a measured signal that would take
+    more is a glitch, not a cycle, and is left out. None for a curve whose displacements never
+    decrease (an envelope)."""
     u, f = np.asarray(u_mm, float), np.asarray(f_kN, float)
-    if len(u) < 2:
+    if len(u) < 2 or np.all(np.diff(u) >= 0.0):
         return []
-    up = np.flatnonzero((u[:-1] < 0.0) & (u[1:] >= 0.0)) + 1
+    low = -band * float(np.abs(u).max())
     moved = np.flatnonzero(u != 0.0)
-    first = max(int(moved[0]) - 1, 0) if len(moved) else 0  # the last sample at rest
-    ends = np.unique(np.r_[first, up, len(u) - 1])
+    ends = [max(int(moved[0]) - 1, 0)] if len(moved) else [0]  # the last sample at rest
+    below = False
+    for k in range(len(u)):
+        if u[k] < low:
+            below = True
+        elif below and u[k] >= 0.0:
+            ends.append(k)
+            below = False
+    if ends[-1] != len(u) - 1:
+        ends.append(len(u) - 1)
     out = []
     for a, b in pairwise(ends):
         uu, ff = u[a:b + 1], f[a:b + 1]
         U, F = float(np.abs(uu).max()), float(np.abs(ff).max())
-        if U <= 0.0 or F <= 0.0 or uu.max() <= 0.0 or uu.min() >= 0.0:
+        if U <= 0.0 or F <= 0.0 or uu.max() <= 0.0 or uu.min() >= low:
             continue  # not a reversed cycle
         E = float(np.sum(0.5 * (ff[1:] + ff[:-1]) * np.diff(uu)))
+        if abs(E) > 4.0 * F * U:
+            continue  # more than its bounding box holds: not a closed loop (a glitch)
         out.append({"amplitude_mm": U, "energy_J": E, "ratio": E / (4.0 * F * U)})
     return out
 
