@@ -59,6 +59,8 @@ import numpy as np
 
 from masonry_nscd.case import CaseError, case_from_dict, case_to_yaml, read_yaml
 from masonry_nscd.materials import rules
+from masonry_nscd.post.cycles import loop_work
+from masonry_nscd.report import first_crossing
 from masonry_nscd.studies import batch
 from masonry_nscd.studies.batch import Point, SweepError
 
@@ -240,17 +242,16 @@ def campaign_points(tests: Path, template: Path, only: Sequence[str] = (),
 def secant_stiffness(u_mm: np.ndarray, f_kN: np.ndarray, fraction: float = SECANT_FRACTION
                      ) -> float | None:
     """Secant stiffness (kN/mm) at the first point where the force reaches ``fraction`` of its
-    largest value (linear interpolation between the two points around it)."""
+    largest value (:func:`masonry_nscd.report.first_crossing`; the first point itself where the
+    curve starts above that level)."""
     u, f = np.asarray(u_mm, float), np.asarray(f_kN, float)
     if len(f) < 2 or not np.max(f) > 0:
         return None
     level = fraction * np.max(f)
-    i = int(np.argmax(f >= level))
-    if i == 0:
+    if f[0] >= level:  # the curve starts above the level: its first point
         return float(f[0] / u[0]) if u[0] > 0 else None
-    s = (level - f[i - 1]) / (f[i] - f[i - 1])
-    u_at = u[i - 1] + s * (u[i] - u[i - 1])
-    return float(level / u_at) if u_at > 0 else None
+    u_at = first_crossing(u, f, level)
+    return float(level / u_at) if u_at is not None and u_at > 0 else None
 
 
 def envelope(u_mm: np.ndarray, f_kN: np.ndarray, sign: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
@@ -308,7 +309,7 @@ def energy_per_cycle(u_mm: np.ndarray, f_kN: np.ndarray, band: float = CYCLE_BAN
         U, F = float(np.abs(uu).max()), float(np.abs(ff).max())
         if U <= 0.0 or F <= 0.0 or uu.max() <= 0.0 or uu.min() >= low:
             continue  # not a reversed cycle
-        E = float(np.sum(0.5 * (ff[1:] + ff[:-1]) * np.diff(uu)))
+        E = loop_work(uu, ff)
         if abs(E) > 4.0 * F * U:
             continue  # more than its bounding box holds: not a closed loop (a glitch)
         out.append({"amplitude_mm": U, "energy_J": E, "ratio": E / (4.0 * F * U)})
