@@ -36,6 +36,7 @@ of the first support of the list.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -135,9 +136,31 @@ def _points_rule(a, blocks: AssemblyBlocks, rule: str) -> str:
          f"rule overlap, not {rule!r}")])
 
 
+#: The last assembly read: ``(key, blocks)``, the key the section and the mesh file's size and
+#: time; a case is checked (``check``) and then built from the same file
+_LAST_READ: tuple[tuple, AssemblyBlocks] | None = None
+
+
 def read_assembly(a) -> AssemblyBlocks:
     """Read and check the mesh of the ``assembly`` section ``a`` (module docstring);
-    AssemblyError naming the field and the blocks."""
+    AssemblyError naming the field and the blocks. The blocks of the last section read are
+    kept, and given again while the section and its mesh file are unchanged."""
+    global _LAST_READ
+    try:
+        st = os.stat(a.mesh_file)
+        key = (a.model_dump_json(), st.st_mtime_ns, st.st_size)
+    except (OSError, TypeError):
+        key = None
+    if key is not None and _LAST_READ is not None and _LAST_READ[0] == key:
+        return _LAST_READ[1]
+    blocks = _read_assembly(a)
+    if key is not None:
+        _LAST_READ = (key, blocks)
+    return blocks
+
+
+def _read_assembly(a) -> AssemblyBlocks:
+    """:func:`read_assembly` without the cache."""
     try:
         mesh = read_block_mesh(a.mesh_file, a.tag_field)
     except MeshFileError as exc:
@@ -315,7 +338,7 @@ def build_assembly(case) -> Scene:
 
 
 def check(case) -> list[tuple[str, str]]:
-    """The mesh file read and checked (``read_assembly``; nothing kept): its problems with
+    """The mesh file read and checked (``read_assembly``): its problems with
     their fields (``assembly.mesh_file``, ``assembly.supports[0].group``, ...), then the
     blocks that ``assembly.driven_block`` and the loads (``Loading.named_blocks``: the point
     load, the removal, the line loads) name, which must be blocks of the structure (not
