@@ -43,8 +43,12 @@ def test_joint_strengths_and_energies():
     assert rules.joint_cohesion_MPa(4.08) == pytest.approx(0.1875)    # M2.5-M9: 0.15 / 0.8
     assert rules.joint_cohesion_MPa(12.0) == pytest.approx(0.25)      # M10-M20: 0.20 / 0.8
     assert rules.joint_tensile_bond_MPa(0.14) == pytest.approx(0.1)
+    # Lourenco and Rots's set, f_t 0.25 MPa -> 0.018 N/mm, c 0.35 MPa -> 0.125 N/mm, scaled
+    # to f_t 0.1 and c 0.2 MPa: 0.018 * 0.1 / 0.25 = 0.0072 N/mm, 0.125 * 0.2 / 0.35 N/mm
     G_I, G_II = rules.fracture_energies_J_m2(0.1, 0.2)
-    assert G_I == pytest.approx(2.9) and G_II == pytest.approx(25.0)
+    assert G_I == pytest.approx(7.2) and G_II == pytest.approx(250.0 / 3.5)
+    # the set itself comes back
+    assert rules.fracture_energies_J_m2(0.25, 0.35) == pytest.approx((18.0, 125.0))
     j = rules.joint_parameters(5000, 10000, 100, 1.0)
     assert j["K_I_spring_Pa_m"] == pytest.approx(1e11) and j["d_spring"] == 0.0
     assert j["sigma_II_e_Pa"] == pytest.approx(1.25e5)

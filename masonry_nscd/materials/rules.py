@@ -13,18 +13,28 @@ Joint (the project's ``fczm`` law, docs/model.md section 2):
 - cohesive stiffnesses ten times the spring's, so that an uncracked joint is as stiff as its
   spring within 10 %;
 - cohesion (mean initial shear strength) from the mortar's class by the characteristic
-  initial shear strength f_vk0 of Eurocode 6 (EN 1996-1-1, table 3.4, natural stone units)
-  divided by 0.8 (EN 1052-3: characteristic = 0.8 mean); tensile bond ``f_t = c / 1.4``
-  (Lourenco's micro-model parameters, c about 1.4 f_t); friction coefficient 0.7 (granite and
-  sandstone joints: Vasconcelos and Lourenco 2009 measured 0.63 to 0.74);
-- fracture energies by Lourenco's recommended ratios: ``G_fI = 0.029 f_t`` and
-  ``G_fII = 0.125 c`` (f_t, c in MPa, G in N/mm, i.e. kJ/m^2);
+  initial shear strength f_vk0 of Eurocode 6 (EN 1996-1-1, table 3.4, natural stone units,
+  general purpose mortar) divided by 0.8 (EN 1052-3: characteristic = 0.8 mean). The M2.5-M9
+  row (0.15 MPa) is confirmed by a public quotation of the table; the M1-M2 (0.10) and
+  M10-M20 (0.20) rows and the 0.8 are recalled, not confirmed against the standards;
+- tensile bond and fracture energies as ratios of the interface parameters Lourenco and Rots
+  (1997) used for the TU Eindhoven shear walls: f_t 0.25 MPa, c 0.35 MPa, G_fI 0.018 N/mm,
+  G_fII 0.125 N/mm, so ``f_t = c / 1.4``, ``G_fI = 0.072 f_t`` and ``G_fII = 0.357 c`` (f_t, c
+  in MPa, G in N/mm). Read from a public re-implementation that quotes that parameter set,
+  not from the paper itself. Not used: ``G_fI = 0.029 f_t`` and ``G_fII = 0.125 c``, which
+  could not be confirmed (0.125 is that set's G_fII in N/mm, not a ratio to c);
+- friction coefficient 0.7, the project's default: Lourenco and Rots's set has 0.75 (clay
+  brick); the range 0.63-0.74 for granite joints attributed to Vasconcelos and Lourenco
+  (2009) is not confirmed;
 - a virgin joint (``d_coh_initial = 0``): the joint's own strengths are the mortar's.
 
 Units (ENDO3D, docs/model.md section 3): ``E``, ``R_c`` the units' tested modulus and
-strength; ``R_t = 0.1 R_c``; tensile peak strain ``R_t / E``; tensile fracture energy of
-fib Model Code 2010 (``G_F = 73 f_c^0.18`` N/m); compressive peak strain ``2 R_c / E`` (the
-secant modulus at the peak half the initial one); the rest as the project's study wall.
+strength; ``R_t = 0.1 R_c`` (the order of the tensile over the compressive strength of rocks,
+e.g. granite 7-25 against 100-250 MPa; no source for these stones, not confirmed); tensile
+peak strain ``R_t / E``; tensile fracture energy of fib Model Code 2010, eq. (5.1-9),
+``G_F = 73 f_cm^0.18`` N/m (a rule for concrete, borrowed; confirmed); compressive peak strain
+``2 R_c / E`` (the secant modulus at the peak half the initial one, the rules' choice); the
+rest as the project's study wall.
 """
 
 from __future__ import annotations
@@ -35,14 +45,21 @@ NU = 0.2
 COHESIVE_OVER_SPRING = 10.0
 #: Characteristic over mean value of a strength (EN 1052-3).
 CHARACTERISTIC_OVER_MEAN = 0.8
-#: Cohesion over tensile bond strength (Lourenco's micro-model parameters).
-COHESION_OVER_TENSION = 1.4
-#: Friction coefficient of stone joints (Vasconcelos and Lourenco 2009: 0.63 to 0.74).
+#: The interface parameters of Lourenco and Rots (1997) for the TU Eindhoven shear walls:
+#: tensile bond and cohesion (MPa), mode I and mode II fracture energies (N/mm).
+LR_TENSILE_BOND_MPA = 0.25
+LR_COHESION_MPA = 0.35
+LR_G_FI_N_MM = 0.018
+LR_G_FII_N_MM = 0.125
+#: Cohesion over tensile bond strength: 0.35 / 0.25 = 1.4.
+COHESION_OVER_TENSION = LR_COHESION_MPA / LR_TENSILE_BOND_MPA
+#: Friction coefficient: the project's default (Lourenco and Rots's set: 0.75).
 FRICTION = 0.7
-#: Mode I and mode II fracture energies per unit strength (mm = kJ/m^2 per MPa; Lourenco).
-G_FI_PER_FT_MM = 0.029
-G_FII_PER_C_MM = 0.125
-#: Units' tensile over compressive strength.
+#: Mode I and mode II fracture energies per unit strength (mm = kJ/m^2 per MPa):
+#: 0.018 / 0.25 = 0.072 and 0.125 / 0.35 = 0.357.
+G_FI_PER_FT_MM = LR_G_FI_N_MM / LR_TENSILE_BOND_MPA
+G_FII_PER_C_MM = LR_G_FII_N_MM / LR_COHESION_MPA
+#: Units' tensile over compressive strength (order of magnitude of rocks; not confirmed).
 TENSION_OVER_COMPRESSION = 0.1
 #: Units' compressive peak strain over R_c / E.
 PEAK_STRAIN_FACTOR = 2.0
@@ -77,7 +94,8 @@ def joint_shear_stiffness(K_n_Pa_m: float, nu: float = NU) -> float:
 def eurocode6_fvk0_MPa(mortar_fc_MPa: float) -> float:
     """Characteristic initial shear strength f_vk0 (MPa) of natural stone units with general
     purpose mortar by the mortar's strength class (EN 1996-1-1, table 3.4): M1-M2 (below
-    2.5 MPa) 0.10; M2.5-M9 0.15; M10-M20 0.20."""
+    2.5 MPa) 0.10; M2.5-M9 0.15 (confirmed by a public quotation); M10-M20 0.20 (the first and
+    last rows recalled, not confirmed)."""
     if mortar_fc_MPa < 2.5:
         return 0.10
     if mortar_fc_MPa < 10.0:
@@ -86,18 +104,20 @@ def eurocode6_fvk0_MPa(mortar_fc_MPa: float) -> float:
 
 
 def joint_cohesion_MPa(mortar_fc_MPa: float) -> float:
-    """Mean cohesion c (MPa): ``f_vk0 / 0.8`` (:func:`eurocode6_fvk0_MPa`)."""
+    """Mean cohesion c (MPa): ``f_vk0 / 0.8`` (:func:`eurocode6_fvk0_MPa`; the 0.8 of
+    EN 1052-3, recalled, not confirmed)."""
     return eurocode6_fvk0_MPa(mortar_fc_MPa) / CHARACTERISTIC_OVER_MEAN
 
 
 def joint_tensile_bond_MPa(cohesion_MPa: float) -> float:
-    """Tensile bond strength f_t (MPa) = c / 1.4."""
+    """Tensile bond strength f_t (MPa) = c / 1.4 (Lourenco and Rots: 0.25 against 0.35 MPa)."""
     return cohesion_MPa / COHESION_OVER_TENSION
 
 
 def fracture_energies_J_m2(ft_MPa: float, c_MPa: float) -> tuple[float, float]:
-    """Mode I and II fracture energies (J/m^2): ``G_fI = 0.029 f_t``, ``G_fII = 0.125 c``
-    (MPa -> N/mm; 1 N/mm = 1000 J/m^2)."""
+    """Mode I and II fracture energies (J/m^2) in the ratios of Lourenco and Rots's interface
+    parameters: ``G_fI = (0.018 / 0.25) f_t``, ``G_fII = (0.125 / 0.35) c`` (f_t, c in MPa to
+    G in N/mm; 1 N/mm = 1000 J/m^2)."""
     return G_FI_PER_FT_MM * ft_MPa * 1e3, G_FII_PER_C_MM * c_MPa * 1e3
 
 
@@ -118,7 +138,8 @@ def joint_parameters(E_masonry_MPa: float, E_unit_MPa: float, unit_height_mm: fl
 
 
 def tensile_fracture_energy_J_m2(fc_MPa: float) -> float:
-    """Tensile fracture energy of the units (J/m^2): fib Model Code 2010, ``73 f_c^0.18``."""
+    """Tensile fracture energy of the units (J/m^2): fib Model Code 2010, eq. (5.1-9),
+    ``73 f_cm^0.18`` (f_cm the mean compressive strength in MPa)."""
     return 73.0 * fc_MPa ** 0.18
 
 
