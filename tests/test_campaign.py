@@ -36,6 +36,18 @@ def test_joint_stiffness_series_spring():
     assert rules.joint_shear_stiffness(1e11) == pytest.approx(1e11 / 2.4, rel=1e-12)
     with pytest.raises(ValueError):
         rules.joint_normal_stiffness(20000, 20000, 100)
+    # with a joint of j: a prism h + j high; E_m = E_u (h + j) / (2 h) leaves the joint as
+    # compliant as the unit again
+    assert rules.joint_normal_stiffness(10000 * 110 / 200, 10000, 100, 10) == pytest.approx(1e11)
+    # the mortar layer: 27 MPa over 10 mm
+    assert rules.mortar_joint_normal_stiffness(27, 10) == pytest.approx(2.7e9, rel=1e-12)
+    # Lourenco's form for units expanded by the joint gives the layer's own once the expanded
+    # part of the unit is taken back: 1/k_n + j/E_u = j/E_mo
+    E_u, E_mo, j = 20000e6, 87e6, 0.010
+    k_lourenco = E_u * E_mo / (j * (E_u - E_mo))
+    assert 1 / k_lourenco + j / E_u == pytest.approx(1 / rules.mortar_joint_normal_stiffness(87, 10))
+    with pytest.raises(ValueError):
+        rules.mortar_joint_normal_stiffness(27, 0)
 
 
 def test_joint_strengths_and_energies():
@@ -82,8 +94,9 @@ def test_case_for_fixed_fixed_row():
     assert case.supports.top_rotation == "fixed"            # H0 = H / 2
     assert case.loading.vertical_stress.value_Pa == pytest.approx(1.15e6)
     assert case.loading.horizontal.target_m == pytest.approx(1.5 * 0.0064 * 0.9)
-    # K_n = E_u E_m / (h (E_u - E_m)) = 16900 x 5328 MPa^2 / (0.120 m x 11572 MPa)
-    assert case.joint.K_I_spring_Pa_m == pytest.approx(6.48428e10, rel=1e-5)
+    # the mortar's modulus is measured (323 MPa): its layer of 10 mm, 3.23e10 Pa/m
+    assert case.joint.K_I_spring_Pa_m == pytest.approx(3.23e10, rel=1e-12)
+    assert case.joint.K_II_spring_Pa_m == pytest.approx(3.23e10 / 2.4, rel=1e-12)
     assert case.joint.sigma_II_e_Pa == pytest.approx(0.1875e6)   # mortar 4.08 MPa
     assert case.blocks.E_Pa == pytest.approx(16.9e9)
     assert case.blocks.endo3d.R_c_Pa == pytest.approx(65.6e6)
@@ -99,6 +112,19 @@ def test_case_for_cantilever_row():
     assert case.supports.load_height_m == pytest.approx(0.150)
     # the larger drift at the peak, 1.01 %, of the 1.8 m wall, times 1.5
     assert case.loading.horizontal.target_m == pytest.approx(1.5 * 0.0101 * 1.8)
+    # the mortar's modulus is measured (87 MPa): its layer of 10 mm
+    assert case.joint.K_I_spring_Pa_m == pytest.approx(8.7e9, rel=1e-12)
+
+
+def test_case_without_mortar_modulus_uses_the_prism():
+    base = read_yaml(TEMPLATE.read_text())
+    case = case_from_dict(campaign.case_for_row(base, _row("PG1")))
+    # 2500 mm, 300 mm units, 10 mm joints: 8 courses of (2500 - 70) / 8 = 303.75 mm; a prism
+    # of one unit and one joint with the masonry's 360 MPa and the units' 26000 MPa
+    h, j = 0.30375, 0.010
+    assert case.wall.unit_height_m == pytest.approx(h)
+    K = case.joint.K_I_spring_Pa_m
+    assert h / 26000e6 + 1 / K == pytest.approx((h + j) / 360e6, rel=1e-12)
 
 
 def test_number_and_measured():

@@ -6,9 +6,12 @@ wall's own force-displacement curve. docs/campaign.md lists the rules with their
 
 Joint (the project's ``fczm`` law, docs/model.md section 2):
 
-- normal stiffness from the series-spring relation of a prism of units and joints,
-  ``1/E_m = 1/E_u + 1/(h K_n)`` (h the unit height), so ``K_n = E_u E_m / (h (E_u - E_m))``;
-  the whole joint flexibility is the spring's (``d_spring = 0``);
+- normal stiffness of the mortar layer, ``K_n = E_mortar / j`` (j the joint's thickness),
+  where the mortar's modulus is measured: Lourenco's interface stiffness (Lourenco 1996;
+  Lourenco and Rots 1997) for units that are not expanded by the joint; else from the
+  series-spring relation of a prism of one unit of height h and one joint,
+  ``(h + j)/E_m = h/E_u + 1/K_n``, E_m the masonry's modulus from its compression test. The
+  whole joint flexibility is the spring's (``d_spring = 0``);
 - shear stiffness ``K_t = K_n / (2 (1 + nu))``: the ratio G/E of an isotropic joint layer;
 - cohesive stiffnesses ten times the spring's, so that an uncracked joint is as stiff as its
   spring within 10 %;
@@ -68,21 +71,38 @@ UNIT_WEIGHT_N_M3 = 20e3
 GRAVITY_M_S2 = 9.81
 
 
-def joint_normal_stiffness(E_masonry_MPa: float, E_unit_MPa: float, unit_height_mm: float) -> float:
-    """Normal stiffness of a bed joint (Pa/m) from ``1/E_m = 1/E_u + 1/(h K_n)``.
+def joint_normal_stiffness(E_masonry_MPa: float, E_unit_MPa: float, unit_height_mm: float,
+                           joint_mm: float = 0.0) -> float:
+    """Normal stiffness of a bed joint (Pa/m) from the masonry's modulus: a prism of one unit
+    of height h and one joint of thickness j in series, ``(h + j) / E_m = h / E_u + 1 / K_n``.
 
-    A prism of units of height h and joints in series: the masonry's modulus E_m (compression
-    test of the masonry), the units' E_u (their own test). ``K_n = E_u E_m / (h (E_u - E_m))``.
-    Raises ValueError when E_m >= E_u (the joints cannot be stiffer than the units' rule
-    allows) or a value is not positive.
+    E_m the masonry's modulus (its compression test), E_u the units' (their own test); the
+    model's units are h high with a gap of j between them, spanned by the joint's spring. With
+    ``j = 0``, ``K_n = E_u E_m / (h (E_u - E_m))``. Raises ValueError when the prism is not
+    more compliant than its units (no joint stiffness) or a value is not positive.
     """
-    if min(E_masonry_MPa, E_unit_MPa, unit_height_mm) <= 0:
-        raise ValueError("moduli and unit height must be positive")
-    if E_masonry_MPa >= E_unit_MPa:
+    if min(E_masonry_MPa, E_unit_MPa, unit_height_mm) <= 0 or joint_mm < 0:
+        raise ValueError("moduli and unit height must be positive, the joint not negative")
+    h, j = unit_height_mm * 1e-3, joint_mm * 1e-3
+    compliance = (h + j) / (E_masonry_MPa * 1e6) - h / (E_unit_MPa * 1e6)
+    if compliance <= 0:
         raise ValueError(f"masonry modulus {E_masonry_MPa} MPa not below the units' "
                          f"{E_unit_MPa} MPa: the series-spring rule gives no joint stiffness")
-    h_m = unit_height_mm * 1e-3
-    return E_unit_MPa * E_masonry_MPa * 1e6 / (h_m * (E_unit_MPa - E_masonry_MPa))
+    return 1.0 / compliance
+
+
+def mortar_joint_normal_stiffness(E_mortar_MPa: float, joint_mm: float) -> float:
+    """Normal stiffness of a bed joint (Pa/m) from the mortar's modulus: the mortar layer of
+    thickness j alone, ``K_n = E_mortar / j``.
+
+    Lourenco's interface stiffness of a simplified micro-model (Lourenco 1996; Lourenco and
+    Rots 1997), ``k_n = E_u E_mo / (j (E_u - E_mo))``, is the same layer seen from units
+    expanded by the joint's thickness; the model's units are not expanded (the joint is a gap
+    of j between them), so its spring is the layer's own ``E_mo / j``.
+    """
+    if E_mortar_MPa <= 0 or joint_mm <= 0:
+        raise ValueError("mortar modulus and joint thickness must be positive")
+    return E_mortar_MPa * 1e6 / (joint_mm * 1e-3)
 
 
 def joint_shear_stiffness(K_n_Pa_m: float, nu: float = NU) -> float:
@@ -122,9 +142,15 @@ def fracture_energies_J_m2(ft_MPa: float, c_MPa: float) -> tuple[float, float]:
 
 
 def joint_parameters(E_masonry_MPa: float, E_unit_MPa: float, unit_height_mm: float,
-                     mortar_fc_MPa: float) -> dict[str, float]:
-    """The ``joint`` section (fczm law, SI) of the rules above."""
-    K_n = joint_normal_stiffness(E_masonry_MPa, E_unit_MPa, unit_height_mm)
+                     mortar_fc_MPa: float, mortar_E_MPa: float | None = None,
+                     joint_mm: float = 0.0) -> dict[str, float]:
+    """The ``joint`` section (fczm law, SI) of the rules above: the normal stiffness the mortar
+    layer's (:func:`mortar_joint_normal_stiffness`) where the mortar's modulus is measured,
+    else the prism's (:func:`joint_normal_stiffness`)."""
+    if mortar_E_MPa is not None and mortar_E_MPa > 0:
+        K_n = mortar_joint_normal_stiffness(mortar_E_MPa, joint_mm)
+    else:
+        K_n = joint_normal_stiffness(E_masonry_MPa, E_unit_MPa, unit_height_mm, joint_mm)
     K_t = joint_shear_stiffness(K_n)
     c = joint_cohesion_MPa(mortar_fc_MPa)
     ft = joint_tensile_bond_MPa(c)
