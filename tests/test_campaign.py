@@ -36,6 +36,18 @@ def test_joint_stiffness_series_spring():
     assert rules.joint_shear_stiffness(1e11) == pytest.approx(1e11 / 2.4, rel=1e-12)
     with pytest.raises(ValueError):
         rules.joint_normal_stiffness(20000, 20000, 100)
+    # with a joint of j: a prism h + j high; E_m = E_u (h + j) / (2 h) leaves the joint as
+    # compliant as the unit again
+    assert rules.joint_normal_stiffness(10000 * 110 / 200, 10000, 100, 10) == pytest.approx(1e11)
+    # the mortar layer: 27 MPa over 10 mm
+    assert rules.mortar_joint_normal_stiffness(27, 10) == pytest.approx(2.7e9, rel=1e-12)
+    # Lourenco's form for units expanded by the joint gives the layer's own once the expanded
+    # part of the unit is taken back: 1/k_n + j/E_u = j/E_mo
+    E_u, E_mo, j = 20000e6, 87e6, 0.010
+    k_lourenco = E_u * E_mo / (j * (E_u - E_mo))
+    assert 1 / k_lourenco + j / E_u == pytest.approx(1 / rules.mortar_joint_normal_stiffness(87, 10))
+    with pytest.raises(ValueError):
+        rules.mortar_joint_normal_stiffness(27, 0)
 
 
 def test_joint_strengths_and_energies():
@@ -43,8 +55,12 @@ def test_joint_strengths_and_energies():
     assert rules.joint_cohesion_MPa(4.08) == pytest.approx(0.1875)    # M2.5-M9: 0.15 / 0.8
     assert rules.joint_cohesion_MPa(12.0) == pytest.approx(0.25)      # M10-M20: 0.20 / 0.8
     assert rules.joint_tensile_bond_MPa(0.14) == pytest.approx(0.1)
+    # Lourenco and Rots's set, f_t 0.25 MPa -> 0.018 N/mm, c 0.35 MPa -> 0.125 N/mm, scaled
+    # to f_t 0.1 and c 0.2 MPa: 0.018 * 0.1 / 0.25 = 0.0072 N/mm, 0.125 * 0.2 / 0.35 N/mm
     G_I, G_II = rules.fracture_energies_J_m2(0.1, 0.2)
-    assert G_I == pytest.approx(2.9) and G_II == pytest.approx(25.0)
+    assert G_I == pytest.approx(7.2) and G_II == pytest.approx(250.0 / 3.5)
+    # the set itself comes back
+    assert rules.fracture_energies_J_m2(0.25, 0.35) == pytest.approx((18.0, 125.0))
     j = rules.joint_parameters(5000, 10000, 100, 1.0)
     assert j["K_I_spring_Pa_m"] == pytest.approx(1e11) and j["d_spring"] == 0.0
     assert j["sigma_II_e_Pa"] == pytest.approx(1.25e5)
@@ -78,8 +94,9 @@ def test_case_for_fixed_fixed_row():
     assert case.supports.top_rotation == "fixed"            # H0 = H / 2
     assert case.loading.vertical_stress.value_Pa == pytest.approx(1.15e6)
     assert case.loading.horizontal.target_m == pytest.approx(1.5 * 0.0064 * 0.9)
-    # K_n = E_u E_m / (h (E_u - E_m)) = 16900 x 5328 MPa^2 / (0.120 m x 11572 MPa)
-    assert case.joint.K_I_spring_Pa_m == pytest.approx(6.48428e10, rel=1e-5)
+    # the mortar's modulus is measured (323 MPa): its layer of 10 mm, 3.23e10 Pa/m
+    assert case.joint.K_I_spring_Pa_m == pytest.approx(3.23e10, rel=1e-12)
+    assert case.joint.K_II_spring_Pa_m == pytest.approx(3.23e10 / 2.4, rel=1e-12)
     assert case.joint.sigma_II_e_Pa == pytest.approx(0.1875e6)   # mortar 4.08 MPa
     assert case.blocks.E_Pa == pytest.approx(16.9e9)
     assert case.blocks.endo3d.R_c_Pa == pytest.approx(65.6e6)
@@ -95,6 +112,19 @@ def test_case_for_cantilever_row():
     assert case.supports.load_height_m == pytest.approx(0.150)
     # the larger drift at the peak, 1.01 %, of the 1.8 m wall, times 1.5
     assert case.loading.horizontal.target_m == pytest.approx(1.5 * 0.0101 * 1.8)
+    # the mortar's modulus is measured (87 MPa): its layer of 10 mm
+    assert case.joint.K_I_spring_Pa_m == pytest.approx(8.7e9, rel=1e-12)
+
+
+def test_case_without_mortar_modulus_uses_the_prism():
+    base = read_yaml(TEMPLATE.read_text())
+    case = case_from_dict(campaign.case_for_row(base, _row("PG1")))
+    # 2500 mm, 300 mm units, 10 mm joints: 8 courses of (2500 - 70) / 8 = 303.75 mm; a prism
+    # of one unit and one joint with the masonry's 360 MPa and the units' 26000 MPa
+    h, j = 0.30375, 0.010
+    assert case.wall.unit_height_m == pytest.approx(h)
+    K = case.joint.K_I_spring_Pa_m
+    assert h / 26000e6 + 1 / K == pytest.approx((h + j) / 360e6, rel=1e-12)
 
 
 def test_number_and_measured():

@@ -6,25 +6,38 @@ wall's own force-displacement curve. docs/campaign.md lists the rules with their
 
 Joint (the project's ``fczm`` law, docs/model.md section 2):
 
-- normal stiffness from the series-spring relation of a prism of units and joints,
-  ``1/E_m = 1/E_u + 1/(h K_n)`` (h the unit height), so ``K_n = E_u E_m / (h (E_u - E_m))``;
-  the whole joint flexibility is the spring's (``d_spring = 0``);
+- normal stiffness of the mortar layer, ``K_n = E_mortar / j`` (j the joint's thickness),
+  where the mortar's modulus is measured: Lourenco's interface stiffness (Lourenco 1996;
+  Lourenco and Rots 1997) for units that are not expanded by the joint; else from the
+  series-spring relation of a prism of one unit of height h and one joint,
+  ``(h + j)/E_m = h/E_u + 1/K_n``, E_m the masonry's modulus from its compression test. The
+  whole joint flexibility is the spring's (``d_spring = 0``);
 - shear stiffness ``K_t = K_n / (2 (1 + nu))``: the ratio G/E of an isotropic joint layer;
 - cohesive stiffnesses ten times the spring's, so that an uncracked joint is as stiff as its
   spring within 10 %;
 - cohesion (mean initial shear strength) from the mortar's class by the characteristic
-  initial shear strength f_vk0 of Eurocode 6 (EN 1996-1-1, table 3.4, natural stone units)
-  divided by 0.8 (EN 1052-3: characteristic = 0.8 mean); tensile bond ``f_t = c / 1.4``
-  (Lourenco's micro-model parameters, c about 1.4 f_t); friction coefficient 0.7 (granite and
-  sandstone joints: Vasconcelos and Lourenco 2009 measured 0.63 to 0.74);
-- fracture energies by Lourenco's recommended ratios: ``G_fI = 0.029 f_t`` and
-  ``G_fII = 0.125 c`` (f_t, c in MPa, G in N/mm, i.e. kJ/m^2);
+  initial shear strength f_vk0 of Eurocode 6 (EN 1996-1-1, table 3.4, natural stone units,
+  general purpose mortar) divided by 0.8 (EN 1052-3: characteristic = 0.8 mean). The M2.5-M9
+  row (0.15 MPa) is confirmed by a public quotation of the table; the M1-M2 (0.10) and
+  M10-M20 (0.20) rows and the 0.8 are recalled, not confirmed against the standards;
+- tensile bond and fracture energies as ratios of the interface parameters Lourenco and Rots
+  (1997) used for the TU Eindhoven shear walls: f_t 0.25 MPa, c 0.35 MPa, G_fI 0.018 N/mm,
+  G_fII 0.125 N/mm, so ``f_t = c / 1.4``, ``G_fI = 0.072 f_t`` and ``G_fII = 0.357 c`` (f_t, c
+  in MPa, G in N/mm). Read from a public re-implementation that quotes that parameter set,
+  not from the paper itself. Not used: ``G_fI = 0.029 f_t`` and ``G_fII = 0.125 c``, which
+  could not be confirmed (0.125 is that set's G_fII in N/mm, not a ratio to c);
+- friction coefficient 0.7, the project's default: Lourenco and Rots's set has 0.75 (clay
+  brick); the range 0.63-0.74 for granite joints attributed to Vasconcelos and Lourenco
+  (2009) is not confirmed;
 - a virgin joint (``d_coh_initial = 0``): the joint's own strengths are the mortar's.
 
 Units (ENDO3D, docs/model.md section 3): ``E``, ``R_c`` the units' tested modulus and
-strength; ``R_t = 0.1 R_c``; tensile peak strain ``R_t / E``; tensile fracture energy of
-fib Model Code 2010 (``G_F = 73 f_c^0.18`` N/m); compressive peak strain ``2 R_c / E`` (the
-secant modulus at the peak half the initial one); the rest as the project's study wall.
+strength; ``R_t = 0.1 R_c`` (the order of the tensile over the compressive strength of rocks,
+e.g. granite 7-25 against 100-250 MPa; no source for these stones, not confirmed); tensile
+peak strain ``R_t / E``; tensile fracture energy of fib Model Code 2010, eq. (5.1-9),
+``G_F = 73 f_cm^0.18`` N/m (a rule for concrete, borrowed; confirmed); compressive peak strain
+``2 R_c / E`` (the secant modulus at the peak half the initial one, the rules' choice); the
+rest as the project's study wall.
 """
 
 from __future__ import annotations
@@ -35,14 +48,21 @@ NU = 0.2
 COHESIVE_OVER_SPRING = 10.0
 #: Characteristic over mean value of a strength (EN 1052-3).
 CHARACTERISTIC_OVER_MEAN = 0.8
-#: Cohesion over tensile bond strength (Lourenco's micro-model parameters).
-COHESION_OVER_TENSION = 1.4
-#: Friction coefficient of stone joints (Vasconcelos and Lourenco 2009: 0.63 to 0.74).
+#: The interface parameters of Lourenco and Rots (1997) for the TU Eindhoven shear walls:
+#: tensile bond and cohesion (MPa), mode I and mode II fracture energies (N/mm).
+LR_TENSILE_BOND_MPA = 0.25
+LR_COHESION_MPA = 0.35
+LR_G_FI_N_MM = 0.018
+LR_G_FII_N_MM = 0.125
+#: Cohesion over tensile bond strength: 0.35 / 0.25 = 1.4.
+COHESION_OVER_TENSION = LR_COHESION_MPA / LR_TENSILE_BOND_MPA
+#: Friction coefficient: the project's default (Lourenco and Rots's set: 0.75).
 FRICTION = 0.7
-#: Mode I and mode II fracture energies per unit strength (mm = kJ/m^2 per MPa; Lourenco).
-G_FI_PER_FT_MM = 0.029
-G_FII_PER_C_MM = 0.125
-#: Units' tensile over compressive strength.
+#: Mode I and mode II fracture energies per unit strength (mm = kJ/m^2 per MPa):
+#: 0.018 / 0.25 = 0.072 and 0.125 / 0.35 = 0.357.
+G_FI_PER_FT_MM = LR_G_FI_N_MM / LR_TENSILE_BOND_MPA
+G_FII_PER_C_MM = LR_G_FII_N_MM / LR_COHESION_MPA
+#: Units' tensile over compressive strength (order of magnitude of rocks; not confirmed).
 TENSION_OVER_COMPRESSION = 0.1
 #: Units' compressive peak strain over R_c / E.
 PEAK_STRAIN_FACTOR = 2.0
@@ -51,21 +71,38 @@ UNIT_WEIGHT_N_M3 = 20e3
 GRAVITY_M_S2 = 9.81
 
 
-def joint_normal_stiffness(E_masonry_MPa: float, E_unit_MPa: float, unit_height_mm: float) -> float:
-    """Normal stiffness of a bed joint (Pa/m) from ``1/E_m = 1/E_u + 1/(h K_n)``.
+def joint_normal_stiffness(E_masonry_MPa: float, E_unit_MPa: float, unit_height_mm: float,
+                           joint_mm: float = 0.0) -> float:
+    """Normal stiffness of a bed joint (Pa/m) from the masonry's modulus: a prism of one unit
+    of height h and one joint of thickness j in series, ``(h + j) / E_m = h / E_u + 1 / K_n``.
 
-    A prism of units of height h and joints in series: the masonry's modulus E_m (compression
-    test of the masonry), the units' E_u (their own test). ``K_n = E_u E_m / (h (E_u - E_m))``.
-    Raises ValueError when E_m >= E_u (the joints cannot be stiffer than the units' rule
-    allows) or a value is not positive.
+    E_m the masonry's modulus (its compression test), E_u the units' (their own test); the
+    model's units are h high with a gap of j between them, spanned by the joint's spring. With
+    ``j = 0``, ``K_n = E_u E_m / (h (E_u - E_m))``. Raises ValueError when the prism is not
+    more compliant than its units (no joint stiffness) or a value is not positive.
     """
-    if min(E_masonry_MPa, E_unit_MPa, unit_height_mm) <= 0:
-        raise ValueError("moduli and unit height must be positive")
-    if E_masonry_MPa >= E_unit_MPa:
+    if min(E_masonry_MPa, E_unit_MPa, unit_height_mm) <= 0 or joint_mm < 0:
+        raise ValueError("moduli and unit height must be positive, the joint not negative")
+    h, j = unit_height_mm * 1e-3, joint_mm * 1e-3
+    compliance = (h + j) / (E_masonry_MPa * 1e6) - h / (E_unit_MPa * 1e6)
+    if compliance <= 0:
         raise ValueError(f"masonry modulus {E_masonry_MPa} MPa not below the units' "
                          f"{E_unit_MPa} MPa: the series-spring rule gives no joint stiffness")
-    h_m = unit_height_mm * 1e-3
-    return E_unit_MPa * E_masonry_MPa * 1e6 / (h_m * (E_unit_MPa - E_masonry_MPa))
+    return 1.0 / compliance
+
+
+def mortar_joint_normal_stiffness(E_mortar_MPa: float, joint_mm: float) -> float:
+    """Normal stiffness of a bed joint (Pa/m) from the mortar's modulus: the mortar layer of
+    thickness j alone, ``K_n = E_mortar / j``.
+
+    Lourenco's interface stiffness of a simplified micro-model (Lourenco 1996; Lourenco and
+    Rots 1997), ``k_n = E_u E_mo / (j (E_u - E_mo))``, is the same layer seen from units
+    expanded by the joint's thickness; the model's units are not expanded (the joint is a gap
+    of j between them), so its spring is the layer's own ``E_mo / j``.
+    """
+    if E_mortar_MPa <= 0 or joint_mm <= 0:
+        raise ValueError("mortar modulus and joint thickness must be positive")
+    return E_mortar_MPa * 1e6 / (joint_mm * 1e-3)
 
 
 def joint_shear_stiffness(K_n_Pa_m: float, nu: float = NU) -> float:
@@ -77,7 +114,8 @@ def joint_shear_stiffness(K_n_Pa_m: float, nu: float = NU) -> float:
 def eurocode6_fvk0_MPa(mortar_fc_MPa: float) -> float:
     """Characteristic initial shear strength f_vk0 (MPa) of natural stone units with general
     purpose mortar by the mortar's strength class (EN 1996-1-1, table 3.4): M1-M2 (below
-    2.5 MPa) 0.10; M2.5-M9 0.15; M10-M20 0.20."""
+    2.5 MPa) 0.10; M2.5-M9 0.15 (confirmed by a public quotation); M10-M20 0.20 (the first and
+    last rows recalled, not confirmed)."""
     if mortar_fc_MPa < 2.5:
         return 0.10
     if mortar_fc_MPa < 10.0:
@@ -86,25 +124,33 @@ def eurocode6_fvk0_MPa(mortar_fc_MPa: float) -> float:
 
 
 def joint_cohesion_MPa(mortar_fc_MPa: float) -> float:
-    """Mean cohesion c (MPa): ``f_vk0 / 0.8`` (:func:`eurocode6_fvk0_MPa`)."""
+    """Mean cohesion c (MPa): ``f_vk0 / 0.8`` (:func:`eurocode6_fvk0_MPa`; the 0.8 of
+    EN 1052-3, recalled, not confirmed)."""
     return eurocode6_fvk0_MPa(mortar_fc_MPa) / CHARACTERISTIC_OVER_MEAN
 
 
 def joint_tensile_bond_MPa(cohesion_MPa: float) -> float:
-    """Tensile bond strength f_t (MPa) = c / 1.4."""
+    """Tensile bond strength f_t (MPa) = c / 1.4 (Lourenco and Rots: 0.25 against 0.35 MPa)."""
     return cohesion_MPa / COHESION_OVER_TENSION
 
 
 def fracture_energies_J_m2(ft_MPa: float, c_MPa: float) -> tuple[float, float]:
-    """Mode I and II fracture energies (J/m^2): ``G_fI = 0.029 f_t``, ``G_fII = 0.125 c``
-    (MPa -> N/mm; 1 N/mm = 1000 J/m^2)."""
+    """Mode I and II fracture energies (J/m^2) in the ratios of Lourenco and Rots's interface
+    parameters: ``G_fI = (0.018 / 0.25) f_t``, ``G_fII = (0.125 / 0.35) c`` (f_t, c in MPa to
+    G in N/mm; 1 N/mm = 1000 J/m^2)."""
     return G_FI_PER_FT_MM * ft_MPa * 1e3, G_FII_PER_C_MM * c_MPa * 1e3
 
 
 def joint_parameters(E_masonry_MPa: float, E_unit_MPa: float, unit_height_mm: float,
-                     mortar_fc_MPa: float) -> dict[str, float]:
-    """The ``joint`` section (fczm law, SI) of the rules above."""
-    K_n = joint_normal_stiffness(E_masonry_MPa, E_unit_MPa, unit_height_mm)
+                     mortar_fc_MPa: float, mortar_E_MPa: float | None = None,
+                     joint_mm: float = 0.0) -> dict[str, float]:
+    """The ``joint`` section (fczm law, SI) of the rules above: the normal stiffness the mortar
+    layer's (:func:`mortar_joint_normal_stiffness`) where the mortar's modulus is measured,
+    else the prism's (:func:`joint_normal_stiffness`)."""
+    if mortar_E_MPa is not None and mortar_E_MPa > 0:
+        K_n = mortar_joint_normal_stiffness(mortar_E_MPa, joint_mm)
+    else:
+        K_n = joint_normal_stiffness(E_masonry_MPa, E_unit_MPa, unit_height_mm, joint_mm)
     K_t = joint_shear_stiffness(K_n)
     c = joint_cohesion_MPa(mortar_fc_MPa)
     ft = joint_tensile_bond_MPa(c)
@@ -118,7 +164,8 @@ def joint_parameters(E_masonry_MPa: float, E_unit_MPa: float, unit_height_mm: fl
 
 
 def tensile_fracture_energy_J_m2(fc_MPa: float) -> float:
-    """Tensile fracture energy of the units (J/m^2): fib Model Code 2010, ``73 f_c^0.18``."""
+    """Tensile fracture energy of the units (J/m^2): fib Model Code 2010, eq. (5.1-9),
+    ``73 f_cm^0.18`` (f_cm the mean compressive strength in MPa)."""
     return 73.0 * fc_MPa ** 0.18
 
 

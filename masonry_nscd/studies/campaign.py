@@ -177,7 +177,9 @@ def case_for_row(template: dict[str, Any], row: dict[str, str], cyclic: bool = F
         sup["top_rotation"] = "fixed"
     joint = rules.joint_parameters(number(row["masonry_E_compression_MPa"]),
                                    number(row["unit_E_MPa"]), lay["unit_height_mm"],
-                                   number(row["mortar_fc_MPa"]))
+                                   number(row["mortar_fc_MPa"]),
+                                   mortar_E_MPa=number(row.get("mortar_E_MPa")),
+                                   joint_mm=joint_mm)
     d["joint"] = {**{k: v for k, v in d.get("joint", {}).items()
                      if k not in ("regions", "scatter", "K_n_Pa_m", "K_t_Pa_m")}, **joint}
     units = rules.unit_parameters(number(row["unit_fc_MPa"]), number(row["unit_E_MPa"]))
