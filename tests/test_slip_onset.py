@@ -1,0 +1,75 @@
+"""The slide of a rigid Signorini-Coulomb point at the onset of its slip: the tangential load
+``|r0|`` one or a few ulps above the friction bound ``phi`` (a wedge on a tilting table as
+``lambda`` reaches ``mu``), solved by the Gauss-Seidel sweeps (``solver.method: nlgs``).
+
+Reference: the tangential equation of the slide ``r0 = H s + phi e``, ``s = lam e``
+(``contact.laws.fczm._tangential_slip``). Dotted with ``e``, ``e.r0 = lam e.H.e + phi``; as
+``phi`` rises to ``|r0|`` the slip vanishes along ``e = r0 / |r0|`` and its derivative is
+``t = -ds/dphi = e / (e.H.e)`` (m/Pa). The old expression of ``t`` from the entries of
+``J = H + (phi / lam) (I - e e^T)`` cancelled its determinant to round-off there (phi / lam of
+1e24 Pa/m) and divided by zero: a ZeroDivisionError out of the sweeps.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from masonry_nscd.contact.laws import fczm
+
+
+def _slip(r, H, phi):
+    h11, h12, h22 = H[0, 0], H[0, 1], H[1, 1]
+    hmax = 0.5 * (h11 + h22) + math.sqrt(0.25 * (h11 - h22) ** 2 + h12 * h12)
+    hmin = (h11 * h22 - h12 * h12) / hmax
+    return fczm._tangential_slip(r[0], r[1], h11, h12, h22, hmin, hmax, phi, 0.0)
+
+
+def _check_onset(r, H, phi):
+    s1, s2, lam, t1, t2 = _slip(r, H, phi)
+    e = r / np.linalg.norm(r)
+    t_expected = e / (e @ H @ e)
+    assert np.isfinite([s1, s2, lam, t1, t2]).all()
+    # a slip of round-off size along the load, which meets the tangential equation
+    assert 0.0 < lam <= 1e-12 * np.linalg.norm(r) / np.linalg.eigvalsh(H)[0]
+    residual = r - H @ np.array([s1, s2]) - phi * np.array([s1, s2]) / lam
+    assert np.linalg.norm(residual) <= 1e-12 * np.linalg.norm(r)
+    assert np.array([t1, t2]) == pytest.approx(t_expected, rel=1e-9)
+
+
+def test_the_wedge_that_divided_by_zero():
+    """The point of the tilting wedge (mu = 0.9, lambda from 0 at 0.02 /s) whose sweeps raised
+    the ZeroDivisionError at lambda = 0.9, as its slide called ``_tangential_slip``: tangential
+    load ``r0`` (Pa), ``H = G_tt`` (Pa/m, strongly coupled: the wedge's four base corners
+    through the block's inverse mass), ``phi = mu N`` a few ulps below ``|r0|``."""
+    r = np.array([3711.04434141378, 270.55548148365995])
+    H = np.array([[213494221.61794704, 115023793.33786555],
+                  [115023793.33786555, 204803988.21663275]])
+    phi = 3720.893759905016
+    assert 0.0 < np.linalg.norm(r) / phi - 1.0 < 1e-14
+    _check_onset(r, H, phi)
+
+
+@pytest.mark.parametrize("ulps", [1, 2, 8])
+@pytest.mark.parametrize("turn", [0.0, 0.7, 2.5])
+def test_slip_onset_within_ulps_of_the_friction_bound(ulps, turn):
+    """Coupled tangential stiffnesses (Pa/m) and loads in several directions, the friction
+    bound ``ulps`` floats below the load's norm: a finite slip and its derivative."""
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        Q = np.linalg.qr(rng.normal(size=(2, 2)))[0]
+        H = Q @ np.diag(10.0 ** rng.uniform(7, 10, size=2)) @ Q.T
+        r = 10.0 ** rng.uniform(-3, 6) * np.array([math.cos(turn), math.sin(turn)])
+        phi = float(np.linalg.norm(r))
+        for _ in range(ulps):
+            phi = float(np.nextafter(phi, 0.0))
+        _check_onset(r, H, phi)
+
+
+def test_a_non_finite_load_gives_a_non_finite_slip_not_a_division_by_zero():
+    """A NaN load (a state already broken) is passed on as a NaN slip: the integrator's check
+    of the tractions then stops the step with a DivergenceError that names it."""
+    H = np.array([[2e8, 1e8], [1e8, 2e8]])
+    assert all(math.isnan(x) for x in _slip(np.array([math.nan, 1.0]), H, 0.0))
