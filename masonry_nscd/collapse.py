@@ -160,14 +160,20 @@ class CollapseMonitor:
         self.carriage = SupportCarriage.of(scene.bodies, s.body_dof0, s.ndof) \
             if moving_supports(scene.bodies) else None
         self.starts = np.flatnonzero(np.r_[True, self.owner[1:] != self.owner[:-1]])
-        # the removed blocks' points and dofs, left out once they are out (scenes/removal.py)
+        # the removed blocks' points and dofs, left out once they are out (scenes/removal.py):
+        # per number of groups out, the points out and the dofs kept
         self.scene = scene
-        self.removed_points = np.zeros(len(self.owner), dtype=bool)
-        self.kept_dofs = np.ones(s.ndof, dtype=bool)
+        self.removed_points = [np.zeros(len(self.owner), dtype=bool)]
+        self.kept_dofs = [np.ones(s.ndof, dtype=bool)]
         if scene.removal is not None:
-            out = [k for k, i in enumerate(scene.structure) if i in scene.removal.bodies]
-            self.removed_points = np.isin(self.owner, out)
-            self.kept_dofs[scene.removal.dofs(scene.bodies)] = False
+            gone: list[int] = []
+            for group in scene.removal.groups:
+                gone += group.bodies
+                out = [k for k, i in enumerate(scene.structure) if i in set(gone)]
+                self.removed_points.append(np.isin(self.owner, out))
+                kept = np.ones(s.ndof, dtype=bool)
+                kept[scene.removal.dofs(scene.bodies, gone)] = False
+                self.kept_dofs.append(kept)
         self.onset: dict[str, Any] | None = None
         self.detected: dict[str, Any] | None = None
         self.stop_at = math.inf
@@ -201,10 +207,11 @@ class CollapseMonitor:
         disp = np.linalg.norm(self.relative(integ.u), axis=1)
         speed = np.linalg.norm(self.relative(integ.v), axis=1)
         v = integ.v
-        if self.scene.removed_at(t - self.scene.solver.h):  # the step ending at t had them out
-            disp[self.removed_points] = 0.0
-            speed[self.removed_points] = 0.0
-            v = np.where(self.kept_dofs, v, 0.0)
+        out = self.scene.removed_at(t - self.scene.solver.h)  # groups out in the step to t
+        if out:
+            disp[self.removed_points[out]] = 0.0
+            speed[self.removed_points[out]] = 0.0
+            v = np.where(self.kept_dofs[out], v, 0.0)
         d_max, v_max = float(disp.max(initial=0.0)), float(speed.max(initial=0.0))
         kinetic = 0.5 * float(v @ (integ.sys.mass * v))  # lumped (diagonal) mass
         loads = self.loads(t)

@@ -30,7 +30,7 @@ from masonry_nscd.figure_files import save_png, slug
 from masonry_nscd.io import runfolder as rf
 from masonry_nscd.io.limit_files import read_limit_table
 from masonry_nscd.io.results_h5 import read_fields
-from masonry_nscd.post.limit import limit_summary
+from masonry_nscd.post.limit import limit_summary, removal_groups
 
 #: The largest displacement is drawn as this fraction of the structure's width by default.
 AUTO_MAGNIFY_FRACTION = 0.04
@@ -58,11 +58,13 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
     tol = 1e-9 * (1.0 + float(np.ptp(z)))
     at_front = np.abs(z[fields.hexes[:, :4]] - z.min()).max(axis=1) <= tol
     # the blocks removed by then are drawn apart, as outlines where they were
-    removal = run.scene.get("removal")
+    removal = [g for g in removal_groups(run.scene.get("removal"))
+               if fields.time_s > g["at_s"] + 1e-9]
     gone = np.zeros(len(fields.hexes), dtype=bool)
-    if removal and fields.time_s > removal["at_s"] + 1e-9:
+    if removal:
         names = [b.get("name") for b in run.scene.get("structure", [])]
-        out = [k for k, name in enumerate(names) if name in removal["blocks"]]
+        left = {name for g in removal for name in g["blocks"]}
+        out = [k for k, name in enumerate(names) if name in left]
         gone = np.isin(fields.block_of_element, out)
     removed = fields.hexes[at_front & gone, :4]
     at_front &= ~gone
@@ -136,11 +138,13 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
     return save_png(fig, path)
 
 
-def _removal_note(removal: dict | None, shown: bool) -> str:
-    """The title's line on the blocks removed by then (drawn red dotted), if any are shown."""
+def _removal_note(removal: list[dict], shown: bool) -> str:
+    """The title's lines on the blocks removed by then (drawn red dotted), a line a group, if
+    any are shown."""
     if not shown:
         return ""
-    return f"\n{', '.join(removal['blocks'])} removed at t = {removal['at_s']:.4g} s (red dotted)"
+    return "".join(f"\n{', '.join(g['blocks'])} removed at t = {g['at_s']:.4g} s (red dotted)"
+                   for g in removal)
 
 
 def _draw_in_perspective(ax, fields, disp: np.ndarray, summary: dict, magnify: float,
