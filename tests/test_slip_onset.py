@@ -73,3 +73,41 @@ def test_a_non_finite_load_gives_a_non_finite_slip_not_a_division_by_zero():
     of the tractions then stops the step with a DivergenceError that names it."""
     H = np.array([[2e8, 1e8], [1e8, 2e8]])
     assert all(math.isnan(x) for x in _slip(np.array([math.nan, 1.0]), H, 0.0))
+
+
+# --- the other divisors of the sweeps ---------------------------------------------------------
+
+
+def test_a_free_rigid_body_without_mass_is_refused_by_name():
+    """``W = H^T M_hat^-1 H``, which the sweeps and Newton divide by, needs ``M_hat^-1``: a
+    free rigid body of zero mass (a block of zero volume) is refused, naming it, before any
+    step (a ValueError, which the run reports as an invalid case)."""
+    from masonry_nscd.model import RigidBody
+    from masonry_nscd.nscd.system import build_system
+
+    flat = RigidBody(center=np.zeros(3), mass=0.0, inertia=np.zeros(3), name="flat stone")
+    ground = RigidBody.fixed(np.zeros(3), name="ground")
+    with pytest.raises(ValueError, match="body 'flat stone': mass 0 kg.*positive mass"):
+        build_system([flat, ground], [], 0.002, 1.0)
+
+
+def test_a_contact_point_of_zero_area_carries_nothing_in_the_sweeps():
+    """A point of zero area: ``A = theta h^2 S W = 0``, and with rigid contacts no spring
+    either, so its local problem has a zero compliance. The sweeps take no division by it
+    (the law's 3 x 3 solves test their pivots): the point carries no impulse, and the block
+    on the three others stands, its weight on them (``m g``, to the solver's tolerance)."""
+    import dataclasses
+
+    from masonry_nscd.scenes.small import tilting_block
+
+    scene = tilting_block(rate_per_s=0.0, method="nlgs")
+    scene.points[0] = dataclasses.replace(scene.points[0], area=0.0)
+    integ = scene.integrator()
+    for _ in range(100):  # 0.2 s: the gravity ramp over
+        integ.step()
+    T = integ.joints.T
+    assert np.isfinite(T).all() and np.isfinite(integ.v).all()
+    assert np.all(T[0] == 0.0)
+    block = scene.bodies[0]
+    normal = -sum(p.area * T[a, 0] for a, p in enumerate(scene.points))  # N, upwards
+    assert normal == pytest.approx(block.mass * 9.81, rel=1e-6)
