@@ -12,7 +12,8 @@
   face (separated) with an orange square at their centre; blocks removed by then
   (``loading.removal``) as red dotted outlines where they were, not drawn deformed;
 * the growing load (the first of the scene's load factors: the body-force multiplier ``lambda``,
-  the force on a block) against the largest displacement of a block point (``limit.csv``), with
+  the force on a block) against the largest displacement of a block point (``limit.csv``;
+  relative to the supports' rigid motion when a support moves, which the axis says), with
   the onset of the mechanism and its detection marked; without a growing load, the largest
   displacement against time.
 
@@ -28,7 +29,7 @@ import numpy as np
 
 from masonry_nscd.figure_files import save_png, slug
 from masonry_nscd.io import runfolder as rf
-from masonry_nscd.io.limit_files import read_limit_table
+from masonry_nscd.io.limit_files import read_limit, read_limit_table
 from masonry_nscd.io.results_h5 import read_fields
 from masonry_nscd.post.limit import limit_summary, removal_groups
 
@@ -212,18 +213,21 @@ def _draw_load_panel(fig, ax, bx, run, summary: dict, fields, magnify: float,
 
     table = read_limit_table(run.outdir)
     factors = [f["name"] for f in summary.get("load_factors", []) if f["name"] in table]
+    # with moving supports, the watch's displacements are relative to their rigid motion
+    relative = (read_limit(run.outdir) or {}).get("displacements")
+    label = "largest displacement of a block point (mm)" + (f"\n{relative}" if relative else "")
     if table and len(table.get("time_s", [])):
         d = 1e3 * table["max_displacement_m"]
         if factors:
             name = factors[0]
             bx.plot(d, table[name], color="C0")
             bx.set_ylabel(name)
-            bx.set_xlabel("largest displacement of a block point (mm)")
+            bx.set_xlabel(label)
             y_of = dict(zip(table["step"].astype(int), table[name], strict=True))
         else:
             bx.plot(table["time_s"], d, color="C0")
             bx.set_xlabel("t (s)")
-            bx.set_ylabel("largest displacement of a block point (mm)")
+            bx.set_ylabel(label)
             y_of = None
         x_of = dict(zip(table["step"].astype(int), d, strict=True))
         t_of = dict(zip(table["step"].astype(int), table["time_s"], strict=True))
