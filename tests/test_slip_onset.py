@@ -5,9 +5,9 @@
 Reference: the tangential equation of the slide ``r0 = H s + phi e``, ``s = lam e``
 (``contact.laws.fczm._tangential_slip``). Dotted with ``e``, ``e.r0 = lam e.H.e + phi``; as
 ``phi`` rises to ``|r0|`` the slip vanishes along ``e = r0 / |r0|`` and its derivative is
-``t = -ds/dphi = e / (e.H.e)`` (m/Pa). The old expression of ``t`` from the entries of
-``J = H + (phi / lam) (I - e e^T)`` cancelled its determinant to round-off there (phi / lam of
-1e24 Pa/m) and divided by zero: a ZeroDivisionError out of the sweeps.
+``t = -ds/dphi = e / (e.H.e)`` (m/Pa). Written from the entries of
+``J = H + (phi / lam) (I - e e^T)``, the determinant of J cancels to round-off there (phi / lam
+of 1e24 Pa/m) and can come out 0: a division by zero in the sweeps.
 """
 
 from __future__ import annotations
@@ -39,9 +39,10 @@ def _check_onset(r, H, phi):
     assert np.array([t1, t2]) == pytest.approx(t_expected, rel=1e-9)
 
 
-def test_the_wedge_that_divided_by_zero():
-    """The point of the tilting wedge (mu = 0.9, lambda from 0 at 0.02 /s) whose sweeps raised
-    the ZeroDivisionError at lambda = 0.9, as its slide called ``_tangential_slip``: tangential
+def test_the_slip_onset_of_the_wedge_on_the_tilting_table():
+    """A point of the tilting wedge (mu = 0.9, lambda from 0 at 0.02 /s, Gauss-Seidel) at
+    lambda = 0.9, where its slide calls ``_tangential_slip`` with J's determinant at round-off
+    (a ZeroDivisionError out of the sweeps, from J's entries): tangential
     load ``r0`` (Pa), ``H = G_tt`` (Pa/m, strongly coupled: the wedge's four base corners
     through the block's inverse mass), ``phi = mu N`` a few ulps below ``|r0|``."""
     r = np.array([3711.04434141378, 270.55548148365995])

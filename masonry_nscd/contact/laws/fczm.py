@@ -301,7 +301,7 @@ def _tangential_slip(r1, r2, h11, h12, h22, hmin, hmax, phi, lam):
     # t = J^-1 e with J = H + c e' e'^T (e' = e turned by 90 degrees, |e| = 1), written
     # without J's entries: det J = det H + c e.H.e and adj(J) e = adj(H) e + c e. From J's
     # entries, c (1 - e1^2) (1 - e2^2) - (c e1 e2)^2 cancels to round-off when the slip
-    # starts (|r0| a few ulps above phi: c = phi / lam ~ 1e24 Pa/m), and det J came out as 0
+    # starts (|r0| a few ulps above phi: c = phi / lam ~ 1e24 Pa/m), and det J can come out 0
     eHe = e1 * (h11 * e1 + h12 * e2) + e2 * (h12 * e1 + h22 * e2)
     idet = 1.0 / (hmin * hmax + c * eHe)
     return (lam * e1, lam * e2, lam, (h22 * e1 - h12 * e2 + c * e1) * idet,
