@@ -10,6 +10,22 @@ nodes of its mesh: a rigid block's corners move by ``u_0 + theta x (x - x_ref)``
   if the rule has one, its largest speed passes ``velocity_m_s`` (m/s): the structure has turned
   into a mechanism. The run goes on for ``after_s`` (s, so that the mechanism shows) and stops;
   its status is ``collapse``, not a failure: the command exits with 0.
+* **with supports that move** (``loading.settlement``: an arch's springing, a cross vault's
+  corner or side, an assembly's foundations), the displacements and speeds watched, reported
+  and written are relative to the **rigid motion of the supports**: the small rigid motion
+  ``t + theta x (x - c)`` (``c`` the centre of the supports' nodes) that best fits the
+  displacements of the nodes of all the supports, fixed and moving, in the least-squares
+  sense, each support weighing the same (:class:`SupportCarriage`). What a rigid carriage of
+  the whole set of supports would do to the structure (a common translation, a settlement of
+  one of two springings: a rotation about the other) is taken out; what the supports impose
+  beyond a rigid motion (a spreading, a corner that sinks alone) is not, nor is the
+  structure's response to it, which is physics: a spreading of ``d`` leaves ``d / 2`` at the
+  blocks on the supports, and the arch's or the vault's three-hinge mechanism drops its crown
+  by about as much (measured: an arch of t/R = 0.25 spread by 3 cm, 1.7 cm; sunk by 3 cm at
+  one springing, 1.0 cm; the cross vault of ``cases/cross_vault.yaml`` spread by 3 cm on its
+  east side, 1.8 cm, sunk by 3 cm at a corner, 1.6 cm). So ``displacement_m`` must exceed the
+  structure's own deformation under the imposed motion, no longer the motion itself. Without
+  a moving support the displacements are the absolute ones (the fit would be zero).
 * the **onset** of the mechanism: the last step before the collapse at which every block point
   was slower than ``onset_velocity_m_s`` (m/s), the structure at rest. The loads at collapse
   (the body-force multiplier ``lambda``, the force on a block, a settlement: the scene's
@@ -22,8 +38,8 @@ nodes of its mesh: a rigid block's corners move by ``u_0 + theta x (x - x_ref)``
 A solver failure is no collapse: the run stops with exit code 1 and the status ``failed``.
 
 Outputs in the run folder (written by :mod:`masonry_nscd.io.limit_files`): ``limit.csv``, one
-row per step (``step, time_s``, each load factor, ``max_displacement_m``, ``max_speed_m_s``,
-``kinetic_energy_J``), and ``limit.json``, the status and the collapse
+row per step (``step, time_s``, each load factor, ``max_displacement_m``, ``max_speed_m_s``:
+relative to the supports' rigid motion when one moves, ``kinetic_energy_J``: absolute), and ``limit.json``, the status and the collapse
 (:meth:`CollapseMonitor.record`), which the summary reads (:mod:`masonry_nscd.post.limit`).
 """
 
@@ -31,22 +47,67 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from masonry_nscd.io.limit_files import LimitTable, write_limit
+from masonry_nscd.loading import at_rest
 from masonry_nscd.model import RigidBody
 from masonry_nscd.scenes.scene import CollapseRule
 
 #: Blocks listed as those that moved most at collapse.
 MOVED_MOST = 5
+def moving_supports(bodies) -> bool:
+    """Whether a support of ``bodies`` moves (a velocity imposed other than rest)."""
+    return any(getattr(b, "support", False) and any(v is not at_rest for v in
+                                                     b.imposed_velocity.values())
+               for b in bodies)
+
+
+@dataclass(frozen=True)
+class SupportCarriage:
+    """The rigid motion that best fits the displacements of the supports' nodes (module
+    docstring): ``q = K u[dofs]`` (6,), the translation of the centre ``c`` of the supports'
+    nodes and a small rotation, each support weighing the same whatever its number of nodes
+    (the least squares of its nodes' misfits over their count)."""
+
+    dofs: np.ndarray  # the supports' dofs
+    K: np.ndarray  # (6, len(dofs))
+    centre: np.ndarray  # m
+
+    @classmethod
+    def of(cls, bodies, body_dof0, ndof: int) -> SupportCarriage:
+        supports = [i for i, b in enumerate(bodies) if getattr(b, "support", False)]
+        G, owner, X = point_map(bodies, supports, body_dof0, ndof)
+        dofs = np.concatenate([np.arange(body_dof0[i], body_dof0[i + 1]) for i in supports])
+        G = G[:, dofs].toarray()  # (3n, len(dofs)): the nodes' displacements
+        weight = 1.0 / np.bincount(owner)[owner]  # 1 / (the nodes of its support)
+        centre = weight @ X / weight.sum()
+        r = X - centre
+        n = len(X)
+        M = np.zeros((3 * n, 6))  # the displacement t + theta x r of each node
+        for d in range(3):
+            M[d::3, d] = 1.0
+        for d, e, f, sgn in ((0, 1, 2, 1), (0, 2, 1, -1), (1, 2, 0, 1), (1, 0, 2, -1),
+                             (2, 0, 1, 1), (2, 1, 0, -1)):
+            M[d::3, 3 + e] = sgn * r[:, f]
+        w = np.sqrt(np.repeat(weight, 3))[:, None]
+        K = np.linalg.lstsq(w * M, w * G, rcond=None)[0]
+        return cls(dofs, K, centre)
+
+    def displacement(self, u: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """The displacement (p, 3; m) that the fitted rigid motion of the supports' dofs
+        ``u`` (the global vector) gives the points ``x`` (p, 3; m)."""
+        q = self.K @ u[self.dofs]
+        return q[:3] + np.cross(q[3:], x - self.centre)
 
 
 def point_map(bodies, structure, body_dof0, ndof):
     """The sparse map ``B`` (3p, ndof) from the dofs to the displacements of the nodes of the
-    structure's bodies (p points), and the body of each point."""
+    structure's bodies (p points), the body of each point, and the points (p, 3; m)."""
     from scipy.sparse import csr_matrix
 
     rows, cols, vals, owner = [], [], [], []
@@ -55,7 +116,7 @@ def point_map(bodies, structure, body_dof0, ndof):
         b = bodies[i]
         d0 = int(body_dof0[i])
         if isinstance(b, RigidBody):
-            for x in np.asarray(b.X):
+            for x in np.asarray(b.X, dtype=float):
                 r = x - b.reference
                 for d in range(3):
                     rows.append(3 * p + d)
@@ -77,7 +138,10 @@ def point_map(bodies, structure, body_dof0, ndof):
                     vals.append(1.0)
                 owner.append(k)
                 p += 1
-    return csr_matrix((vals, (rows, cols)), shape=(3 * p, ndof)), np.asarray(owner, dtype=int)
+    x = np.concatenate([np.asarray(bodies[i].X, dtype=float).reshape(-1, 3) for i in structure]) \
+        if structure else np.zeros((0, 3))
+    return (csr_matrix((vals, (rows, cols)), shape=(3 * p, ndof)), np.asarray(owner, dtype=int),
+            x)
 
 
 class CollapseMonitor:
@@ -90,16 +154,26 @@ class CollapseMonitor:
         self.outdir = None if outdir is None else Path(outdir)
         s = integ.sys
         self.names = [scene.bodies[i].name or f"body {i}" for i in scene.structure]
-        self.B, self.owner = point_map(scene.bodies, scene.structure, s.body_dof0, s.ndof)
+        self.B, self.owner, x = point_map(scene.bodies, scene.structure, s.body_dof0, s.ndof)
+        # with a moving support, the block points' motion relative to the supports' rigid one
+        self.points = x
+        self.carriage = SupportCarriage.of(scene.bodies, s.body_dof0, s.ndof) \
+            if moving_supports(scene.bodies) else None
         self.starts = np.flatnonzero(np.r_[True, self.owner[1:] != self.owner[:-1]])
-        # the removed blocks' points and dofs, left out once they are out (scenes/removal.py)
+        # the removed blocks' points and dofs, left out once they are out (scenes/removal.py):
+        # per number of groups out, the points out and the dofs kept
         self.scene = scene
-        self.removed_points = np.zeros(len(self.owner), dtype=bool)
-        self.kept_dofs = np.ones(s.ndof, dtype=bool)
+        self.removed_points = [np.zeros(len(self.owner), dtype=bool)]
+        self.kept_dofs = [np.ones(s.ndof, dtype=bool)]
         if scene.removal is not None:
-            out = [k for k, i in enumerate(scene.structure) if i in scene.removal.bodies]
-            self.removed_points = np.isin(self.owner, out)
-            self.kept_dofs[scene.removal.dofs(scene.bodies)] = False
+            gone: list[int] = []
+            for group in scene.removal.groups:
+                gone += group.bodies
+                out = [k for k, i in enumerate(scene.structure) if i in set(gone)]
+                self.removed_points.append(np.isin(self.owner, out))
+                kept = np.ones(s.ndof, dtype=bool)
+                kept[scene.removal.dofs(scene.bodies, gone)] = False
+                self.kept_dofs.append(kept)
         self.onset: dict[str, Any] | None = None
         self.detected: dict[str, Any] | None = None
         self.stop_at = math.inf
@@ -118,16 +192,26 @@ class CollapseMonitor:
     def loads(self, t: float) -> dict[str, float]:
         return {f.name: float(f.value(t)) for f in self.rule.factors}
 
+    def relative(self, u: np.ndarray) -> np.ndarray:
+        """The displacements (or, of the velocities ``u``, the velocities) of the block points
+        (p, 3): relative to the supports' rigid motion when a support moves (module
+        docstring), else as they are."""
+        out = (self.B @ u).reshape(-1, 3)
+        if self.carriage is not None:
+            out -= self.carriage.displacement(u, self.points)
+        return out
+
     def observe(self, integ, step: int, t: float) -> bool:
         """Take the state after ``step`` (ending at ``t``, s); True when the run should stop
         (the collapse was detected, and ``after_s`` has passed since)."""
-        disp = np.linalg.norm((self.B @ integ.u).reshape(-1, 3), axis=1)
-        speed = np.linalg.norm((self.B @ integ.v).reshape(-1, 3), axis=1)
+        disp = np.linalg.norm(self.relative(integ.u), axis=1)
+        speed = np.linalg.norm(self.relative(integ.v), axis=1)
         v = integ.v
-        if self.scene.removed_at(t - self.scene.solver.h):  # the step ending at t had them out
-            disp[self.removed_points] = 0.0
-            speed[self.removed_points] = 0.0
-            v = np.where(self.kept_dofs, v, 0.0)
+        out = self.scene.removed_at(t - self.scene.solver.h)  # groups out in the step to t
+        if out:
+            disp[self.removed_points[out]] = 0.0
+            speed[self.removed_points[out]] = 0.0
+            v = np.where(self.kept_dofs[out], v, 0.0)
         d_max, v_max = float(disp.max(initial=0.0)), float(speed.max(initial=0.0))
         kinetic = 0.5 * float(v @ (integ.sys.mass * v))  # lumped (diagonal) mass
         loads = self.loads(t)
@@ -190,8 +274,11 @@ class CollapseMonitor:
                 "max_displacement_at_detection_m": self.detected["max_displacement_m"],
                 "max_speed_at_detection_m_s": self.detected["max_speed_m_s"],
                 "moved_most": self.detected["moved_most"]}
-        return {"status": status, "message": message, "rule": self.rule.info(),
-                "collapse": collapse, "last": self.last}
+        out = {"status": status, "message": message, "rule": self.rule.info(),
+               "collapse": collapse, "last": self.last}
+        if self.carriage is not None:
+            out["displacements"] = "relative to the supports' rigid motion"
+        return out
 
     def finish(self, status: str, message: str = "") -> None:
         """Write ``limit.json`` with the run's ``status`` (``collapse`` when it was detected,

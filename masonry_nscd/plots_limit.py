@@ -12,7 +12,8 @@
   face (separated) with an orange square at their centre; blocks removed by then
   (``loading.removal``) as red dotted outlines where they were, not drawn deformed;
 * the growing load (the first of the scene's load factors: the body-force multiplier ``lambda``,
-  the force on a block) against the largest displacement of a block point (``limit.csv``), with
+  the force on a block) against the largest displacement of a block point (``limit.csv``;
+  relative to the supports' rigid motion when a support moves, which the axis says), with
   the onset of the mechanism and its detection marked; without a growing load, the largest
   displacement against time.
 
@@ -28,9 +29,9 @@ import numpy as np
 
 from masonry_nscd.figure_files import save_png, slug
 from masonry_nscd.io import runfolder as rf
-from masonry_nscd.io.limit_files import read_limit_table
+from masonry_nscd.io.limit_files import read_limit, read_limit_table
 from masonry_nscd.io.results_h5 import read_fields
-from masonry_nscd.post.limit import limit_summary
+from masonry_nscd.post.limit import limit_summary, removal_groups
 
 #: The largest displacement is drawn as this fraction of the structure's width by default.
 AUTO_MAGNIFY_FRACTION = 0.04
@@ -58,11 +59,13 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
     tol = 1e-9 * (1.0 + float(np.ptp(z)))
     at_front = np.abs(z[fields.hexes[:, :4]] - z.min()).max(axis=1) <= tol
     # the blocks removed by then are drawn apart, as outlines where they were
-    removal = run.scene.get("removal")
+    removal = [g for g in removal_groups(run.scene.get("removal"))
+               if fields.time_s > g["at_s"] + 1e-9]
     gone = np.zeros(len(fields.hexes), dtype=bool)
-    if removal and fields.time_s > removal["at_s"] + 1e-9:
+    if removal:
         names = [b.get("name") for b in run.scene.get("structure", [])]
-        out = [k for k, name in enumerate(names) if name in removal["blocks"]]
+        left = {name for g in removal for name in g["blocks"]}
+        out = [k for k, name in enumerate(names) if name in left]
         gone = np.isin(fields.block_of_element, out)
     removed = fields.hexes[at_front & gone, :4]
     at_front &= ~gone
@@ -136,11 +139,13 @@ def plot_mechanism(run, path: Path, magnify: float = 0.0) -> Path:
     return save_png(fig, path)
 
 
-def _removal_note(removal: dict | None, shown: bool) -> str:
-    """The title's line on the blocks removed by then (drawn red dotted), if any are shown."""
+def _removal_note(removal: list[dict], shown: bool) -> str:
+    """The title's lines on the blocks removed by then (drawn red dotted), a line a group, if
+    any are shown."""
     if not shown:
         return ""
-    return f"\n{', '.join(removal['blocks'])} removed at t = {removal['at_s']:.4g} s (red dotted)"
+    return "".join(f"\n{', '.join(g['blocks'])} removed at t = {g['at_s']:.4g} s (red dotted)"
+                   for g in removal)
 
 
 def _draw_in_perspective(ax, fields, disp: np.ndarray, summary: dict, magnify: float,
@@ -208,18 +213,21 @@ def _draw_load_panel(fig, ax, bx, run, summary: dict, fields, magnify: float,
 
     table = read_limit_table(run.outdir)
     factors = [f["name"] for f in summary.get("load_factors", []) if f["name"] in table]
+    # with moving supports, the watch's displacements are relative to their rigid motion
+    relative = (read_limit(run.outdir) or {}).get("displacements")
+    label = "largest displacement of a block point (mm)" + (f"\n{relative}" if relative else "")
     if table and len(table.get("time_s", [])):
         d = 1e3 * table["max_displacement_m"]
         if factors:
             name = factors[0]
             bx.plot(d, table[name], color="C0")
             bx.set_ylabel(name)
-            bx.set_xlabel("largest displacement of a block point (mm)")
+            bx.set_xlabel(label)
             y_of = dict(zip(table["step"].astype(int), table[name], strict=True))
         else:
             bx.plot(table["time_s"], d, color="C0")
             bx.set_xlabel("t (s)")
-            bx.set_ylabel("largest displacement of a block point (mm)")
+            bx.set_ylabel(label)
             y_of = None
         x_of = dict(zip(table["step"].astype(int), d, strict=True))
         t_of = dict(zip(table["step"].astype(int), table["time_s"], strict=True))

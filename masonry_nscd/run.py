@@ -307,7 +307,7 @@ def _write_output_step(rec, scene, integ, fields, mesh, damage: dict, rep, done:
         j = integ.joints
         removed = {}
         if scene.removal is not None:  # 1 on the cells of the blocks out of the model
-            out = np.isin(mesh.bodies, scene.removal.bodies) & scene.removed_at(rep.time - scene.solver.h)
+            out = np.isin(mesh.bodies, scene.removed_bodies(rep.time - scene.solver.h))
             removed = {"removed": out[mesh.block_of_element].astype(float)}
         step_out = StepOutput(
             block_points={"displacement_m": disp},
@@ -363,9 +363,9 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
         raise RunInputError(f"invalid case {case.name}: {exc}") from exc
     log(_case_line(case, scene, integ))
     log(_arithmetic_line())
-    if scene.removal is not None:
-        log(f"removal: {', '.join(scene.removal.names)} leave the model at t = "
-            f"{scene.removal.at_s(scene.solver.h):.6g} s")
+    for group in scene.removal.groups if scene.removal is not None else ():
+        log(f"removal: {', '.join(group.names)} leave the model at t = "
+            f"{group.at_s(scene.solver.h):.6g} s")
     if case.step_growth_note:
         log(case.step_growth_note)
     if point is not None:
@@ -415,8 +415,9 @@ def run_case(case, outdir: Path, *, overwrite: bool = False,
                     log(f"from t = {integ.t:.6g} s: " + ", ".join(
                         f"{scene.bodies[hd.body].name} held in {DOF_NAMES[hd.dof]}"
                         for hd in holds))
-                if scene.removed_at(integ.t) and not integ.phase[1]:
-                    log(f"from t = {integ.t:.6g} s: removed " + ", ".join(scene.removal.names))
+                for group in scene.removal.groups[integ.phase[1]:scene.removed_at(integ.t)] \
+                        if scene.removal is not None else ():
+                    log(f"from t = {integ.t:.6g} s: removed " + ", ".join(group.names))
                 integ = new
                 fields = StepFields(scene, mesh, integ)
             counts = integ.solver_counts()

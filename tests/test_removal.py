@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import json
 from pathlib import Path
+from xml.etree import ElementTree
 
 import numpy as np
 import pytest
@@ -35,28 +36,30 @@ BOXES = (("ground", -0.5, 0.5, -0.2, 0.0), ("lower", -0.2, 0.2, 0.0, 0.3),
          ("upper", -0.2, 0.2, 0.3, 0.5))
 
 
-def _weight(name: str) -> float:
+def _weight(name: str, boxes=BOXES) -> float:
     """The weight (N) of a box of the stack."""
-    _, x0, x1, y0, y1 = next(b for b in BOXES if b[0] == name)
+    _, x0, x1, y0, y1 = next(b for b in boxes if b[0] == name)
     return RHO * G * (x1 - x0) * (y1 - y0) * DEPTH
 
 
-def stack_mesh() -> BlockMesh:
-    """Three boxes one on the other, one hexahedron each (tags 1, 2, 3)."""
+def stack_mesh(boxes=BOXES) -> BlockMesh:
+    """The boxes one on the other, one hexahedron each (tags 1, 2, 3...)."""
     points, hexes = [], []
-    for x0, x1, y0, y1 in (b[1:] for b in BOXES):
+    for x0, x1, y0, y1 in (b[1:] for b in boxes):
         base = len(points)
         corners = [(x0, y0, 0.0), (x1, y0, 0.0), (x1, y1, 0.0), (x0, y1, 0.0),
                    (x0, y0, DEPTH), (x1, y0, DEPTH), (x1, y1, DEPTH), (x0, y1, DEPTH)]
         points += corners
         hexes.append(list(range(base, base + 8)))
     return BlockMesh(points=np.array(points), hexes=np.array(hexes, dtype=np.int64),
-                     tags=np.array([1, 2, 3]), names={1: "ground", 2: "lower", 3: "upper"})
+                     tags=np.arange(1, len(boxes) + 1),
+                     names={k + 1: b[0] for k, b in enumerate(boxes)})
 
 
-def stack_case(tmp_path: Path, loading: dict | None = None, end_s: float = 0.4) -> dict:
+def stack_case(tmp_path: Path, loading: dict | None = None, end_s: float = 0.4,
+               boxes=BOXES) -> dict:
     """A case of the stack on the fixed ground: rigid boxes, dry joints, gravity only."""
-    write_block_mesh(tmp_path / "stack.msh", stack_mesh())
+    write_block_mesh(tmp_path / "stack.msh", stack_mesh(boxes))
     return {"name": "stack",
             "assembly": {"mesh_file": str(tmp_path / "stack.msh"),
                          "supports": [{"group": "ground"}], "driven_block": "lower"},
@@ -95,9 +98,10 @@ def test_removing_the_top_block_drops_the_reaction_by_its_weight(tmp_path):
     assert fy[np.argmin(abs(t - 0.2))] == pytest.approx(both, rel=1e-6)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "standing"
-    assert summary["removal"] == {"blocks": ["upper"], "time_s": 0.2, "at_s": pytest.approx(0.2)}
+    assert summary["removal"] == [{"blocks": ["upper"], "time_s": 0.2,
+                                   "at_s": pytest.approx(0.2)}]
     scene = json.loads((out / "scene.json").read_text())
-    assert scene["removal"]["blocks"] == ["upper"]
+    assert scene["removal"][0]["blocks"] == ["upper"]
     assert "removed" in (out / "run.log").read_text()
 
 
@@ -123,7 +127,7 @@ def test_removal_before_any_step_and_between_steps(tmp_path):
 
     mid = build_scene(case_from_dict(stack_case(tmp_path, {"removal": {"blocks": ["upper"],
                                                                      "time_s": 0.201}})))
-    assert mid.removal.at_s(0.002) == pytest.approx(0.2)
+    assert mid.removal.groups[0].at_s(0.002) == pytest.approx(0.2)
     assert not mid.removed_at(0.198) and mid.removed_at(0.2)
 
 
@@ -212,3 +216,86 @@ def test_validate_says_what_is_removed_and_when():
                                    "loading.removal={blocks: [voussoir 12], time_s: 1.5}"])
     assert res.exit_code == 0, res.output
     assert res.output.strip().endswith("voussoir 12 removed at 1.5 s")
+
+
+#: a stack of three boxes on the ground
+TALL = (*BOXES[:2], ("middle", -0.2, 0.2, 0.3, 0.5), ("upper", -0.2, 0.2, 0.5, 0.7))
+
+
+def test_two_removals_at_two_times_drop_the_reaction_by_each_weight(tmp_path):
+    """``removal`` as a list: the upper box out at 0.2 s, the middle one at 0.3 s (both on the
+    grid of the step). The ground carries the three boxes up to 0.2 s, the lower two up to
+    0.3 s, the lower one after, each to the solver's tolerance; the summary, scene.json and
+    the run log give both groups with their times, in their order."""
+    loading = {"removal": [{"blocks": ["middle"], "time_s": 0.3},
+                           {"blocks": ["upper"], "time_s": 0.2}]}
+    case = case_from_dict(stack_case(tmp_path, loading, end_s=0.4, boxes=TALL))
+    out = tmp_path / "run"
+    run_case(case, out, **QUIET)
+    c = _curve(out)
+    fy, t = 1e3 * c["fy_kN"], c["time_s"]
+    w = {name: _weight(name, TALL) for name in ("lower", "middle", "upper")}
+    for lo, hi, carried in ((0.15, 0.2, w["lower"] + w["middle"] + w["upper"]),
+                            (0.25, 0.3, w["lower"] + w["middle"]), (0.35, 0.4, w["lower"])):
+        window = (t > lo + 1e-9) & (t <= hi + 1e-9)
+        assert window.sum() >= 20
+        assert np.allclose(fy[window], carried, rtol=1e-6), (lo, hi)
+    summary = json.loads((out / "summary.json").read_text())
+    groups = [{"blocks": ["upper"], "time_s": 0.2, "at_s": pytest.approx(0.2)},
+              {"blocks": ["middle"], "time_s": 0.3, "at_s": pytest.approx(0.3)}]
+    assert summary["removal"] == groups
+    assert json.loads((out / "scene.json").read_text())["removal"] == groups
+    log = (out / "run.log").read_text()
+    assert log.index("removed upper") < log.index("removed middle")
+
+
+def test_an_arch_loses_two_groups_of_voussoirs_each_at_its_time(tmp_path):
+    """The shipped arch under its weight: voussoir 1 out at 0.1 s, voussoirs 12 and 13 at
+    0.2 s (the watch's bound set far, so that the run goes on). The VTU cells are flagged
+    ``removed`` from the first output after each time, those of the group's voussoirs only;
+    the summary lists both groups."""
+    import meshio
+
+    sets = ["loading.body_force.rate_per_s=0", "collapse.displacement_m=50",
+            "collapse.end_time_s=0.3", "output.every_steps=25",
+            ("loading.removal=[{blocks: [voussoir 1], time_s: 0.1}, "
+             "{blocks: [voussoir 12, voussoir 13], time_s: 0.2}]")]
+    out = tmp_path / "arch"
+    run_case(load_case(ARCH, sets), out, **QUIET)
+    summary = json.loads((out / "summary.json").read_text())
+    assert [g["blocks"] for g in summary["removal"]] == [["voussoir 1"],
+                                                         ["voussoir 12", "voussoir 13"]]
+    assert [g["at_s"] for g in summary["removal"]] == pytest.approx([0.1, 0.2])
+    expected = {0.1: set(), 0.15: {1}, 0.2: {1}, 0.25: {1, 12, 13}, 0.3: {1, 12, 13}}
+    by_time = {}
+    for entry in ElementTree.parse(out / "wall.pvd").iter("DataSet"):
+        if "blocks_" not in entry.get("file"):
+            continue
+        m = meshio.read(out / entry.get("file"))
+        flag = np.concatenate(m.cell_data["removed"])
+        block = np.concatenate(m.cell_data["block"]).astype(int)  # structure index
+        by_time[round(float(entry.get("timestep")), 6)] = set((block[flag > 0.5] + 1).tolist())
+    for when, blocks in expected.items():
+        assert by_time[when] == blocks, when
+
+
+def test_removals_in_a_list_are_checked_and_described_in_their_order():
+    """A block in two groups, an empty list and a name the arch does not have exit 2, naming
+    the group; ``validate`` says what leaves when, in the order of the times."""
+    def validate(value: str):
+        return CliRunner().invoke(app, ["validate", str(ARCH), "--set",
+                                        f"loading.removal={value}"])
+
+    res = validate("[{blocks: [voussoir 1], time_s: 0.1}, "
+                   "{blocks: [voussoir 3, voussoir 1], time_s: 0.2}]")
+    assert res.exit_code == 2
+    assert ("loading.removal[1].blocks[1]: got 'voussoir 1', already removed by "
+            "loading.removal[0]") in res.output
+    res = validate("[]")
+    assert res.exit_code == 2 and "loading.removal: an empty list" in res.output
+    res = validate("[{blocks: [voussoir 1], time_s: 0.1}, {blocks: [keystone], time_s: 0.2}]")
+    assert res.exit_code == 2 and "loading.removal[1].blocks[0]: got 'keystone'" in res.output
+    res = validate("[{blocks: [voussoir 12], time_s: 1.5}, {blocks: [voussoir 2], time_s: 0.5}]")
+    assert res.exit_code == 0, res.output
+    assert res.output.strip().endswith("voussoir 2 removed at 0.5 s; voussoir 12 removed at "
+                                       "1.5 s")

@@ -18,10 +18,20 @@ class Collapse(Section):
     ``onset_velocity_m_s``. A run that reaches ``end_time_s`` stands (status ``standing``). A
     hinge is a joint open by more than ``hinge_opening_m`` over most of its face and closed at
     one edge.
+
+    With supports that move (``loading.settlement``), the displacements and speeds are those
+    relative to the supports' rigid motion: the small rigid motion that best fits the
+    displacements of all the supports' nodes (least squares, each support weighing the same),
+    taken out of every block point's motion. A settlement of one of two springings (a rotation
+    about the other) or a common translation is then no collapse; what no rigid motion carries
+    (a spreading of ``d``: ``d / 2`` at the blocks on the supports) and the structure's own
+    deformation under it still count, so ``displacement_m`` must exceed those, not the
+    settlement (``masonry_nscd/collapse.py``).
     """
 
     displacement_m: Real = Field(
-        0.01, gt=0.0, le=100.0, description="a block point moved this far: collapse (m)"
+        0.01, gt=0.0, le=100.0, description="a block point moved this far (relative to the supports' rigid motion "
+        "when a support moves): collapse (m)"
     )
     velocity_m_s: Real | None = Field(
         None, gt=0.0, le=1000.0,

@@ -68,7 +68,8 @@ class Removal(Section):
     nothing (no impulse, no cohesion), their loads stop, the collapse rule no longer watches
     them, and the outputs flag them as removed; a rigid block is then held at rest where it
     was, a deformable one moves on with no contact and no load
-    (:mod:`masonry_nscd.scenes.removal`)."""
+    (:mod:`masonry_nscd.scenes.removal`). ``loading.removal`` is one such group, or a list of
+    them, each with its own time (a block in one group only)."""
 
     blocks: list[Annotated[str, Field(min_length=1, max_length=200)]] = Field(
         ..., min_length=1, max_length=100000,
@@ -400,8 +401,9 @@ class Loading(Section):
         None, description="arch, vault, cross vault, assembly: the settlement of supports (null: "
         "none)"
     )
-    removal: Removal | None = Field(
-        None, description="limit states: blocks taken out at a time (null: none)"
+    removal: Removal | list[Removal] | None = Field(
+        None, description="limit states: blocks taken out at a time, or a list of such "
+        "groups, each at its time (null: none)"
     )
     line_loads: list[LineLoad] = Field(
         default_factory=list, max_length=1000,
@@ -419,13 +421,38 @@ class Loading(Section):
         out = []
         if self.point_load is not None:
             out.append(("loading.point_load.block", self.point_load.block))
-        if self.removal is not None:
-            out += [(f"loading.removal.blocks[{i}]", b) for i, b in enumerate(self.removal.blocks)]
+        for path, group in self.removal_groups():
+            out += [(f"{path}.blocks[{i}]", b) for i, b in enumerate(group.blocks)]
         for field in ("line_loads", "block_loads"):
             for k, load in enumerate(getattr(self, field)):
                 out += [(f"loading.{field}[{k}].blocks[{i}]", b)
                         for i, b in enumerate(load.blocks)]
         return out
+
+    def removal_groups(self) -> list[tuple[str, Removal]]:
+        """The groups of ``removal``, each with its dotted path: ``loading.removal`` for the
+        single form, ``loading.removal[k]`` for a list (none without a removal)."""
+        if self.removal is None:
+            return []
+        if isinstance(self.removal, Removal):
+            return [("loading.removal", self.removal)]
+        return [(f"loading.removal[{k}]", group) for k, group in enumerate(self.removal)]
+
+    @model_validator(mode="after")
+    def _check_removals(self) -> Loading:
+        """A list of removals is not empty, and each block leaves once."""
+        if isinstance(self.removal, list) and not self.removal:
+            raise_problems([("removal", "an empty list; give null for no removal")])
+        first: dict[str, str] = {}
+        problems = []
+        for path, group in self.removal_groups():
+            for i, name in enumerate(group.blocks):
+                if name in first and first[name] != path:
+                    problems.append((f"{path}.blocks[{i}]".removeprefix("loading."), (
+                        f"got {name!r}, already removed by {first[name]}")))
+                first.setdefault(name, path)
+        raise_problems(problems)
+        return self
 
     @property
     def end_time_s(self) -> float:

@@ -138,6 +138,13 @@ def _rigid_inverse(body: RigidBody) -> tuple[np.ndarray, np.ndarray]:
     Mhat = body.mass_matrix()
     m = np.diag(Mhat)
     free = body.dof_mode != DOF_IMPOSED
+    if not (np.all(m[free] > 0.0) and np.isfinite(Mhat).all()):
+        # a free dof without mass: its row of M_hat^-1 (and the Delassus blocks W of its
+        # contact points, which both solvers divide by) would be a division by zero
+        raise ValueError(
+            f"body {body.name or '(unnamed)'!r}: mass {body.mass:.6g} kg, inertia diagonal "
+            f"{', '.join(f'{v:.6g}' for v in np.diag(body.inertia))} kg m^2; a free rigid "
+            "body needs a positive mass and inertia (a block of zero volume or density?)")
     minv = np.zeros((6, 6))
     if np.count_nonzero(Mhat - np.diag(m)):  # reference point off the centre of mass
         minv[np.ix_(free, free)] = np.linalg.inv(Mhat[np.ix_(free, free)])

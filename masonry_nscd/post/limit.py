@@ -203,6 +203,15 @@ def mechanism_name(joints: list[dict[str, Any]]) -> str:
         else "joints opening"
 
 
+def removal_groups(info) -> list[dict]:
+    """The groups of a run folder's ``removal`` (``scene.json``, the summary), a list of
+    ``{blocks, time_s, at_s}`` in the order of their times; one group given alone (a mapping)
+    is a list of one, none is ``[]``."""
+    if not info:
+        return []
+    return [info] if isinstance(info, dict) else list(info)
+
+
 def limit_summary(outdir: Path | str, scene: Mapping[str, Any], fields) -> dict[str, Any]:
     """The limit-state part of ``summary.json``: ``status`` (``collapse``, ``standing``,
     ``failed``, ``interrupted``, or ``running`` when no status was written), ``collapse``
@@ -210,9 +219,9 @@ def limit_summary(outdir: Path | str, scene: Mapping[str, Any], fields) -> dict[
     it stands), ``hinges`` (the hinges and sliding joints at the last output step),
     ``mechanism``, and ``moving_at_end`` (standing, but a block point faster than
     ``collapse.onset_velocity_m_s`` at the end: a mechanism too slow to pass the displacement
-    bound in the time of the run), and ``removal`` (the blocks taken out, the time asked for,
-    ``time_s``, and the time they left, ``at_s``: the start of the step in which it falls;
-    None without one)."""
+    bound in the time of the run), and ``removal`` (each group of blocks taken out, in the order
+    of their times: its ``blocks``, the time asked for, ``time_s``, and the time they left,
+    ``at_s``: the start of the step in which it falls; None without one)."""
     record = read_limit(outdir) or {}
     rule = scene.get("collapse") or {}
     opening = float(rule.get("hinge_opening_m", 1e-4))
@@ -228,7 +237,7 @@ def limit_summary(outdir: Path | str, scene: Mapping[str, Any], fields) -> dict[
         "joints_step": fields.step if fields is not None else None,
         "load_factors": rule.get("load_factors", []),
         "last_loads": (record.get("last") or {}).get("loads"),
-        "removal": scene.get("removal"),
+        "removal": removal_groups(scene.get("removal")) or None,
     }
     last_speed = (record.get("last") or {}).get("max_speed_m_s")
     # standing by the rule, but still in motion at the end: a slow mechanism may be forming
@@ -243,9 +252,8 @@ def format_limit(s: Mapping[str, Any]) -> list[str]:
     """The lines of the short report of a limit-state summary."""
     lines = [f"status: {s['status']}" + (f" ({s['status_message']})"
                                          if s.get("status_message") else "")]
-    removal = s.get("removal")
-    if removal:
-        lines.append(f"removed at t = {removal['at_s']:.4f} s: " + ", ".join(removal["blocks"]))
+    for group in removal_groups(s.get("removal")):
+        lines.append(f"removed at t = {group['at_s']:.4f} s: " + ", ".join(group["blocks"]))
     c = s.get("collapse")
     if c:
         loads = c.get("loads_at_onset") or c.get("loads_at_detection") or {}

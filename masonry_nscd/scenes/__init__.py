@@ -61,8 +61,8 @@ def describe_case(case) -> str:
     extra = [f"a line load of {load.length_m:.4g} m on {', '.join(load.blocks)}"
              for load in ld.line_loads]
     extra += [f"a force on each of {', '.join(load.blocks)}" for load in ld.block_loads]
-    if ld.removal is not None:
-        extra.append(f"{', '.join(ld.removal.blocks)} removed at {ld.removal.time_s:g} s")
+    extra += [f"{', '.join(group.blocks)} removed at {group.time_s:g} s"
+              for _, group in sorted(ld.removal_groups(), key=lambda g: g[1].time_s)]
     return line + "".join(f"; {e}" for e in extra)
 
 

@@ -172,7 +172,7 @@ class Scene:
     # (dofs, weights) of U_x and of U_y, global dofs (None: the driven body's reference point)
     measured: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None
     collapse: CollapseRule | None = None  # a limit-state scene's (None: no watch)
-    removal: Removal | None = None  # blocks taken out at a time (scenes/removal.py)
+    removal: Removal | None = None  # blocks taken out, each group at its time (scenes/removal.py)
 
     # --- what changes with time -----------------------------------------------------------
     def stage_at(self, t: float) -> str:
@@ -203,13 +203,18 @@ class Scene:
         ``t_before``."""
         return self.holds_at(t_before) != self.holds_at(t_after)
 
-    def removed_at(self, t: float) -> bool:
-        """Whether the removed blocks are out in a step that starts at ``t`` (s)."""
-        return self.removal is not None and self.removal.active(t, self.solver.h)
+    def removed_at(self, t: float) -> int:
+        """How many of the removal's groups are out in a step that starts at ``t`` (s): 0
+        before the first one's time (or without a removal), then the first ones."""
+        return 0 if self.removal is None else self.removal.out_at(t, self.solver.h)
+
+    def removed_bodies(self, t: float) -> tuple[int, ...]:
+        """The bodies out of the model in a step that starts at ``t`` (s)."""
+        return () if self.removal is None else self.removal.bodies_at(t, self.solver.h)
 
     def phase_at(self, t: float) -> tuple:
-        """What makes the system of a step starting at ``t`` (s): its holds and whether the
-        removed blocks are out. A step in another phase than the last one needs a new
+        """What makes the system of a step starting at ``t`` (s): its holds and how many groups
+        of removed blocks are out. A step in another phase than the last one needs a new
         integrator (:meth:`next_integrator`)."""
         return self.holds_at(t), self.removed_at(t)
 
@@ -227,10 +232,10 @@ class Scene:
 
     def settle(self, integ) -> None:
         """The state of ``integ`` (an integrator of this scene with a state put in) as the
-        removal leaves it, when the removed blocks are out at its time (``Removal.settle``;
-        nothing before, and nothing new the second time)."""
+        removals leave it, when removed blocks are out at its time (``Removal.settle``;
+        nothing before, and nothing new for a group already out)."""
         if self.removed_at(integ.t):
-            self.removal.settle(integ, self.points)
+            self.removal.settle(integ, self.points, self.solver.h)
 
     def step_limit_s(self, t: float) -> float:
         """The latest time (s) a step starting at ``t`` may end at (the adaptive step size's
@@ -244,8 +249,8 @@ class Scene:
         for hd in self.holds:
             if hd not in self.holds_at(t):
                 limit = min(limit, math.floor(hd.from_s / h + 1e-9) * h)
-        if self.removal is not None and not self.removed_at(t):
-            limit = min(limit, self.removal.at_s(h))
+        if self.removal is not None and self.removal.next_at_s(t, h) is not None:
+            limit = min(limit, self.removal.next_at_s(t, h))
         if self.turns_s and self.solver.max_growth:
             limit = min(limit, self._turn_limit_s(t))
         return limit
@@ -285,7 +290,7 @@ class Scene:
                 dof_mode=b.dof_mode.copy())
         points, loads = self.points, self.loads
         if self.removed_at(t):
-            bodies, points, loads = self.removal.apply(bodies, points, loads)
+            bodies, points, loads = self.removal.apply(bodies, points, loads, t, self.solver.h)
         s = self.solver
         integ = Integrator(bodies, points, self.params, loads, h=s.h, theta=s.theta,
                           tolerance=s.tolerance, max_iterations=s.max_iterations,

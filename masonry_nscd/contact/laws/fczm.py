@@ -230,6 +230,10 @@ def _tangential_slip(r1, r2, h11, h12, h22, hmin, hmax, phi, lam):
     (``t = 0`` where ``s = 0``).
     """
     rn = _norm2(r1, r2)
+    if not (rn < math.inf and phi >= 0.0):
+        # a non-finite load: a non-finite slip, which the integrator's check of the
+        # tractions reports (DivergenceError, naming the step), not a division by phi = 0
+        return math.nan, math.nan, math.nan, math.nan, math.nan
     if rn <= phi or rn == 0.0:
         return 0.0, 0.0, 0.0, 0.0, 0.0
     if phi <= 1e-17 * rn:
@@ -293,12 +297,15 @@ def _tangential_slip(r1, r2, h11, h12, h22, hmin, hmax, phi, lam):
     e1 = w1 / wn
     e2 = w2 / wn
     lam = m * phi
-    c = 1.0 / m  # phi / lam, Pa/m
-    j11 = h11 + c * (1.0 - e1 * e1)
-    j12 = h12 - c * e1 * e2
-    j22 = h22 + c * (1.0 - e2 * e2)
-    idet = 1.0 / (j11 * j22 - j12 * j12)
-    return lam * e1, lam * e2, lam, (j22 * e1 - j12 * e2) * idet, (j11 * e2 - j12 * e1) * idet
+    c = 1.0 / m  # phi / lam, Pa/m (m >= lo > 0: |r0| > phi gives |q| - 1 >= 2^-52)
+    # t = J^-1 e with J = H + c e' e'^T (e' = e turned by 90 degrees, |e| = 1), written
+    # without J's entries: det J = det H + c e.H.e and adj(J) e = adj(H) e + c e. From J's
+    # entries, c (1 - e1^2) (1 - e2^2) - (c e1 e2)^2 cancels to round-off when the slip
+    # starts (|r0| a few ulps above phi: c = phi / lam ~ 1e24 Pa/m), and det J can come out 0
+    eHe = e1 * (h11 * e1 + h12 * e2) + e2 * (h12 * e1 + h22 * e2)
+    idet = 1.0 / (hmin * hmax + c * eHe)
+    return (lam * e1, lam * e2, lam, (h22 * e1 - h12 * e2 + c * e1) * idet,
+            (h11 * e2 - h12 * e1 + c * e2) * idet)
 
 
 @njit(cache=True)
