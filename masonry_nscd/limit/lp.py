@@ -117,7 +117,7 @@ class _Programme:
 
 def _programme(m: RigidModel, facets: int, tension: bool, with_lambda: bool,
                normal_limit: np.ndarray | None, proximal: float = 0.0,
-               compressive_Pa: float | None = None) -> _Programme:
+               compressive_Pa: float | None = None, normal_penalty: float = 0.0) -> _Programme:
     npt = m.points
     W, L = _scales(m)
     row_scale = np.tile([W, W, W, W * L, W * L, W * L], m.bodies)[m.free]
@@ -180,10 +180,11 @@ def _programme(m: RigidModel, facets: int, tension: bool, with_lambda: bool,
         c[-1] = -1.0
     P_diag = None
     if proximal > 0.0 and normal_limit is not None:
-        # (proximal / 2) sum (N - Nbar)^2 in units of W: the force set nearest Nbar
+        # (proximal / 2) sum (N - Nbar)^2 in units of W: the force set nearest Nbar; and
+        # normal_penalty sum N: no normal force that carries nothing (the slack)
         P_diag = np.zeros(nvar)
         P_diag[3 * joint] = proximal
-        c[3 * joint] -= proximal * np.maximum(normal_limit[joint], 0.0) / W
+        c[3 * joint] += normal_penalty - proximal * np.maximum(normal_limit[joint], 0.0) / W
     return _Programme(c, A_eq, b_eq, G_lin, h_lin, G_soc, h_soc, row_scale, lam_scale, W,
                       P_diag, 3 * joint[rows_n], crush_cols)
 
@@ -238,14 +239,16 @@ def _solve_highs(p: _Programme) -> tuple[str, str, np.ndarray | None, np.ndarray
 def solve_limit(m: RigidModel, facets: int = friction.DEFAULT_FACETS, *, tension: bool = False,
                 dead_only: bool = False, normal_limit: np.ndarray | None = None,
                 solver: str = SOLVERS[0], proximal: float = 0.0,
-                compressive_Pa: float | None = None) -> LimitSolution:
+                compressive_Pa: float | None = None,
+                normal_penalty: float = 0.0) -> LimitSolution:
     """The programme of the module docstring for the rigid model ``m``; ``facets``: 0 for
     Coulomb's cone, ``k >= 3`` for the pyramid of ``k`` facets; ``tension``: the joints'
     tensile strength and cohesion (:mod:`.statics`) count; ``dead_only`` (or a model with no
     growing load): whether the dead loads alone can be carried (no multiplier);
     ``normal_limit`` (p,) N: friction of fixed capacity ``mu normal_limit`` instead of
     ``mu N`` (a step of :func:`solve_non_associative`); ``solver``: one of :data:`SOLVERS`;
-    ``compressive_Pa``: the compressive strength ``f_c`` (None: infinite)."""
+    ``compressive_Pa``: the compressive strength ``f_c`` (None: infinite); ``proximal`` and
+    ``normal_penalty``: the terms of a non-associative step (:func:`solve_non_associative`)."""
     if solver not in SOLVERS:
         raise ValueError(f"solver: one of {', '.join(SOLVERS)}, got {solver!r}")
     if facets and facets < 3:
@@ -253,7 +256,8 @@ def solve_limit(m: RigidModel, facets: int = friction.DEFAULT_FACETS, *, tension
     t0 = time.perf_counter()
     npt = m.points
     with_lambda = not dead_only and m.factor is not None
-    prog = _programme(m, facets, tension, with_lambda, normal_limit, proximal, compressive_Pa)
+    prog = _programme(m, facets, tension, with_lambda, normal_limit, proximal, compressive_Pa,
+                      normal_penalty)
     t1 = time.perf_counter()
     run = _solve_clarabel if solver == "clarabel" else _solve_highs
     status, message, x, y = run(prog)
@@ -293,6 +297,12 @@ def _mechanism(m: RigidModel, marginals: np.ndarray, row_scale: np.ndarray) -> n
 
 
 
+#: The weight of the normal forces' sum in a step of the non-associative iteration (forces in
+#: units of ``W``, the multiplier of order 1): among the force sets that carry the same load it
+#: takes the one with the least normal force. Without it the interior point leaves a face that
+#: carries nothing about 1e-5 W of normal force (its barrier's slack), which the next step's
+#: capacity lets carry friction: the multiplier crept up by about 0.05 % a step.
+NORMAL_PENALTY = 1e-4
 #: The non-associative iteration: the first and the largest weight of its proximal term (in
 #: the programme's units: forces in ``W``, the multiplier of order 1), the steps over which
 #: its multiplier must stay within ``rtol`` to have converged, and that tolerance.
@@ -429,8 +439,9 @@ def solve_non_associative(m: RigidModel, facets: int = friction.DEFAULT_FACETS, 
     programme with the friction of each point bounded by the fixed capacity ``mu Nbar_i`` (a
     capacity that does not depend on the unknown ``N``: the flow rule has no dilatancy) and,
     among the force sets that carry nearly the most, takes the one nearest ``Nbar_i``: it
-    maximises ``lambda - (proximal / 2) sum ((N - Nbar_i) / W)^2``; then ``Nbar_{i+1} = N_i``.
-    The weight starts at ``proximal`` and doubles (up to :data:`PROXIMAL_MAX`) at each step
+    maximises ``lambda - (proximal / 2) sum ((N - Nbar_i) / W)^2 - p sum N / W`` (``p``,
+    :data:`NORMAL_PENALTY`, a tie-break that leaves no normal force where none is needed, the
+    interior point's slack); then ``Nbar_{i+1} = N_i``. The weight starts at ``proximal`` and doubles (up to :data:`PROXIMAL_MAX`) at each step
     where the multiplier turns back (it rose after falling, or fell after rising): a
     monotone approach keeps its pace, an oscillation is damped.
 
@@ -454,8 +465,10 @@ def solve_non_associative(m: RigidModel, facets: int = friction.DEFAULT_FACETS, 
     capacities admit no forces (they need not: the forces of the step before were bounded by
     the capacities before) takes only part of the update (:func:`_relaxed`; ``relaxation``
     in the record), and the iteration stops at the step before only if no part admits forces.
-    Returns the last optimal solution (the failed first step's, without a multiplier, if there
-    is none) and the record:
+    The mechanism comes from the last capacities solved once more without the penalty (its
+    dual would open every compressed point by it; ``final`` in the record, its multiplier).
+    Returns that solution (the failed first step's, without a multiplier, if there is none)
+    and the record:
     ``start`` (with the elastic state's own record), ``converged``, ``iterations``,
     ``multipliers`` and ``normal_change`` (one per step), ``associative`` (the associative
     multiplier, None where that programme has no optimum), ``band`` (the least and largest
@@ -495,7 +508,8 @@ def solve_non_associative(m: RigidModel, facets: int = friction.DEFAULT_FACETS, 
 
         def solve(c, weight=weight, tried=tried):
             sol = solve_limit(m, facets, tension=tension, normal_limit=c, solver=solver,
-                              proximal=weight, compressive_Pa=compressive_Pa)
+                              proximal=weight, compressive_Pa=compressive_Pa,
+                              normal_penalty=NORMAL_PENALTY)
             tried.append(sol)
             ok = sol.status == "optimal" and sol.multiplier is not None
             return sol if ok else None
@@ -524,5 +538,14 @@ def solve_non_associative(m: RigidModel, facets: int = friction.DEFAULT_FACETS, 
             record["converged"] = True
             break
         target = N.copy()
+    if record["multipliers"]:
+        # the last capacities once more without the penalty, whose dual would open every
+        # compressed point by it: the mechanism of the fixed capacities
+        final = solve_limit(m, facets, tension=tension, normal_limit=nbar, solver=solver,
+                            proximal=weight, compressive_Pa=compressive_Pa)
+        solve_s += final.times_s["solve"]
+        if final.status == "optimal" and final.multiplier is not None:
+            last = final
+        record["final"] = final.multiplier
     last.times_s = {**last.times_s, "solve": solve_s}
     return last, record
