@@ -523,6 +523,10 @@ def limit_cmd(
     flow: Annotated[str, typer.Option(
         "--flow", help="associative (the normality rule) or non-associative (the iteration of "
         "fixed friction capacities).")] = "associative",
+    start: Annotated[str, typer.Option(
+        "--start", help="With --flow non-associative, the normal forces the iteration starts "
+        "from: elastic (the joints' springs under the dead loads, Coulomb friction) or "
+        "associative (the associative solution at collapse).")] = "elastic",
     overrides: SetOption = None,
     overwrite: OverwriteOption = False,
 ) -> None:
@@ -537,10 +541,12 @@ def limit_cmd(
     mechanism.vtu, joint_forces.csv, joint_forces.vtu and mechanism.png (docs/limit.md)."""
     case = _load_case_or_exit(case_file, overrides)
     from masonry_nscd.limit.analysis import FLOWS, analyse, format_result, write_outputs
-    from masonry_nscd.limit.lp import SOLVERS
+    from masonry_nscd.limit.lp import SOLVERS, STARTS
 
     if flow not in FLOWS:
         _fail(f"--flow: one of {', '.join(FLOWS)}, got {flow!r}", 2)
+    if start not in STARTS:
+        _fail(f"--start: one of {', '.join(STARTS)}, got {start!r}", 2)
     if not (facets == 0 or 3 <= facets <= 1024):
         _fail(f"--facets: 0 (the cone) or from 3 to 1024, got {facets}", 2)
     if solver not in SOLVERS or (solver == "highs" and not facets):
@@ -550,7 +556,7 @@ def limit_cmd(
     if compressive is not None and not compressive > 0.0:
         _fail(f"--compressive-strength: a stress > 0 Pa, got {compressive:g}", 2)
     result = analyse(case, facets=facets, tension=tension, flow=flow, solver=solver,
-                     compressive_Pa=compressive)
+                     compressive_Pa=compressive, start=start)
     for line in format_result(result.record):
         typer.echo(line)
     paths = write_outputs(result, outdir)

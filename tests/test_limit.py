@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 import math
-from itertools import combinations
+from itertools import combinations, pairwise
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +20,7 @@ from masonry_nscd.case import load_case
 from masonry_nscd.cli import app
 from masonry_nscd.limit import friction, mechanism
 from masonry_nscd.limit.analysis import analyse
-from masonry_nscd.limit.lp import solve_limit, solve_non_associative
+from masonry_nscd.limit.lp import elastic_state, solve_limit, solve_non_associative
 from masonry_nscd.limit.statics import rigid_model
 from masonry_nscd.limit.thickness import threshold
 from masonry_nscd.scenes import build_scene
@@ -95,15 +95,30 @@ def chord_voussoirs(n: int, radius: float, thickness: float):
     return a, b, normal, area, centroid
 
 
+def ring_voussoirs(n: int, radius: float, thickness: float, staggered: bool):
+    """A ring of the barrel vault (scenes/vault.py): the arch of ``2 n`` chord half voussoirs,
+    taken two by two (joints at every other half joint), or, ``staggered``, a half voussoir
+    at each springing and whole ones between (joints at the odd half joints); the arrays of
+    :func:`chord_voussoirs` for those voussoirs."""
+    a, b, normal, area, centroid = chord_voussoirs(2 * n, radius, thickness)
+    joints = ([0, *range(1, 2 * n, 2), 2 * n] if staggered else list(range(0, 2 * n + 1, 2)))
+    W = np.array([area[lo:hi].sum() for lo, hi in pairwise(joints)])
+    c = np.array([(area[lo:hi, None] * centroid[lo:hi]).sum(axis=0) / area[lo:hi].sum()
+                  for lo, hi in pairwise(joints)])
+    return a[joints], b[joints], normal[joints], W, c
+
+
 def four_hinge_multiplier(n: int, radius: float, thickness: float,
-                          point_load: int | None = None):
+                          point_load: int | None = None, geometry=None):
     """The kinematic theorem: the least horizontal multiplier of the weight over every
     admissible four-hinge mechanism (hinges at joints i < j < k < l, each at the intrados or
     the extrados, the three bodies between them turning about A, the intersection of AB and
     DC, and D; hinges must open). With ``point_load`` (a voussoir's 0-based index), the least
     downward force at the middle of its extrados chord instead, per unit of the weight of a
-    unit of area. Returns (lambda, ((joint, face) * 4))."""
-    a, b, normal, W, c = chord_voussoirs(n, radius, thickness)
+    unit of area. ``geometry``: the arrays of :func:`chord_voussoirs` for other voussoirs
+    (``n`` is then their number). Returns (lambda, ((joint, face) * 4))."""
+    a, b, normal, W, c = geometry or chord_voussoirs(n, radius, thickness)
+    n = len(W)
     # prefix sums per voussoir: W, W c_x, W c_y
     S = np.vstack([np.zeros(3), np.cumsum(np.column_stack([W, W * c[:, 0], W * c[:, 1]]),
                                           axis=0)])
@@ -342,6 +357,9 @@ def test_the_command_writes_its_files(tmp_path):
     r = CliRunner().invoke(app, ["limit", str(ARCH), "-o", str(tmp_path / "x"),
                                  "--flow", "sideways"])
     assert r.exit_code == 2
+    r = CliRunner().invoke(app, ["limit", str(ARCH), "-o", str(tmp_path / "y"),
+                                 "--flow", "non-associative", "--start", "sideways"])
+    assert r.exit_code == 2
 
 
 def test_the_dome_rests_on_its_ring_only_through_its_bed():
@@ -430,3 +448,67 @@ def test_bench_limit_prints_a_row_per_value():
     r = CliRunner().invoke(app, ["bench-limit", str(ARCH), "--param", "arch.voussoirs",
                                  "--values", "-3"])
     assert r.exit_code == 2
+
+
+# --- the non-associative iteration's start -------------------------------------------------
+
+def test_a_block_wedged_between_walls_slides_on_its_base():
+    """A block 0.2 x 0.1 x 0.2 m touching two fixed walls (on its faces normal to x) without
+    pressure, pushed along the walls (z) by lambda times its weight, mu = 0.5. Rigid blocks
+    admit a self-stress (the block pressed between the walls) that buys any friction on the
+    walls: the associative programme is unbounded. Loaded from rest, nothing presses the walls:
+    their friction is zero and the block slides on its base at lambda = mu, the least
+    non-associative collapse load (a state with the walls' normal force zero carries no more,
+    and any normal force there only adds friction). The elastic state under gravity puts the
+    whole weight on the base (to the interior point's slack, 1e-5), the iteration from it ends
+    at mu; from the associative solution it has no start."""
+    mu, W = 0.5, 2000.0 * 0.2 * 0.1 * 0.2 * 9.81
+    m = rigid_model(tilting_block(width=0.2, height=0.1, depth=0.2, mu=mu, walls=True,
+                                  direction=(0.0, 0.0, 1.0)))
+    side = m.group == 1
+    assert side.sum() == 8 and (~side).sum() == 4
+    assert solve_limit(m).status == "unbounded"
+    forces, _, record = elastic_state(m)
+    assert record["converged"]
+    # to the interior point's slack
+    assert forces[~side, 0].sum() == pytest.approx(W, rel=1e-5)
+    assert np.abs(forces[side]).max() < 1e-5 * W
+    sol, rec = solve_non_associative(m, start="elastic")
+    assert rec["converged"]
+    assert sol.multiplier == pytest.approx(mu, rel=1e-6)
+    assert sol.forces[side, 0].max() < 1e-4 * W  # one step's slack (the last, unpenalised)
+    kinds = {j["group"]: j["kind"] for j in mechanism.joints(
+        m, sol.point_velocity, {"groups": ["base", "side"]})}
+    assert kinds["base"] == "sliding"
+    sol, rec = solve_non_associative(m, start="associative")
+    assert sol.multiplier is None and not rec["multipliers"]
+
+
+def test_the_barrel_vault_collapses_as_its_weakest_ring():
+    """The shipped barrel vault (four rings side by side, the even ones staggered), high
+    friction: under loads in their plane nothing presses the rings against each other, so in
+    the state loaded from rest the faces between them carry nothing and each ring is an arch
+    on its own. The non-associative iteration from the elastic state ends at the least
+    multiplier of the rings, the staggered ring's, by the kinematic theorem over every
+    four-hinge mechanism of its voussoirs (0.145918); the faces between the rings carry no
+    normal force in the elastic state (to the interior point's slack, 1e-5). The associative
+    programme presses the rings together and holds them by friction (far above); from its
+    solution the iteration drains that self-stress step by step (it carries nothing the
+    fixed capacities need, and the normal forces' penalty takes it out) and ends within 1 %."""
+    case = load_case(CASES / "vault_barrel.yaml", ["joint.mu=2.0"])
+    scene = build_scene(case)
+    m = rigid_model(scene)
+    rings = m.group == scene.groups.index("ring")
+    expected = min(four_hinge_multiplier(0, 1.0, 0.15,
+                                         geometry=ring_voussoirs(24, 1.0, 0.15, staggered))[0]
+                   for staggered in (False, True))
+    forces, _, record = elastic_state(m)
+    assert record["converged"]
+    assert forces[rings, 0].max() < 1e-5 * forces[:, 0].max()
+    sol, rec = solve_non_associative(m, start="elastic")
+    assert rec["converged"]
+    assert sol.multiplier == pytest.approx(expected, rel=1e-5)
+    assert solve_limit(m).multiplier > 1.5 * expected
+    other, rec = solve_non_associative(m, start="associative")
+    assert rec["converged"]
+    assert other.multiplier == pytest.approx(expected, rel=1e-2)

@@ -20,7 +20,13 @@ import numpy as np
 
 from masonry_nscd.io import limit_analysis as files
 from masonry_nscd.limit import friction, mechanism, thrust
-from masonry_nscd.limit.lp import SOLVERS, LimitSolution, solve_limit, solve_non_associative
+from masonry_nscd.limit.lp import (
+    SOLVERS,
+    STARTS,
+    LimitSolution,
+    solve_limit,
+    solve_non_associative,
+)
 from masonry_nscd.limit.picture import draw_mechanism
 from masonry_nscd.limit.statics import RigidModel, rigid_model
 from masonry_nscd.scenes import build_scene
@@ -46,14 +52,20 @@ def _kind(flow: str, iteration: dict | None) -> str:
         return ("associative: the collapse multiplier of the normality rule (a sliding joint "
                 "dilates); an upper bound of the non-associative one where sliding matters")
     done = "converged" if iteration and iteration.get("converged") else "not converged"
-    return ("non-associative: fixed friction capacities iterated from the associative "
-            f"solution (Gilbert, Casapulla and Ahmed 2006), proximal steps, {done}")
+    start = (iteration or {}).get("start", STARTS[0])
+    origin = ("the elastic state under the dead loads (least complementary energy, successive "
+              "Tresca bounds: Panagiotopoulos 1975)" if start == "elastic"
+              else "the associative solution")
+    return ("non-associative: fixed friction capacities (Gilbert, Casapulla and Ahmed 2006) "
+            f"iterated from {origin}, proximal steps, {done}; one non-associative collapse "
+            "load, not necessarily the least")
 
 
 def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = False,
             flow: str = "associative", solver: str = SOLVERS[0],
-            compressive_Pa: float | None = None) -> LimitResult:
-    """The limit analysis of ``case`` (module docstring)."""
+            compressive_Pa: float | None = None, start: str = STARTS[0]) -> LimitResult:
+    """The limit analysis of ``case`` (module docstring); ``start``: the non-associative
+    iteration's start (:data:`.lp.STARTS`)."""
     if flow not in FLOWS:
         raise ValueError(f"flow: one of {', '.join(FLOWS)}, got {flow!r}")
     t0 = time.perf_counter()
@@ -67,7 +79,7 @@ def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = Fals
                           compressive_Pa=compressive_Pa)
     else:
         sol, iteration = solve_non_associative(model, facets, tension=tension, solver=solver,
-                                               compressive_Pa=compressive_Pa)
+                                               compressive_Pa=compressive_Pa, start=start)
     info = scene.info()
     optimal = sol.status == "optimal"
     every = mechanism.joints(model, sol.point_velocity, info) if optimal else []
@@ -178,6 +190,7 @@ def format_result(record: dict[str, Any]) -> list[str]:
                      + (f" ({it['stopped_by']})" if it.get("stopped_by") else "")
                      + (f"; last {len(it['multipliers'][-5:])} multipliers within "
                         f"{it['band'][0]:.6g} to {it['band'][1]:.6g}" if it.get("band") else "")
+                     + f"; from the {it.get('start', STARTS[0])} state"
                      + (f"; associative multiplier {it['associative']:.6g}"
                         if it.get("associative") is not None else ""))
     lines.append(f"times: scene {t['scene']:.3f} s, programme {t['assemble']:.3f} s, "

@@ -117,7 +117,7 @@ class _Programme:
 
 def _programme(m: RigidModel, facets: int, tension: bool, with_lambda: bool,
                normal_limit: np.ndarray | None, proximal: float = 0.0,
-               compressive_Pa: float | None = None) -> _Programme:
+               compressive_Pa: float | None = None, normal_penalty: float = 0.0) -> _Programme:
     npt = m.points
     W, L = _scales(m)
     row_scale = np.tile([W, W, W, W * L, W * L, W * L], m.bodies)[m.free]
@@ -180,10 +180,11 @@ def _programme(m: RigidModel, facets: int, tension: bool, with_lambda: bool,
         c[-1] = -1.0
     P_diag = None
     if proximal > 0.0 and normal_limit is not None:
-        # (proximal / 2) sum (N - Nbar)^2 in units of W: the force set nearest Nbar
+        # (proximal / 2) sum (N - Nbar)^2 in units of W: the force set nearest Nbar; and
+        # normal_penalty sum N: no normal force that carries nothing (the slack)
         P_diag = np.zeros(nvar)
         P_diag[3 * joint] = proximal
-        c[3 * joint] -= proximal * np.maximum(normal_limit[joint], 0.0) / W
+        c[3 * joint] += normal_penalty - proximal * np.maximum(normal_limit[joint], 0.0) / W
     return _Programme(c, A_eq, b_eq, G_lin, h_lin, G_soc, h_soc, row_scale, lam_scale, W,
                       P_diag, 3 * joint[rows_n], crush_cols)
 
@@ -238,14 +239,16 @@ def _solve_highs(p: _Programme) -> tuple[str, str, np.ndarray | None, np.ndarray
 def solve_limit(m: RigidModel, facets: int = friction.DEFAULT_FACETS, *, tension: bool = False,
                 dead_only: bool = False, normal_limit: np.ndarray | None = None,
                 solver: str = SOLVERS[0], proximal: float = 0.0,
-                compressive_Pa: float | None = None) -> LimitSolution:
+                compressive_Pa: float | None = None,
+                normal_penalty: float = 0.0) -> LimitSolution:
     """The programme of the module docstring for the rigid model ``m``; ``facets``: 0 for
     Coulomb's cone, ``k >= 3`` for the pyramid of ``k`` facets; ``tension``: the joints'
     tensile strength and cohesion (:mod:`.statics`) count; ``dead_only`` (or a model with no
     growing load): whether the dead loads alone can be carried (no multiplier);
     ``normal_limit`` (p,) N: friction of fixed capacity ``mu normal_limit`` instead of
     ``mu N`` (a step of :func:`solve_non_associative`); ``solver``: one of :data:`SOLVERS`;
-    ``compressive_Pa``: the compressive strength ``f_c`` (None: infinite)."""
+    ``compressive_Pa``: the compressive strength ``f_c`` (None: infinite); ``proximal`` and
+    ``normal_penalty``: the terms of a non-associative step (:func:`solve_non_associative`)."""
     if solver not in SOLVERS:
         raise ValueError(f"solver: one of {', '.join(SOLVERS)}, got {solver!r}")
     if facets and facets < 3:
@@ -253,7 +256,8 @@ def solve_limit(m: RigidModel, facets: int = friction.DEFAULT_FACETS, *, tension
     t0 = time.perf_counter()
     npt = m.points
     with_lambda = not dead_only and m.factor is not None
-    prog = _programme(m, facets, tension, with_lambda, normal_limit, proximal, compressive_Pa)
+    prog = _programme(m, facets, tension, with_lambda, normal_limit, proximal, compressive_Pa,
+                      normal_penalty)
     t1 = time.perf_counter()
     run = _solve_clarabel if solver == "clarabel" else _solve_highs
     status, message, x, y = run(prog)
@@ -293,6 +297,12 @@ def _mechanism(m: RigidModel, marginals: np.ndarray, row_scale: np.ndarray) -> n
 
 
 
+#: The weight of the normal forces' sum in a step of the non-associative iteration (forces in
+#: units of ``W``, the multiplier of order 1): among the force sets that carry the same load it
+#: takes the one with the least normal force. Without it the interior point leaves a face that
+#: carries nothing about 1e-5 W of normal force (its barrier's slack), which the next step's
+#: capacity lets carry friction: the multiplier crept up by about 0.05 % a step.
+NORMAL_PENALTY = 1e-4
 #: The non-associative iteration: the first and the largest weight of its proximal term (in
 #: the programme's units: forces in ``W``, the multiplier of order 1), the steps over which
 #: its multiplier must stay within ``rtol`` to have converged, and that tolerance.
@@ -300,23 +310,152 @@ PROXIMAL = 0.002
 PROXIMAL_MAX = 0.05
 STEADY_STEPS = 5
 NON_ASSOCIATIVE_RTOL = 5e-3
+#: The normal forces the iteration starts from (:func:`solve_non_associative`), the default
+#: first: ``elastic``, the joints' springs under the dead loads with Coulomb friction
+#: (:func:`elastic_state`); ``associative``, the associative solution at collapse.
+STARTS = ("elastic", "associative")
+#: The elastic state's successive friction bounds: at most this many, until the normal forces
+#: change by less than ``ELASTIC_RTOL`` of the largest between two.
+ELASTIC_STEPS = 20
+ELASTIC_RTOL = 1e-4
+
+
+def _energy_weights(m: RigidModel) -> np.ndarray:
+    """The diagonal (3 p) of the complementary energy ``(1/2) sum (c_n N^2 + c_t (T^2 +
+    S^2)) / A`` of the joints' springs, scaled to a mean normal weight of 1; a joint without
+    springs (zero compliance, a ``coulomb`` joint) counts as a spring as stiff as the others'
+    (as stiff in shear as in compression if none has one)."""
+    cn = np.asarray(m.compliance_n, float).copy()
+    ct = np.asarray(m.compliance_t, float).copy()
+    for c in (cn, ct):
+        soft = c > 0.0
+        c[~soft] = c[soft].mean() if soft.any() else 1.0
+    area = np.maximum(m.area, 1e-300)
+    wn, wt = cn / area, ct / area
+    unit = float(wn.mean())
+    return np.stack([wn, wt, wt], axis=1).ravel() / unit
+
+
+def _elastic_step(m: RigidModel, nbar: np.ndarray | None, tension: bool,
+                  compressive_Pa: float | None) -> tuple[str, str, np.ndarray | None]:
+    """One state of least complementary energy under the dead loads: friction bounded by
+    ``c A + mu nbar`` (Tresca's), or by ``c A + mu N`` (Coulomb's cone, ``nbar`` None)."""
+    prog = _programme(m, 0, tension, False, nbar, compressive_Pa=compressive_Pa)
+    prog.P_diag = _energy_weights(m)
+    prog.c = np.zeros(len(prog.c))
+    status, message, x, _ = _solve_clarabel(prog)
+    return status, message, None if x is None else x.reshape(-1, 3) * prog.W
+
+
+#: A capacity update that leaves no admissible forces is halved this many times at most (the
+#: update under-relaxed, :func:`_relaxed`) before the iteration stops.
+HALVINGS = 4
+
+
+def _relaxed(solve, nbar: np.ndarray, target: np.ndarray):
+    """``solve(c)`` at the capacity ``c = nbar + t (target - nbar)``, ``t = 1, 1/2, ...``
+    (:data:`HALVINGS` halvings): the first with a solution, ``(solution, c, t)``, or
+    ``(None, c, t)`` with the last ``c`` tried. The capacity ``nbar`` admitted forces, the
+    new one need not: the fixed point is the same, the update only shorter."""
+    t = 1.0
+    for _ in range(HALVINGS + 1):
+        c = nbar + t * (target - nbar)
+        out = solve(c)
+        if out is not None:
+            return out, c, t
+        t *= 0.5
+    return None, c, 2.0 * t
+
+
+def elastic_state(m: RigidModel, *, tension: bool = False,
+                  compressive_Pa: float | None = None, steps: int = ELASTIC_STEPS,
+                  rtol: float = ELASTIC_RTOL
+                  ) -> tuple[np.ndarray | None, np.ndarray | None, dict]:
+    r"""The joint forces (p, 3) (N) that the dead loads alone give when the joints are the
+    stiff springs of their law (normal compliance ``c_n``, tangential ``c_t``, m/Pa), the
+    blocks rigid, no tension, and Coulomb friction that does not dilate: the state a structure
+    loaded from rest is in before its growing load starts (the NSCD run's after gravity).
+
+    With the friction bound fixed, the forces of elastic joints minimise the complementary
+    energy ``(1/2) sum_p (c_n N_p^2 + c_t (T_p^2 + S_p^2)) / A_p`` over the forces that
+    equilibrate the loads with ``N >= 0`` and ``|(T, S)| <= mu Nbar`` (Tresca's friction, a
+    given bound: the principle of least complementary energy extended to unilateral contact
+    with given friction). Coulomb's bound ``mu N`` depends on the unknown normal force, and
+    the state is found by successive Tresca problems, ``Nbar`` the normal forces of the one
+    before (Panagiotopoulos, Ingenieur-Archiv 44, 1975; Kikuchi and Oden, Contact Problems in
+    Elasticity, SIAM 1988: the method of successive approximations), until they change by less
+    than ``rtol`` of the largest. The first bound is that of the least-energy forces within
+    Coulomb's cone itself (admissible whenever the dead loads can be carried); a bound that
+    leaves no admissible forces is moved only part of the way (:func:`_relaxed`). Each problem
+    is convex, a quadratic objective with second-order cones (Clarabel, whichever solver the
+    analysis uses).
+
+    Within the cone a self-stress may lower the energy by letting faces carry friction (faces
+    pressed together through the rigid blocks, the dilatancy of the normality rule); with the
+    bound fixed it only costs energy and buys nothing, and the successive bounds take it out:
+    faces that nothing presses carry nothing (the rings of a barrel vault side by side under
+    loads in their plane). Returns the forces (None if the dead loads cannot be carried), the
+    last bound ``Nbar`` (N, p; the forces are admissible with ``mu Nbar``, and with ``mu N`` too
+    once converged) and the record: ``steps``, ``converged``, ``normal_change`` per step (the largest change of the
+    bound over the largest force), ``relaxation`` per step (the part of the update taken) and
+    ``stopped_by``."""
+    record: dict = {"method": "least complementary energy of the joints' springs, "
+                              "successive Tresca bounds (Panagiotopoulos 1975)",
+                    "steps": 0, "converged": False, "normal_change": [], "relaxation": [],
+                    "stopped_by": None}
+    status, message, f = _elastic_step(m, None, tension, compressive_Pa)
+    if f is None:
+        record["stopped_by"] = f"the cone: {status} ({message})"
+        return None, None, record
+    nbar, target = f[:, 0].copy(), f[:, 0].copy()
+
+    def solve(c):
+        return _elastic_step(m, c, tension, compressive_Pa)[2]
+
+    for i in range(1, steps + 1):
+        g, c, t = _relaxed(solve, nbar, target)
+        if g is None:
+            record["stopped_by"] = f"step {i}: no admissible forces within {t:g} of the update"
+            break
+        change = float(np.abs(c - nbar).max() / max(float(np.abs(g[:, 0]).max()), 1e-300))
+        record["steps"] = i
+        record["normal_change"].append(change)
+        record["relaxation"].append(t)
+        f, nbar, target = g, c, g[:, 0].copy()
+        if i > 1 and change <= rtol:
+            record["converged"] = True
+            break
+    return f, nbar, record
 
 
 def solve_non_associative(m: RigidModel, facets: int = friction.DEFAULT_FACETS, *,
                           tension: bool = False, proximal: float = PROXIMAL,
                           rtol: float = NON_ASSOCIATIVE_RTOL, max_iterations: int = 60,
-                          solver: str = SOLVERS[0], compressive_Pa: float | None = None
-                          ) -> tuple[LimitSolution, dict]:
+                          solver: str = SOLVERS[0], compressive_Pa: float | None = None,
+                          start: str = STARTS[0]) -> tuple[LimitSolution, dict]:
     r"""The multiplier with Coulomb friction that does not dilate, by the iteration of fixed
     friction capacities (Gilbert, Casapulla and Ahmed, Computers & Structures 84, 2006) made
-    proximal: from the associative solution's normal forces ``N^0``, step ``i`` solves the
+    proximal: from the normal forces ``N^0`` of the start, step ``i`` solves the
     programme with the friction of each point bounded by the fixed capacity ``mu Nbar_i`` (a
     capacity that does not depend on the unknown ``N``: the flow rule has no dilatancy) and,
     among the force sets that carry nearly the most, takes the one nearest ``Nbar_i``: it
-    maximises ``lambda - (proximal / 2) sum ((N - Nbar_i) / W)^2``; then ``Nbar_{i+1} = N_i``.
-    The weight starts at ``proximal`` and doubles (up to :data:`PROXIMAL_MAX`) at each step
+    maximises ``lambda - (proximal / 2) sum ((N - Nbar_i) / W)^2 - p sum N / W`` (``p``,
+    :data:`NORMAL_PENALTY`, a tie-break that leaves no normal force where none is needed, the
+    interior point's slack); then ``Nbar_{i+1} = N_i``. The weight starts at ``proximal`` and doubles (up to :data:`PROXIMAL_MAX`) at each step
     where the multiplier turns back (it rose after falling, or fell after rising): a
     monotone approach keeps its pace, an oscillation is damped.
+
+    ``start`` (:data:`STARTS`): ``elastic`` (the default) takes ``N^0`` from the state of the
+    joints' springs under the dead loads (:func:`elastic_state`), the state the structure is in
+    when its load starts to grow; ``associative`` from the associative solution at collapse,
+    Gilbert, Casapulla and Ahmed's start. Non-associative collapse loads are not unique, and
+    the iteration ends at the one its start leads to: the associative start carries the
+    self-stress of the associative solution (rings of a vault pressed together and held by
+    friction, which the static method may use and the structure loaded from rest never builds)
+    into the first capacities, and the steps drain it only gradually (the barrel vault at
+    mu = 2: 0.1471 after 17 steps, against its weakest ring's 0.145918 from the elastic state
+    at the first; docs/limit.md).
+
     A fixed point (``N = Nbar``) is a state of the non-associative model: its forces are
     admissible with the friction their own normal forces give, and the proximal term, zero
     there, leaves the multiplier that of the programme. The term keeps a statically
@@ -324,36 +463,71 @@ def solve_non_associative(m: RigidModel, facets: int = friction.DEFAULT_FACETS, 
     jumping from one force set to another between steps, the cause of the plain iteration's
     wandering. The iteration has converged when the multiplier stays within ``rtol`` over
     :data:`STEADY_STEPS` steps; the normal forces of an indeterminate assembly may still move
-    (``normal_change``, the largest change over the largest force, per step). A step without
-    solution ends it at the step before. Returns the last optimal solution and the record:
-    ``converged``, ``iterations``, ``multipliers`` and ``normal_change`` (one per step),
-    ``associative`` (the first multiplier), ``band`` (the least and largest multiplier of the
-    last :data:`STEADY_STEPS` steps)."""
+    (``normal_change``, the largest change over the largest force, per step). A step whose
+    capacities admit no forces (they need not: the forces of the step before were bounded by
+    the capacities before) takes only part of the update (:func:`_relaxed`; ``relaxation``
+    in the record), and the iteration stops at the step before only if no part admits forces.
+    The mechanism comes from the last capacities solved once more without the penalty (its
+    dual would open every compressed point by it; ``final`` in the record, its multiplier).
+    Returns that solution (the failed first step's, without a multiplier, if there is none)
+    and the record:
+    ``start`` (with the elastic state's own record), ``converged``, ``iterations``,
+    ``multipliers`` and ``normal_change`` (one per step), ``associative`` (the associative
+    multiplier, None where that programme has no optimum), ``band`` (the least and largest
+    multiplier of the last :data:`STEADY_STEPS` steps)."""
+    if start not in STARTS:
+        raise ValueError(f"start: one of {', '.join(STARTS)}, got {start!r}")
     first = solve_limit(m, facets, tension=tension, solver=solver,
                         compressive_Pa=compressive_Pa)
-    record = {"method": "fixed friction capacities, proximal", "associative": first.multiplier,
-              "multipliers": [], "normal_change": [], "converged": False, "iterations": 0,
-              "proximal": proximal, "rtol": rtol, "steady_steps": STEADY_STEPS,
-              "band": None, "stopped_by": None}
-    if first.status != "optimal" or first.multiplier is None:
-        return first, record
-    nbar = first.forces[:, 0].copy()
-    last = first
+    record = {"method": "fixed friction capacities, proximal", "start": start,
+              "associative": first.multiplier, "multipliers": [], "normal_change": [],
+              "converged": False, "iterations": 0, "proximal": proximal, "rtol": rtol,
+              "steady_steps": STEADY_STEPS, "band": None, "stopped_by": None}
     solve_s = first.times_s["solve"]
+    if start == "elastic":
+        t0 = time.perf_counter()
+        state, bound, record["elastic_state"] = elastic_state(m, tension=tension,
+                                                              compressive_Pa=compressive_Pa)
+        solve_s += time.perf_counter() - t0
+        if state is None or m.factor is None:
+            return first, record
+        # the bound its forces are admissible with; its own normal forces the first target
+        nbar, target = bound.copy(), state[:, 0].copy()
+    else:
+        if first.status != "optimal" or first.multiplier is None:
+            return first, record
+        nbar = first.forces[:, 0].copy()
+        target = nbar
+    last = first
     weight = proximal
-    record["weights"] = []
+    record["weights"], record["relaxation"] = [], []
     for i in range(1, max_iterations + 1):
         lams = record["multipliers"]
         if len(lams) >= 3 and (lams[-1] - lams[-2]) * (lams[-2] - lams[-3]) < 0.0:
             weight = min(2.0 * weight, max(PROXIMAL_MAX, proximal))
         record["weights"].append(weight)
-        sol = solve_limit(m, facets, tension=tension, normal_limit=nbar, solver=solver,
-                          proximal=weight, compressive_Pa=compressive_Pa)
-        solve_s += sol.times_s["solve"]
+        tried = []
+
+        def solve(c, weight=weight, tried=tried):
+            sol = solve_limit(m, facets, tension=tension, normal_limit=c, solver=solver,
+                              proximal=weight, compressive_Pa=compressive_Pa,
+                              normal_penalty=NORMAL_PENALTY)
+            tried.append(sol)
+            ok = sol.status == "optimal" and sol.multiplier is not None
+            return sol if ok else None
+
+        sol, c, t = _relaxed(solve, nbar, target)
+        if sol is None and i == 1:  # the elastic state's bound itself admits its forces
+            sol, c, t = solve(nbar), nbar, 0.0
+        solve_s += sum(s.times_s["solve"] for s in tried)
         record["iterations"] = i
-        if sol.status != "optimal" or sol.multiplier is None:
-            record["stopped_by"] = f"step {i}: {sol.status}"
+        if sol is None:
+            record["stopped_by"] = f"step {i}: {tried[-1].status} within {t:g} of the update"
+            if i == 1:  # no non-associative state at all: not the associative solution
+                last = tried[-1]
             break
+        record["relaxation"].append(t)
+        nbar = c
         N = sol.forces[:, 0]
         record["multipliers"].append(sol.multiplier)
         record["normal_change"].append(
@@ -365,6 +539,15 @@ def solve_non_associative(m: RigidModel, facets: int = friction.DEFAULT_FACETS, 
                 max(recent) - min(recent) <= rtol * max(abs(sol.multiplier), 1e-12):
             record["converged"] = True
             break
-        nbar = N.copy()
+        target = N.copy()
+    if record["multipliers"]:
+        # the last capacities once more without the penalty, whose dual would open every
+        # compressed point by it: the mechanism of the fixed capacities
+        final = solve_limit(m, facets, tension=tension, normal_limit=nbar, solver=solver,
+                            proximal=weight, compressive_Pa=compressive_Pa)
+        solve_s += final.times_s["solve"]
+        if final.status == "optimal" and final.multiplier is not None:
+            last = final
+        record["final"] = final.multiplier
     last.times_s = {**last.times_s, "solve": solve_s}
     return last, record

@@ -15,7 +15,9 @@ Interface points are the scene's contact points (:mod:`masonry_nscd.model.points
 (body ``c``), tributary area ``A_p`` (m^2), friction coefficient ``mu_p`` and, from the joint
 law's parameter row, the tensile strength ``f_t`` and the cohesion ``c`` of the joint as built
 (Pa: the cohesive law's elastic limits times its initial integrity; zero for a dry joint).
-A glued point carries any force.
+A glued point carries any force. The joint's springs (the normal compliance in compression
+and the tangential one, m/Pa; zero for a ``coulomb`` joint) weigh its points in the state of
+least complementary energy that starts the non-associative iteration (:mod:`.lp`).
 
 The unknown force of point ``p`` is ``f_p = N_p n + T_p t + S_p s`` (N) on the candidate
 (``N > 0`` compression), ``-f_p`` on the antagonist. Equilibrium of a free body ``b``:
@@ -46,7 +48,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from masonry_nscd.contact.laws import KIND_GLUED
-from masonry_nscd.contact.laws.fczm import P_B, P_D1, P_D2, P_KI, P_KII, P_MU
+from masonry_nscd.contact.laws.fczm import P_B, P_CN_C, P_CT, P_D1, P_D2, P_KI, P_KII, P_MU
 from masonry_nscd.model import RigidBody, dof_offsets
 from masonry_nscd.model.bodies import DOF_IMPOSED
 
@@ -68,6 +70,8 @@ class RigidModel:
     cohesion_Pa: np.ndarray  # (p,)
     glued: np.ndarray  # (p,) bool
     group: np.ndarray  # (p,) joint group id
+    compliance_n: np.ndarray  # (p,) m/Pa, the joint's normal spring in compression (0: rigid)
+    compliance_t: np.ndarray  # (p,) m/Pa, its tangential spring
     dead: np.ndarray  # (6 b,) N, N m
     live: np.ndarray  # (6 b,) N, N m per unit of the factor
     factor: str | None  # the growing load's name (None: dead loads only)
@@ -188,6 +192,7 @@ def rigid_model(scene) -> RigidModel:
         cohesion_Pa=P[:, P_B] * P[:, P_KII] * P[:, P_D2],
         glued=np.array([p.kind == KIND_GLUED for p in pts], bool),
         group=np.array([p.group for p in pts], np.int64),
+        compliance_n=P[:, P_CN_C].copy(), compliance_t=P[:, P_CT].copy(),
         dead=_reduce(scene, dead, ref), live=live,
         factor=factor, factor_unit=unit, meshes=meshes)
 

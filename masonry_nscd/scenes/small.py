@@ -337,7 +337,8 @@ def tilting_block(*, width=0.1, height=0.4, depth=0.15, mu=0.6, rate_per_s=0.05,
                   multiplier=0.0, start_s=0.1, ramp_s=0.1, gravity=9.81, h=2e-3,
                   law: str = "coulomb", method: str = "nlgs", tolerance=1e-8,
                   rule: str = "lobatto", displacement_m=0.01, onset_velocity_m_s=1e-4,
-                  end_s=10.0, joint_kw=None, vertices=None):
+                  end_s=10.0, joint_kw=None, vertices=None, walls: bool = False,
+                  direction=(1.0, 0.0, 0.0)):
     """A rigid block (2000 kg/m^3; ``width`` along x, ``height`` along y) free on a fixed base,
     under gravity (ramped over [0, 0.05] s) and a horizontal body force ``lambda(t) g m``
     along +x that rises to ``multiplier`` and grows at ``rate_per_s``
@@ -347,29 +348,45 @@ def tilting_block(*, width=0.1, height=0.4, depth=0.15, mu=0.6, rate_per_s=0.05,
     ``lambda = mu`` otherwise, with its contact points at the corners of its base (``rule``
     ``lobatto``). With ``vertices`` (k, 3) the block is the convex polyhedron of those
     vertices instead (:meth:`RigidBody.polyhedron`, standing on ``y = 0``; ``rule`` must then
-    be ``overlap``, the rule of triangular faces). Returns the
-    :class:`~masonry_nscd.scenes.scene.Scene`."""
+    be ``overlap``, the rule of triangular faces). With ``walls`` the box is wedged between two
+    fixed walls, one on each face normal to x, touching them without pressure (the joints'
+    ``side`` group); ``direction`` is the body force's (a unit vector; along z it pushes the
+    block along the walls). Returns the :class:`~masonry_nscd.scenes.scene.Scene`."""
     P = np.atleast_2d(fczm.joint_params(law=law, mu=mu, **dict(joint_kw or {})))
     base = _fixed_plate((width / 2, -0.05, depth / 2), (4 * width, 0.1, 2 * depth))
     base.name = "base"
     block = (RigidBody.box((0, 0, 0), (width, height, depth), 2000.0, (1, 1, 1), name="block")
              if vertices is None else RigidBody.polyhedron(vertices, 2000.0, name="block"))
     bodies = [block, base]
+    groups: tuple[str, ...] = ("base",)
+    if walls:
+        for x in (-0.05, width + 0.05):
+            wall = _fixed_plate((x, height / 2, depth / 2), (0.1, height, 2 * depth))
+            wall.name = "wall"
+            bodies.append(wall)
+        groups = ("base", "side")
     n = int(dof_offsets(bodies)[-1])
-    pts = contact_points(bodies, _all_joints(), max_gap=0.0, rule=rule)
+
+    def group(joint, antagonist):
+        pair = (bodies[joint.candidate.body], bodies[antagonist.body])
+        if all(b.support for b in pair):  # a wall on the base: no joint
+            return None
+        return (1 if any(b.name == "wall" for b in pair) else 0), KIND_JOINT, 0
+
+    pts = contact_points(bodies, group, max_gap=0.0, rule=rule)
     loads = Loads()
     G = np.zeros(n)
     G[:6] = block.weight_load(np.array([0.0, -1.0, 0.0]))
     loads.add(G, Ramp(gravity, 0.0, 0.05))
     lam = GrowingMultiplier(multiplier, rate_per_s, start_s, ramp_s)
     B = np.zeros(n)
-    B[:6] = block.weight_load(np.array([1.0, 0.0, 0.0]))
+    B[:6] = block.weight_load(np.asarray(direction, float))
     loads.add(B, lambda t: gravity * lam(t))
     rule_ = CollapseRule(displacement_m=displacement_m, onset_velocity_m_s=onset_velocity_m_s,
                          factors=[LoadFactor("lambda", "", lam, "body force multiplier")])
     solver = SolverSettings(h=h, tolerance=tolerance, max_iterations=20000, check_every=1,
                             method=method)
-    return Scene(name="tilting block", bodies=bodies, points=pts, groups=("base",), params=P,
+    return Scene(name="tilting block", bodies=bodies, points=pts, groups=groups, params=P,
                  loads=loads, solver=solver, structure=[0], body_info=[{"name": "block"}],
                  driven=0, reactions={"top": 1, "bottom": 1},
                  stages=[Stage("gravity", 0.0), Stage("body force", start_s)],
