@@ -223,3 +223,63 @@ def _corner_halves(corner: str):
 def test_a_diagonal_rib_deeper_than_its_arch_is_refused():
     with pytest.raises(CaseError, match="cross_vault.diagonal_rib_depth_m: got 1.8 m"):
         build_scene(_vault(diagonal_ribs=True, diagonal_rib_depth_m=1.8))
+
+
+def test_piers_of_drums_stand_under_the_vault_and_carry_its_weight(tmp_path):
+    """``piers``: each corner on a square pier of drums centred on the corner of the bay, its
+    lowest drum on the fixed support ``pier_height_m`` below the springing. Wide piers (2.5 m)
+    stand under the vault's weight; the supports carry the vault's weight (that of the same
+    vault on fixed supports, the same stones) plus the piers', 4 rho g w^2 H from their
+    outline, to the solver's tolerance, with no net horizontal force."""
+    w, H, drums = 2.5, 3.0, 6
+    case = _vault(piers=True, pier_width_m=w, pier_height_m=H, pier_drums=drums)
+    scene = build_scene(case)
+    for corner, (sx, sz) in {"north-east": (1, 1), "south-west": (-1, -1)}.items():
+        names = [f"pier {corner} drum {k + 1}" for k in range(drums)]
+        X = [next(b for b in scene.bodies if b.name == n).X for n in names]
+        for k, Xk in enumerate(X):
+            assert Xk[:, 1].min() == pytest.approx(-H + k * H / drums, abs=1e-12)
+            assert Xk[:, 1].max() == pytest.approx(-H + (k + 1) * H / drums, abs=1e-12)
+            assert Xk[:, 0].min() == pytest.approx(sx * 2.0 - w / 2, abs=1e-12)
+            assert Xk[:, 2].max() == pytest.approx(sz * 2.0 + w / 2, abs=1e-12)
+    support = next(b for b in scene.bodies if b.name == "support north-east")
+    assert support.X[:, 1].max() == pytest.approx(-H, abs=1e-12)
+    path = tmp_path / "vault.yaml"
+    path.write_text(case_to_yaml(case))
+    res = CliRunner().invoke(app, ["run", str(path), "-o", str(tmp_path / "run")])
+    assert res.exit_code == 0, res.output
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["status"] == "standing"
+    vault_kg = sum(b.mass for b in build_scene(_vault()).bodies if not b.support)
+    weight_kN = (vault_kg + 4 * 2000.0 * w * w * H) * 9.81 / 1e3
+    fx, fy = summary["support_forces_last_kN"]["all supports"]
+    assert fy == pytest.approx(weight_kN, rel=1e-6)
+    assert abs(fx) <= 1e-8 * weight_kN
+
+
+def test_piers_lower_the_collapse_multiplier_and_narrow_ones_cannot_carry_the_vault(tmp_path):
+    """Limit analysis: any joint forces that hold the vault on piers hold it on fixed supports
+    (the supports take any force), so the multiplier on piers is at most the one on fixed
+    supports; piers as narrow as the springers' feet cannot carry the vault's thrust at all,
+    and the NSCD run collapses under the vault's weight alone; a pier narrower than the feet
+    is refused, naming the field."""
+    from masonry_nscd.limit.analysis import analyse
+
+    grow = {"body_force": {"direction": [1.0, 0.0, 0.0], "multiplier": 0.0,
+                           "rate_per_s": 0.1, "start_s": 0.3, "ramp_s": 0.1}}
+
+    def lam(**kw):
+        return analyse(_vault(grow, **kw)).record["multiplier"]["value"]
+
+    fixed = lam()
+    assert lam(piers=True, pier_width_m=1.5) <= fixed + 1e-6
+    assert lam(piers=True, pier_width_m=1.5, pier_height_m=6.0) < fixed
+    assert analyse(_vault(piers=True)).record["status"] == "infeasible"
+    path = tmp_path / "vault.yaml"
+    path.write_text(case_to_yaml(_vault(piers=True)))
+    res = CliRunner().invoke(app, ["run", str(path), "-o", str(tmp_path / "run")])
+    assert res.exit_code == 0, res.output
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["status"] == "collapse"
+    with pytest.raises(CaseError, match=r"cross_vault.pier_width_m: got 0.3 m; .* at least"):
+        build_scene(_vault(piers=True, pier_width_m=0.3))

@@ -27,11 +27,14 @@ against each end of the east and west webs; its voussoirs spring from the same s
 diagonal rib: its intrados ``diagonal_rib_depth`` further on each bed's line (so that the bed
 stays one plane), bonded into both webs; the top course's eight groin stones are the boss where
 the ribs cross, and the springers' tops are deepened the same way. Each support is a fixed box
-under the springer (and the transverse ribs' feet) of its corner.
+under the springer (and the transverse ribs' feet) of its corner; with ``piers`` the box stands
+``pier_height`` lower, and a pier of drums (``pier <corner> drum k``, k from 1 at the bottom,
+boxes of the feet's plan) fills the height between it and the springing plane.
 
 Joint groups: ``bed`` (courses of a web), ``head`` (stones of a course), ``crown`` (the two
 halves of a web), ``groin`` (two webs), ``springer`` (a web on its springer), ``rib`` (the
-ribs' own joints, the boss's included), ``rib side`` (a web or springer against a rib), ``base`` (on the supports).
+ribs' own joints, the boss's included), ``rib side`` (a web or springer against a rib), ``pier``
+(the drums, and the springers and ribs on them), ``base`` (on the supports).
 Loads, solver and collapse rule are those of every limit-state scene
 (:mod:`masonry_nscd.scenes.limit_loads`); ``loading.settlement`` moves the supports of a corner
 or a side (the spreading of the bay).
@@ -59,7 +62,7 @@ from masonry_nscd.scenes.limit_loads import (
 )
 from masonry_nscd.scenes.scene import Scene
 
-GROUPS = ("bed", "head", "crown", "groin", "springer", "rib", "rib side", "base")
+GROUPS = ("bed", "head", "crown", "groin", "springer", "rib", "rib side", "pier", "base")
 #: Per web: the horizontal axis its courses run along (0: x, 2: z) and its side of the bay
 _WEB_AXIS = {"east": (0, 1.0), "west": (0, -1.0), "north": (2, 1.0), "south": (2, -1.0)}
 #: Per web: the names of its two halves (the sign of the coordinate across its courses)
@@ -231,7 +234,8 @@ def rib_voussoir(v, sec: ArchSection, end: str, half: str, j: int
 
 def geometry_problems(case) -> list[tuple[str, str]]:
     """What of a valid cross vault cannot be built: a springer too low for its webs' stones
-    to clear the bay's corner, a rib deeper than its arch."""
+    to clear the bay's corner, a rib deeper than its arch, a pier narrower than its
+    springer's feet."""
     v = case.cross_vault
     sec = ArchSection(v)
     problems = []
@@ -252,6 +256,12 @@ def geometry_problems(case) -> list[tuple[str, str]]:
         problems.append(("cross_vault.diagonal_rib_depth_m", (
             f"got {v.diagonal_rib_depth_m:.6g} m; the ribs' intrados must stay above the "
             f"arch's centre: below {sec.R - v.thickness_m / 2.0 - sec.c:.6g} m")))
+    if not problems and v.piers and v.pier_width_m is not None:
+        need = _pier_width_needed(v, sec)
+        if v.pier_width_m < need:
+            problems.append(("cross_vault.pier_width_m", (
+                f"got {v.pier_width_m:.6g} m; a pier must hold its springer's feet: at least "
+                f"{need:.4g} m")))
     if not problems:
         problems += named_block_problems(case.loading, block_names(v), (
             f"the blocks are named like 'east web north course {v.springer_courses + 1} "
@@ -267,6 +277,8 @@ def block_names(v) -> list[str]:
     names += [f"springer {c}" for c in CORNERS]
     if v.transverse_ribs:
         names += [name for name, _ in rib_meshes(v, sec)]
+    if v.piers:
+        names += [f"pier {c} drum {k + 1}" for c in CORNERS for k in range(v.pier_drums)]
     return names
 
 
@@ -319,6 +331,8 @@ def describe(case) -> str:
                if v.transverse_ribs else "")
             + (f", diagonal ribs {v.diagonal_rib_depth_m:.4g} m below the webs"
                if v.diagonal_ribs else "")
+            + (f", on piers {v.pier_height_m:.4g} m high in {v.pier_drums} drums"
+               if v.piers else "")
             + f", blocks {case.blocks.material}, joints {case.joint.law}; "
             + until_collapse(case))
 
@@ -342,24 +356,27 @@ def build_cross_vault(case) -> Scene:
     if v.transverse_ribs:
         for name, mesh in rib_meshes(v, sec):
             add(name, mesh, {"role": "rib", "end": name.split()[0]})
+    plans = feet_plans(v, sec)
+    if v.piers and v.pier_width_m is not None:
+        plans = {corner: _pier_plan(v, corner) for corner in CORNERS}
+    base_y = 0.0
+    if v.piers:
+        base_y = -v.pier_height_m
+        levels = np.linspace(base_y, 0.0, v.pier_drums + 1)
+        for corner in CORNERS:
+            for k, (y0, y1) in enumerate(pairwise(levels)):
+                add(f"pier {corner} drum {k + 1}", _box(*plans[corner], y0, y1),
+                    {"role": "pier", "corner": corner, "drum": k + 1})
     structure = list(range(len(bodies)))
 
-    # --- supports: a fixed box under each corner's springer and rib feet, moved by a settlement
+    # --- supports: a fixed box under each corner's feet (or pier), moved by a settlement
     settle = case.loading.settlement
     moving = () if settle is None else SIDES.get(settle.support, (settle.support,))
     supports = {}
     for corner in CORNERS:
-        feet = [b.X[np.abs(b.X[:, 1]) <= 1e-9 * v.rise_m] for b, place in zip(bodies, info)
-                if place.get("corner") == corner or (
-                    place["role"] == "rib" and _near_corner(b.X, corner))]
-        feet = np.concatenate(feet)
-        lo, hi = feet.min(axis=0), feet.max(axis=0)
-        margin = 0.1 * v.thickness_m
-        lo, hi = lo - margin, hi + margin
+        lo, hi = plans[corner]
         imposed = support_motion(settle, corner in moving)
-        X, conn = hexahedron({(e, s, lv): np.array([(lo, hi)[e][0], -v.support_height_m * (1 - lv),
-                                                      (lo, hi)[s][2]])
-                              for e in (0, 1) for s in (0, 1) for lv in (0, 1)})
+        X, conn = _box(lo, hi, base_y - v.support_height_m, base_y)
         supports[corner] = len(bodies)
         bodies.append(RigidBody(center=X.mean(axis=0), mass=1.0, inertia=np.ones(3),
                                 imposed_velocity=imposed, name=f"support {corner}", X=X,
@@ -371,6 +388,8 @@ def build_cross_vault(case) -> Scene:
         roles = {role[a], role[b]}
         if "support" in roles:
             name = "base"
+        elif "pier" in roles:
+            name = "pier"
         elif roles == {"rib"}:
             name = "rib"
         elif "rib" in roles:
@@ -407,7 +426,8 @@ def build_cross_vault(case) -> Scene:
             "radius_m": sec.R, "rise_m": v.rise_m, "thickness_m": v.thickness_m,
             "courses": v.courses, "springer_courses": v.springer_courses,
             "transverse_ribs": bool(v.transverse_ribs),
-            "diagonal_ribs": bool(v.diagonal_ribs), "blocks": len(structure),
+            "diagonal_ribs": bool(v.diagonal_ribs), "piers": bool(v.piers),
+            "blocks": len(structure),
             "supports": {c: bodies[i].name for c, i in supports.items()}}
     return Scene(
         name=case.name, builder="cross_vault", bodies=bodies, points=points, groups=GROUPS,
@@ -421,6 +441,45 @@ def build_cross_vault(case) -> Scene:
               "reaction_names": ["all supports", "support north-east"],
               "cross_vault": meta},
     )
+
+
+def _box(lo: np.ndarray, hi: np.ndarray, y0: float, y1: float) -> tuple[np.ndarray, np.ndarray]:
+    """The hexahedron of the plan ``lo`` .. ``hi`` (their x and z, m) between heights ``y0`` and
+    ``y1`` (m)."""
+    return hexahedron({(e, s, lv): np.array([(lo, hi)[e][0], (y0, y1)[lv], (lo, hi)[s][2]])
+                       for e in (0, 1) for s in (0, 1) for lv in (0, 1)})
+
+
+def feet_plans(v, sec: ArchSection) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per corner, the plan ``(lo, hi)`` (m; their y is 0) of the springer's and the
+    transverse ribs' feet on the springing plane, widened by a tenth of the webs' thickness:
+    the support's plan."""
+    ribs = rib_meshes(v, sec) if v.transverse_ribs else []
+    plans = {}
+    for corner in CORNERS:
+        meshes = [springer_mesh(v, sec, corner)[0]] + [X for _, (X, _) in ribs
+                                                       if _near_corner(X, corner)]
+        feet = np.concatenate([X[np.abs(X[:, 1]) <= 1e-9 * v.rise_m] for X in meshes])
+        margin = 0.1 * v.thickness_m
+        plans[corner] = (feet.min(axis=0) - margin, feet.max(axis=0) + margin)
+    return plans
+
+
+def _pier_plan(v, corner: str) -> tuple[np.ndarray, np.ndarray]:
+    """The plan of ``corner``'s pier: ``pier_width`` square, centred on the corner of the
+    bay."""
+    ns, ew = corner.split("-")
+    c = np.array([_SIGN[ew] * v.span_x_m / 2.0, 0.0, _SIGN[ns] * v.span_z_m / 2.0])
+    return c - v.pier_width_m / 2.0, c + v.pier_width_m / 2.0
+
+
+def _pier_width_needed(v, sec: ArchSection) -> float:
+    """The least side (m) of a square pier centred on its corner that holds the feet."""
+    need = 0.0
+    for corner, (lo, hi) in feet_plans(v, sec).items():
+        c = _pier_plan(v, corner)[0] + v.pier_width_m / 2.0
+        need = max(need, 2.0 * float(np.max(np.abs(np.stack([lo, hi]) - c)[:, [0, 2]])))
+    return need
 
 
 def _near_corner(X: np.ndarray, corner: str) -> bool:

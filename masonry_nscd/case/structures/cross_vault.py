@@ -38,7 +38,10 @@ class CrossVault(Section):
     closes each end of the east and west webs, on the same supports. With ``diagonal_ribs``
     the two groin stones of a course are one voussoir of a diagonal rib, deepened by
     ``diagonal_rib_depth_m`` below the webs' intrados and bonded into both webs; the top
-    course's groin stones are the boss where the ribs cross.
+    course's groin stones are the boss where the ribs cross. With ``piers`` each corner's
+    springer (and rib feet) stands on a square pier of ``pier_drums`` drums, ``pier_height_m``
+    high (square, ``pier_width_m`` wide and centred on the corner of the bay, or the plan of
+    the springer's feet), whose lowest drum stands on the fixed support.
     """
 
     span_x_m: Real = Field(4.0, gt=0.0, le=200.0,
@@ -73,7 +76,17 @@ class CrossVault(Section):
         description="depth of a diagonal rib below the webs' intrados (m)")
     support_height_m: Real = Field(0.5, gt=0.0, le=100.0,
                                    description="height of the fixed supports below the "
-                                   "springing plane (drawn only, m)")
+                                   "springing plane, or below the piers (drawn only, m)")
+    piers: bool = Field(False, description="stand each corner on a pier of drums (blocks of "
+                        "the structure) on its fixed support, instead of on the support")
+    pier_height_m: Real = Field(3.0, gt=0.0, le=100.0,
+                                description="height of the piers below the springing plane "
+                                "(m; with piers)")
+    pier_drums: Whole = Field(6, ge=1, le=500, description="drums of a pier (count; with piers)")
+    pier_width_m: Real | None = Field(
+        None, gt=0.0, le=100.0,
+        description="side of a square pier centred on its corner of the bay (m; with piers; "
+        "null: the plan of the springer's feet)")
     contact_points_per_face: Whole = Field(
         2, ge=1, le=4,
         description="contact points per direction on each element face in contact (count)")
