@@ -39,8 +39,9 @@ A solver failure is no collapse: the run stops with exit code 1 and the status `
 
 Outputs in the run folder (written by :mod:`masonry_nscd.io.limit_files`): ``limit.csv``, one
 row per step (``step, time_s``, each load factor, ``max_displacement_m``, ``max_speed_m_s``:
-relative to the supports' rigid motion when one moves, ``kinetic_energy_J``: absolute), and ``limit.json``, the status and the collapse
-(:meth:`CollapseMonitor.record`), which the summary reads (:mod:`masonry_nscd.post.limit`).
+relative to the supports' rigid motion when one moves, ``kinetic_energy_J``: absolute), and
+``limit.json``, the status and the collapse (:meth:`CollapseMonitor.record`), which the
+summary reads (:mod:`masonry_nscd.post.limit`).
 """
 
 from __future__ import annotations
@@ -60,6 +61,8 @@ from masonry_nscd.scenes.scene import CollapseRule
 
 #: Blocks listed as those that moved most at collapse.
 MOVED_MOST = 5
+
+
 def moving_supports(bodies) -> bool:
     """Whether a support of ``bodies`` moves (a velocity imposed other than rest)."""
     return any(getattr(b, "support", False) and any(v is not at_rest for v in
