@@ -17,7 +17,7 @@ the clerestory walls), side by side (``north``: +z, ``south``: -z; ``east``: +x,
   middle planes at x = +-BAY/2, drums ``DRUM_M`` high from the floor to the arcade's springing
   ``ARCADE_SPRING_M``; ``upper pier <side>-<end> k``: the pier above it, from the arcade arch's
   springing bed outwards, up to the vault's springing ``VAULT_SPRING_M``.
-* ``foundation ...``: a fixed block under every pier and buttress (the supports).
+* ``foundation ...``: a fixed block under every pier, buttress and flyer pier (the supports).
 * ``<side> arcade voussoir k``: a pointed arch between the two piers of a side, in the wall's
   thickness, springing on the piers' tops flush with their inner faces (``ARCADE_*``).
 * ``<side> wall course m block k``: the spandrels and the clerestory wall, between the upper
@@ -26,6 +26,13 @@ the clerestory walls), side by side (``north``: +z, ``south``: -z; ``east``: +x,
   the chord of one voussoir's extrados (one hexahedron per column).
 * ``buttress <side>-<end> course k``: an attached buttress against each pier's outer face, from
   the floor to ``VAULT_SPRING_M``.
+* The flying buttresses (``FLYER_*``): ``upper buttress <side>-<end> course k`` on the upper pier
+  and the attached buttress, from ``VAULT_SPRING_M`` to the walls' top, against the wall's end;
+  ``flyer <side>-<end> voussoir k`` (k from 1 at the head), a quarter circle whose head is a
+  vertical joint against the upper buttress's outer face, its top at ``FLYER_HEAD_M``, and
+  whose foot is a horizontal bed on ``flyer pier <side>-<end> course k``, a pier standing
+  ``FLYER_RADIUS_M`` out from the attached buttress; ``pinnacle <side>-<end> course k`` on the
+  flyer pier beyond the flyer's foot.
 * The vault, a quadripartite rib vault over the bay: the webs are a pointed groin vault of
   stones in courses (two barrels meeting on the diagonal planes, the geometry of
   ``masonry_nscd/scenes/cross_vault.py``), ``<web> web <half> course j stone k`` (k from 2:
@@ -39,7 +46,7 @@ the clerestory walls), side by side (``north``: +z, ``south``: -z; ``east``: +x,
   north and south webs' ends bear on the clerestory walls' inner faces up to the walls' top;
   above it their ends are free (the windows' wall ribs are left out).
 
-Simplifications: square piers and buttresses, no flying buttresses, no roof, the webs as a
+Simplifications: square piers and buttresses, one flyer per pier, no roof, the webs as a
 groin vault whose groin stones are the diagonal ribs, the bay alone (the next bays' thrusts
 along x are not there).
 """
@@ -71,6 +78,13 @@ BUTTRESS_WIDTH_M = 1.2  # along x
 BUTTRESS_DEPTH_M = 1.6  # along z, out from the pier
 BUTTRESS_COURSE_M = 0.3
 FOUNDATION_DEPTH_M = 0.5
+# --- the flying buttresses ------------------------------------------------------------------
+FLYER_RADIUS_M = 3.5  # of the flyer's intrados, a quarter circle
+FLYER_DEPTH_M = 0.6  # of its ring
+FLYER_HEAD_M = 13.7  # the top of its head, against the upper buttress
+FLYER_VOUSSOIRS = 10
+FLYER_PIER_DEPTH_M = 2.0  # along z, out from the flyer's springing
+PINNACLE_M = 1.8  # on the flyer pier, beyond the flyer's foot
 # --- the vault -------------------------------------------------------------------------------
 VAULT_RADIUS_M = 7.5  # of the webs' centreline, across the nave (> NAVE_M / 2: pointed)
 VAULT_THICKNESS_M = 0.3
@@ -100,6 +114,7 @@ class Bay:
                 setattr(self, name.lower(), value * scale)
         self.arcade_radius_factor = ARCADE_RADIUS_FACTOR
         self.arcade_voussoirs = max(2, round(ARCADE_VOUSSOIRS * min(1.0, scale ** 0.5)))
+        self.flyer_voussoirs = max(2, round(FLYER_VOUSSOIRS * min(1.0, scale ** 0.5)))
         self.vault_courses = VAULT_COURSES  # the springers' tops, and so their feet on the
         # upper piers, stay where they are in the full bay
         self.springer_courses = SPRINGER_COURSES
@@ -428,14 +443,14 @@ def _bottom_block(cols, run, y_top, z0, z1, count):
 
 # --- the bay -------------------------------------------------------------------------------
 
-PARTS = ("piers", "buttresses", "walls", "vault")
+PARTS = ("piers", "buttresses", "walls", "vault", "flyers")
 
 
 def nave_bay_blocks(bay: Bay, parts=PARTS
                     ) -> tuple[list[tuple[str, list[np.ndarray]]], list[str]]:
     """The blocks ``(name, hexahedra)`` of the bay's ``parts`` (of ``PARTS``; the piers'
-    foundations with the piers, the buttresses' with the buttresses), and the names of its
-    fixed supports."""
+    foundations with the piers, the buttresses' with the buttresses, the flyer piers' with the
+    flyers, which stand on the piers and buttresses), and the names of its fixed supports."""
     blocks: list[tuple[str, list[np.ndarray]]] = []
     supports: list[str] = []
     for side in ("north", "south"):
@@ -460,6 +475,8 @@ def nave_bay_blocks(bay: Bay, parts=PARTS
                 _pier(blocks, supports, bay, corner, place)
             if "buttresses" in parts:
                 _buttress(blocks, supports, bay, corner, place)
+            if "flyers" in parts:
+                _flyer(blocks, supports, bay, corner, place, e, s)
     if "vault" in parts:
         blocks += vault_blocks(bay)
     return blocks, supports
@@ -496,6 +513,48 @@ def _buttress(blocks, supports, bay, corner, place):
                    [place((h - bw - m, -bay.foundation_depth_m, pz1),
                           (h + bw + m, 0.0, pz1 + bd + m))]))
     supports.append(f"foundation buttress {corner}")
+
+
+def _flyer(blocks, supports, bay, corner, place, e, s):
+    """A flying buttress: the upper buttress above the upper pier and the attached buttress, up
+    to the walls' top against the wall's end; the flyer, a quarter circle of voussoirs from its
+    head (a vertical joint against the upper buttress's outer face) down to its springing (a
+    horizontal bed on the flyer pier); the flyer pier with its pinnacle beyond the flyer's
+    foot, and its foundation."""
+    h, bw = bay.bay_m / 2.0, bay.buttress_width_m / 2.0
+    _, pz1 = bay.pier_z
+    z_out = pz1 + bay.buttress_depth_m  # the attached buttress's outer face
+    z_in = bay.wall_z[0] + 0.25 * bay.wall_thickness_m  # clear of the transverse rib's foot
+    x0, x1 = bay.upper_pier_x, h + bw
+    levels = _levels(bay.vault_spring_m, bay.wall_top_m, bay.buttress_course_m)
+    for k, (y0, y1) in enumerate(pairwise(levels)):
+        blocks.append((f"upper buttress {corner} course {k + 1}",
+                       [place((x0, y0, z_in), (x1, y1, z_out))]))
+    ri, ro = bay.flyer_radius_m, bay.flyer_radius_m + bay.flyer_depth_m
+    yc = bay.flyer_head_m - ro  # the flyer's centre, on the upper buttress's face
+    angles = np.linspace(0.0, 0.5 * math.pi, bay.flyer_voussoirs + 1)
+    for k, (a0, a1) in enumerate(pairwise(angles)):
+        X = np.array([[x, yc + r * math.cos(a), z_out + r * math.sin(a)]
+                      for x, r, a in ((x0, ri, a0), (x1, ri, a0), (x1, ri, a1), (x0, ri, a1),
+                                      (x0, ro, a0), (x1, ro, a0), (x1, ro, a1), (x0, ro, a1))])
+        X[:, 0] *= e
+        X[:, 2] *= s
+        blocks.append((f"flyer {corner} voussoir {k + 1}", [hexahedron(X)]))
+    zf0, zf1 = z_out + ri, z_out + ri + bay.flyer_pier_depth_m
+    fx0, fx1 = h - bw, h + bw
+    levels = _levels(0.0, yc, bay.buttress_course_m)
+    for k, (y0, y1) in enumerate(pairwise(levels)):
+        blocks.append((f"flyer pier {corner} course {k + 1}",
+                       [place((fx0, y0, zf0), (fx1, y1, zf1))]))
+    levels = _levels(yc, yc + bay.pinnacle_m, bay.buttress_course_m)
+    for k, (y0, y1) in enumerate(pairwise(levels)):
+        blocks.append((f"pinnacle {corner} course {k + 1}",
+                       [place((fx0, y0, z_out + ro), (fx1, y1, zf1))]))
+    m = 0.05 * bay.pier_m
+    blocks.append((f"foundation flyer pier {corner}",
+                   [place((fx0 - m, -bay.foundation_depth_m, zf0 - m),
+                          (fx1 + m, 0.0, zf1 + m))]))
+    supports.append(f"foundation flyer pier {corner}")
 
 
 def _levels(y0: float, y1: float, step: float) -> list[float]:

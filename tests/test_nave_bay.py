@@ -49,9 +49,9 @@ def full_mesh(tmp_path_factory):
 def _case(tmp_path: Path, mesh: Path, sets=(), parts=None):
     """The shipped case reading ``mesh``; with ``parts``, only the supports it has."""
     text = CASE.read_text().replace("mesh_file: nave_bay.msh", f"mesh_file: {mesh}")
-    if parts is not None and "buttresses" not in parts:
-        text = "\n".join(line for line in text.splitlines()
-                         if "foundation buttress" not in line)
+    for part, support in (("buttresses", "foundation buttress"), ("flyers", "foundation flyer")):
+        if parts is not None and part not in parts:
+            text = "\n".join(line for line in text.splitlines() if support not in line)
     path = tmp_path / "case.yaml"
     path.write_text(text)
     return load_case(path, list(sets))
@@ -84,7 +84,7 @@ def test_the_script_writes_a_valid_mesh(full_mesh):
     upper = round((mod.VAULT_SPRING_M - mod.ARCADE_SPRING_M) / mod.DRUM_M)
     courses = round(mod.VAULT_SPRING_M / mod.BUTTRESS_COURSE_M)
     assert count("pier ") == 4 * drums and count("upper pier ") == 4 * upper
-    assert count("buttress ") == 4 * courses and count("foundation ") == 8
+    assert count("buttress ") == 4 * courses and count("foundation ") == 12
     for side in ("north", "south"):
         assert count(f"{side} arcade ") == 2 * mod.ARCADE_VOUSSOIRS
     assert count("springer ") == 4 and count("boss") == 1
@@ -96,7 +96,19 @@ def test_the_script_writes_a_valid_mesh(full_mesh):
     for web in ("east", "west", "north", "south"):
         assert count(f"{web} web ") >= 2 * (mod.VAULT_COURSES - mod.SPRINGER_COURSES)
     walls = sum(" wall course " in nm or " spandrel " in nm for nm in names)
-    assert len(names) == (4 * (drums + upper + courses) + 8 + 4 * mod.ARCADE_VOUSSOIRS + 4 + 1
+    # a flying buttress: the upper buttress to the walls' top, the flyer, the flyer pier up to
+    # the flyer's springing (its centre, the radius and the ring below the head's top), the
+    # pinnacle
+    above = round((mod.WALL_TOP_M - mod.VAULT_SPRING_M) / mod.BUTTRESS_COURSE_M)
+    spring = mod.FLYER_HEAD_M - mod.FLYER_RADIUS_M - mod.FLYER_DEPTH_M
+    flyer = (above + mod.FLYER_VOUSSOIRS + round(spring / mod.BUTTRESS_COURSE_M)
+             + round(mod.PINNACLE_M / mod.BUTTRESS_COURSE_M))
+    assert count("upper buttress ") == 4 * above and count("flyer pier ") == 4 * round(
+        spring / mod.BUTTRESS_COURSE_M)
+    assert sum(nm.startswith("flyer ") and " voussoir " in nm for nm in names) == \
+        4 * mod.FLYER_VOUSSOIRS
+    assert len(names) == (4 * (drums + upper + courses + flyer) + 12
+                          + 4 * mod.ARCADE_VOUSSOIRS + 4 + 1
                           + 4 * mod.VAULT_COURSES + 4 * ribs
                           + count("east web ") + count("west web ")
                           + count("north web ") + count("south web ") + walls)
@@ -110,7 +122,7 @@ def test_the_bay_is_an_assembly_every_block_of_which_has_a_joint(full_mesh, tmp_
     blocks = read_assembly(case.assembly)
     joined = {k for pair in blocks.pairs for k in pair}
     assert joined == set(range(len(blocks.names)))
-    assert sum(s is not None for s in blocks.support) == 8
+    assert sum(s is not None for s in blocks.support) == 12
 
 
 def test_a_settlement_moves_exactly_the_named_support_blocks(tmp_path):
