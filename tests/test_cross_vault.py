@@ -37,6 +37,15 @@ def _data(loading=None, **vault) -> dict:
                            "output": {"every_steps": 25, "vtu": False}})
 
 
+def _run(case, tmp_path) -> dict:
+    """Run ``case`` by the command line into ``tmp_path / "run"``; its summary."""
+    path = tmp_path / "vault.yaml"
+    path.write_text(case_to_yaml(case))
+    res = CliRunner().invoke(app, ["run", str(path), "-o", str(tmp_path / "run")])
+    assert res.exit_code == 0, res.output
+    return json.loads((tmp_path / "run" / "summary.json").read_text())
+
+
 def _arch_point(v, j: int, rho: float) -> tuple[float, float]:
     """``(r, y)`` of level ``j`` of the arch across z at radius ``rho`` (m): the angle cut
     into equal parts from 0 to where the arc meets the bay's axis."""
@@ -130,11 +139,7 @@ def test_the_vault_stands_and_its_four_supports_share_its_weight(tmp_path, vault
     quarter of it (the bay's symmetry; 1e-4: looser than the tolerance); its mechanism figure
     draws it in perspective."""
     case = _vault(**vault)
-    path = tmp_path / "vault.yaml"
-    path.write_text(case_to_yaml(case))
-    res = CliRunner().invoke(app, ["run", str(path), "-o", str(tmp_path / "run")])
-    assert res.exit_code == 0, res.output
-    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    summary = _run(case, tmp_path)
     assert summary["status"] == "standing"
     weight_kN = sum(b.mass for b in build_scene(case).bodies if not b.support) * 9.81 / 1e3
     forces = summary["support_forces_last_kN"]
@@ -244,11 +249,7 @@ def test_piers_of_drums_stand_under_the_vault_and_carry_its_weight(tmp_path):
             assert Xk[:, 2].max() == pytest.approx(sz * 2.0 + w / 2, abs=1e-12)
     support = next(b for b in scene.bodies if b.name == "support north-east")
     assert support.X[:, 1].max() == pytest.approx(-H, abs=1e-12)
-    path = tmp_path / "vault.yaml"
-    path.write_text(case_to_yaml(case))
-    res = CliRunner().invoke(app, ["run", str(path), "-o", str(tmp_path / "run")])
-    assert res.exit_code == 0, res.output
-    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    summary = _run(case, tmp_path)
     assert summary["status"] == "standing"
     vault_kg = sum(b.mass for b in build_scene(_vault()).bodies if not b.support)
     weight_kN = (vault_kg + 4 * 2000.0 * w * w * H) * 9.81 / 1e3
@@ -275,11 +276,7 @@ def test_piers_lower_the_collapse_multiplier_and_narrow_ones_cannot_carry_the_va
     assert lam(piers=True, pier_width_m=1.5) <= fixed + 1e-6
     assert lam(piers=True, pier_width_m=1.5, pier_height_m=6.0) < fixed
     assert analyse(_vault(piers=True)).record["status"] == "infeasible"
-    path = tmp_path / "vault.yaml"
-    path.write_text(case_to_yaml(_vault(piers=True)))
-    res = CliRunner().invoke(app, ["run", str(path), "-o", str(tmp_path / "run")])
-    assert res.exit_code == 0, res.output
-    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    summary = _run(_vault(piers=True), tmp_path)
     assert summary["status"] == "collapse"
     with pytest.raises(CaseError, match=r"cross_vault.pier_width_m: got 0.3 m; .* at least"):
         build_scene(_vault(piers=True, pier_width_m=0.3))

@@ -454,7 +454,7 @@ def feet_plans(v, sec: ArchSection) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Per corner, the plan ``(lo, hi)`` (m; their y is 0) of the springer's and the
     transverse ribs' feet on the springing plane, widened by a tenth of the webs' thickness:
     the support's plan."""
-    ribs = rib_meshes(v, sec) if v.transverse_ribs else []
+    ribs = list(rib_meshes(v, sec)) if v.transverse_ribs else []
     plans = {}
     for corner in CORNERS:
         meshes = [springer_mesh(v, sec, corner)[0]] + [X for _, (X, _) in ribs
