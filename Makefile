@@ -25,8 +25,9 @@ venv: $(BIN)/masonry
 # mpi4py and PETSc alike (MPICH's wheel, which `make venv` does not install, would be a second
 # one). PETSc's source distribution configures against it and Debian's LAPACK, without C++ or
 # Fortran, and compiles for a quarter of an hour on two cores the first time; pip keeps the
-# wheels it built in its cache, so that a later install takes a minute. Debian's packages are
-# installed when missing (as root).
+# wheels of PETSc and mpi4py it built in its cache for the next install. petsc4py is built
+# each time (some minutes), as its build records where this .venv's PETSc is. Debian's
+# packages are installed when missing (as root).
 MPI_DEBS := mpich libmpich-dev liblapack-dev
 PETSC_CONFIGURE_OPTIONS ?= --with-cxx=0 --with-fc=0 --with-debugging=0 --with-x=0 COPTFLAGS=-O2
 PETSC_VERSION ?= 3.26.1
@@ -40,7 +41,7 @@ $(VENV)/.mpi-installed: $(BIN)/masonry
 	MPICC=mpicc PETSC_CONFIGURE_OPTIONS='$(PETSC_CONFIGURE_OPTIONS)' \
 	  $(BIN)/python -m pip install --quiet petsc==$(PETSC_VERSION)
 	PETSC_DIR=$$($(BIN)/python -c 'import petsc; print(petsc.get_petsc_dir())') PETSC_ARCH= \
-	  $(BIN)/python -m pip install --quiet petsc4py==$(PETSC_VERSION)
+	  $(BIN)/python -m pip install --quiet --no-cache-dir petsc4py==$(PETSC_VERSION)
 	$(BIN)/python -c 'from petsc4py import PETSc; from mpi4py import MPI; \
 	  print("PETSc", PETSc.Sys.getVersion(), "on", MPI.Get_library_version().splitlines()[0])'
 	touch $@
