@@ -18,8 +18,9 @@ right preconditioning, so that it stops on the true relative residual ``|rhs - S
 |rhs|`` as on one process) with the two levels of the one-process preconditioner in PETSc's
 multigrid ``PCMG``: the coarse space ``R`` of six rigid-body motions per body as the
 interpolation, the coarse matrix ``R^T S R`` made by PETSc (Galerkin), gathered and factorised
-by LU on every process (``PCREDUNDANT``); the fine level one Richardson sweep of the bodies'
-diagonal blocks inverted (``PCVPBJACOBI``, the blocks of variable size given by the bodies).
+by LU on every process (``PCREDUNDANT``); then, on what the coarse correction leaves, one
+Richardson sweep of the bodies' diagonal blocks inverted (``PCVPBJACOBI``, the blocks of
+variable size given by the bodies): the kaskade cycle, the one-process method's order.
 The case's ``solver.petsc_options`` and the command line's ``--petsc-options``, in that order,
 override any of them (docs/guide/solvers.md): for example ``-pc_type asm -sub_pc_type ilu``
 or ``-pc_type bjacobi -sub_pc_type lu``; with ``-pc_type mg`` the interpolation is always the
