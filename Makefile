@@ -2,6 +2,8 @@
 #   make run    installs into .venv if needed and runs the reference case
 #   make test   installs into .venv if needed and runs the test suite
 #   make validation   runs the benchmarks of docs/validation.md and redraws its figures
+#   make mpi    adds the engine of `masonry run --processes P` to .venv: Debian's MPICH and
+#               LAPACK, then mpi4py, PETSc and petsc4py built from source against them
 #   make reference    writes the case file's reference again from the case model (masonry
 #                     schema): docs/reference/case.md and docs/reference/case.schema.json
 PYTHON ?= python3
@@ -9,7 +11,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 CASE   ?= cases/wall_0.5MPa.yaml
 
-.PHONY: run test check-cases validation venv lint clean-cache reference
+.PHONY: run test check-cases validation venv lint clean-cache reference mpi
 
 $(BIN)/masonry: pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -18,6 +20,33 @@ $(BIN)/masonry: pyproject.toml
 	touch $(BIN)/masonry
 
 venv: $(BIN)/masonry
+
+# The distributed engine (docs/guide/solvers.md): one MPI for everything, Debian's MPICH, under
+# mpi4py and PETSc alike (MPICH's wheel, which `make venv` does not install, would be a second
+# one). PETSc's source distribution configures against it and Debian's LAPACK, without C++ or
+# Fortran, and compiles for a quarter of an hour on two cores the first time; pip keeps the
+# wheels of PETSc and mpi4py it built in its cache for the next install. petsc4py is built
+# each time (some minutes), as its build records where this .venv's PETSc is. Debian's
+# packages are installed when missing (as root).
+MPI_DEBS := mpich libmpich-dev liblapack-dev
+PETSC_CONFIGURE_OPTIONS ?= --with-cxx=0 --with-fc=0 --with-debugging=0 --with-x=0 COPTFLAGS=-O2
+PETSC_VERSION ?= 3.26.1
+
+$(VENV)/.mpi-installed: $(BIN)/masonry
+	dpkg -s $(MPI_DEBS) >/dev/null 2>&1 || { apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive apt-get install -y -q $(MPI_DEBS); }
+	$(BIN)/python -m pip uninstall --quiet -y mpich
+	MPICC=mpicc $(BIN)/python -m pip install --quiet --no-binary mpi4py --force-reinstall \
+	  --no-deps 'mpi4py>=4'
+	MPICC=mpicc PETSC_CONFIGURE_OPTIONS='$(PETSC_CONFIGURE_OPTIONS)' \
+	  $(BIN)/python -m pip install --quiet petsc==$(PETSC_VERSION)
+	PETSC_DIR=$$($(BIN)/python -c 'import petsc; print(petsc.get_petsc_dir())') PETSC_ARCH= \
+	  $(BIN)/python -m pip install --quiet --no-cache-dir petsc4py==$(PETSC_VERSION)
+	$(BIN)/python -c 'from petsc4py import PETSc; from mpi4py import MPI; \
+	  print("PETSc", PETSc.Sys.getVersion(), "on", MPI.Get_library_version().splitlines()[0])'
+	touch $@
+
+mpi: $(VENV)/.mpi-installed
 
 run: venv
 	$(BIN)/masonry run $(CASE) --overwrite

@@ -8,6 +8,7 @@ converged, divergence), 2 invalid input (bad case file, bad option).
 from __future__ import annotations
 
 import contextlib
+import sys
 from pathlib import Path
 from typing import Annotated
 
@@ -31,6 +32,8 @@ app.add_typer(point_app, name="point")
 def _fail(message: str, code: int) -> None:
     """Print a one-paragraph error on stderr and leave with ``code``."""
     typer.echo(f"error: {message}", err=True)
+    if "masonry_nscd.nscd.mpi" in sys.modules:  # under mpiexec: the code for the launcher
+        sys.modules["masonry_nscd.nscd.mpi"].record_exit(code)
     raise typer.Exit(code)
 
 
@@ -174,9 +177,14 @@ def run(
         "round-off.")] = None,
     processes: Annotated[int | None, typer.Option(
         "--processes", min=1, metavar="P",
-        help="Run on P processes (mpiexec, from the mpi extra: pip install "
-        "'masonry_nscd[mpi]'): the Krylov linear solve is split among them, the rest runs "
-        "on the first; solver.linear must be krylov or auto.")] = None,
+        help="Run on P processes (mpiexec; PETSc, installed by make mpi): the Krylov "
+        "linear solve is PETSc's on all of them, the rest runs on the first; solver.linear "
+        "must be krylov or auto.")] = None,
+    petsc_options: Annotated[str | None, typer.Option(
+        "--petsc-options", metavar="OPTIONS",
+        help="PETSc's options for the solve on several processes, over the case's "
+        "solver.petsc_options, e.g. \"-pc_type asm -sub_pc_type ilu\" (docs/guide/solvers.md)."
+        )] = None,
 ) -> None:
     """Run a wall case to its target displacement and write CSV, HDF5 and VTU results."""
     from masonry_nscd.nscd import mpi
@@ -187,7 +195,8 @@ def run(
                 *[a for s in overrides or () for a in ("--set", s)],
                 *(["--overwrite"] if overwrite else []),
                 *(["--resume", str(resume)] if resume is not None else []),
-                *(["--threads", str(n_threads)] if n_threads is not None else [])]
+                *(["--threads", str(n_threads)] if n_threads is not None else []),
+                *(["--petsc-options", petsc_options] if petsc_options is not None else [])]
         try:
             code = mpi.relaunch(processes, ["run", *argv])
         except RuntimeError as exc:
@@ -199,6 +208,11 @@ def run(
         threads.set_count(1)
         mpi.serve(mpi.world())
         return
+    if mpi.launched_processes() > 1:
+        try:  # MPI started now, so that an early exit (a bad case) still stops the others
+            mpi.world()
+        except RuntimeError as exc:
+            _fail(str(exc), 2)
     if n_threads is not None:
         from masonry_nscd import threads
 
@@ -241,6 +255,11 @@ def run(
     )
     from masonry_nscd.warmup import compile_first_run
 
+    if mpi.launched_processes() > 1:
+        from masonry_nscd.nscd import petsc_solve
+
+        petsc_solve.case_options = case.solver.petsc_options
+        petsc_solve.command_line_options = petsc_options or ""
     TERMINATE.clear()
     # SIGTERM and Ctrl-C end the run with its outputs kept, never in the middle of writing them
     signal.signal(signal.SIGTERM, request_stop)

@@ -130,9 +130,10 @@ def _log_end(log: RunLog, integ, secs: float, ux: float, top, unconverged: int, 
         f"(worst residual {worst:.2e})")
     if integ.newton is not None and integ.newton.linear == "krylov":
         counts = integ.solver_counts()
+        engine = integ.newton.linear_engine
         log(f"linear solver krylov: {counts['factorisations']} preconditioner set-ups, "
             f"{counts['linear_iterations']} GMRES iterations, {counts['linear_fallbacks']} "
-            "solves made by LU")
+            "solves made by LU" + (f" ({engine})" if engine else ""))
     parts = timing.table()
     outer = [r for r in parts if r.name in _RUN_PARTS]
     if outer:

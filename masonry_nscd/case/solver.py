@@ -44,6 +44,13 @@ class Solver(Section):
         "as rigid bodies; docs/scaling.md), or auto: pardiso (lu without MKL) below 100,000 "
         "unknowns, krylov from there",
     )
+    petsc_options: str = Field(
+        "",
+        max_length=2000,
+        description="PETSc's options for the Krylov solve on several processes (masonry run "
+        "--processes P), over the defaults, e.g. '-pc_type asm -sub_pc_type ilu'; the command "
+        "line's --petsc-options go over these; unused on one process (docs/guide/solvers.md)",
+    )
     tolerance: Real = Field(
         3e-5,
         ge=1e-14,

@@ -652,6 +652,13 @@ class NewtonSolver:
         """Krylov iterations of all the linear solves so far (0 with LU)."""
         return 0 if self._krylov is None else self._krylov.iterations
 
+    @property
+    def linear_engine(self) -> str:
+        """What makes the Krylov solves on several processes (PETSc's KSP and preconditioner,
+        ``petsc_solve.py``), after the first set-up; empty otherwise."""
+        describe = getattr(self._krylov, "describe", None)
+        return describe() if describe is not None and self.factorisations else ""
+
     def _linear_solve(self, b: np.ndarray) -> np.ndarray:
         """``J0^-1 b`` with the matrix in place; a Krylov solve that does not converge is made
         again by an LU factorisation of the same matrix (counted in ``linear_fallbacks``, the
