@@ -207,12 +207,15 @@ def test_petsc_options_of_the_command_line_go_over_the_case(one_process_curve, t
 
 @needs_petsc
 @pytest.mark.parametrize("bad, message", [
-    ("solver.linear=lu", "solver.linear: lu runs on one process"),
-    ("solver.tolerance=2", "solver.tolerance"),
+    (["solver.linear=lu"], "solver.linear: lu runs on one process"),
+    (["solver.tolerance=2"], "solver.tolerance"),
+    (["solver.linear=krylov", "solver.petsc_options=-pc_type nonsense"],
+     "PETSc refuses '-pc_type nonsense': a type it does not know"),
 ])
 def test_bad_input_on_two_processes_exits_2_with_the_message_once(bad, message, tmp_path):
+    sets = [a for s in bad for a in ("--set", s)]
     proc = subprocess.run([sys.executable, "-m", "masonry_nscd.cli", "run", SMOKE, "-o",
-                           str(tmp_path / "run"), "--set", bad, "--processes", "2"],
+                           str(tmp_path / "run"), *sets, "--processes", "2"],
                           capture_output=True, text=True, timeout=300, check=False,
                           env=_quiet_env())
     assert proc.returncode == 2, proc.stderr

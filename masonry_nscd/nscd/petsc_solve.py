@@ -50,6 +50,8 @@ DEFAULT_OPTIONS = (
     "-mg_levels_ksp_type richardson -mg_levels_ksp_max_it 1 -mg_levels_pc_type vpbjacobi "
     "-mg_coarse_ksp_type preonly -mg_coarse_pc_type redundant "
     "-mg_coarse_redundant_pc_type lu -options_left 0")
+#: PETSc's error code for a type name it does not know
+PETSC_ERR_UNKNOWN_TYPE = 86
 MISSING = ("several processes need PETSc, petsc4py and mpi4py built on the system's MPI: "
            "make mpi (docs/guide/solvers.md)")
 
@@ -103,6 +105,31 @@ def options() -> str:
     return " ".join(s for s in (DEFAULT_OPTIONS, case_options, command_line_options) if s)
 
 
+def _refused(PETSc, option_string: str) -> str | None:
+    """Why PETSc refuses the options (a KSP or PC type it does not know, a bad value), or
+    None: a solver of one unknown on this process reads them, PETSc's error handler silenced
+    (its message would come once per process), before any run's matrix is made."""
+    A = PETSc.Mat().createAIJ(size=(1, 1), nnz=1, comm=PETSc.COMM_SELF)
+    A.setValue(0, 0, 1.0)
+    A.assemble()
+    ksp = PETSc.KSP().create(comm=PETSc.COMM_SELF)
+    ksp.setOperators(A)
+    PETSc.Sys.pushErrorHandler("return")
+    try:
+        ksp.setFromOptions()
+    except PETSc.Error as exc:
+        given = option_string.removeprefix(DEFAULT_OPTIONS).strip()
+        why = ("a type it does not know" if exc.ierr == PETSC_ERR_UNKNOWN_TYPE
+               else "a bad value")
+        return (f"solver.petsc_options and --petsc-options: PETSc refuses {given!r}: {why} "
+                f"(PETSc error {exc.ierr}; its types and options: docs/guide/solvers.md)")
+    finally:
+        PETSc.Sys.popErrorHandler()
+        ksp.destroy()
+        A.destroy()
+    return None
+
+
 def _int(a: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=petsc().IntType)
 
@@ -137,6 +164,11 @@ class Part:
             csr=(_int(Rp.indptr), _int(Rp.indices), Rp.data), comm=PETSc.COMM_WORLD)
         self.P.assemble()
         PETSc.Options().insertString(option_string)
+        # every process finds the same refusal; process 0 ends the run (exit 2), the others
+        # wait for its stop
+        refused = _refused(PETSc, option_string)
+        if refused is not None and comm.rank == 0:
+            raise ValueError(refused)
         self.rtol, self.restart, self.max_iterations = rtol, restart, max_iterations
         self.S = self.ksp = None
 
