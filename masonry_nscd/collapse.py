@@ -172,7 +172,8 @@ class CollapseMonitor:
             gone: list[int] = []
             for group in scene.removal.groups:
                 gone += group.bodies
-                out = [k for k, i in enumerate(scene.structure) if i in set(gone)]
+                out_now = set(gone)
+                out = [k for k, i in enumerate(scene.structure) if i in out_now]
                 self.removed_points.append(np.isin(self.owner, out))
                 kept = np.ones(s.ndof, dtype=bool)
                 kept[scene.removal.dofs(scene.bodies, gone)] = False

@@ -465,21 +465,23 @@ def feet_plans(v, sec: ArchSection) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     return plans
 
 
+def _corner_centre(v, corner: str) -> np.ndarray:
+    """The corner of the bay (m; y = 0): where its supports' centrelines meet."""
+    ns, ew = corner.split("-")
+    return np.array([_SIGN[ew] * v.span_x_m / 2.0, 0.0, _SIGN[ns] * v.span_z_m / 2.0])
+
+
 def _pier_plan(v, corner: str) -> tuple[np.ndarray, np.ndarray]:
     """The plan of ``corner``'s pier: ``pier_width`` square, centred on the corner of the
     bay."""
-    ns, ew = corner.split("-")
-    c = np.array([_SIGN[ew] * v.span_x_m / 2.0, 0.0, _SIGN[ns] * v.span_z_m / 2.0])
+    c = _corner_centre(v, corner)
     return c - v.pier_width_m / 2.0, c + v.pier_width_m / 2.0
 
 
 def _pier_width_needed(v, sec: ArchSection) -> float:
     """The least side (m) of a square pier centred on its corner that holds the feet."""
-    need = 0.0
-    for corner, (lo, hi) in feet_plans(v, sec).items():
-        c = _pier_plan(v, corner)[0] + v.pier_width_m / 2.0
-        need = max(need, 2.0 * float(np.max(np.abs(np.stack([lo, hi]) - c)[:, [0, 2]])))
-    return need
+    return max(2.0 * float(np.abs(np.stack([lo, hi]) - _corner_centre(v, corner))[:, [0, 2]].max())
+               for corner, (lo, hi) in feet_plans(v, sec).items())
 
 
 def _near_corner(X: np.ndarray, corner: str) -> bool:

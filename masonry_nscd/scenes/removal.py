@@ -141,10 +141,11 @@ class Removal:
 
     def settle(self, integ, points: list, h: float) -> None:
         """Put the state of ``integ``, an integrator built with :meth:`apply` (``points``: the
-        scene's, before it; ``h`` the scene's step, s), as the removals out at its time leave it: the removed points'
-        joints at rest with no displacement, the held bodies' velocities zero, the loads at
-        the step's start without theirs. Changes nothing for the groups already settled (a
-        run resumed after a removal, a second group leaving later)."""
+        scene's, before it; ``h`` the scene's step, s), as the removals out at its time leave
+        it: the removed points' joints at rest with no displacement, the held bodies'
+        velocities zero, the loads at the step's start without theirs. Changes nothing for the
+        groups already settled (a run resumed after a removal, a second group leaving
+        later)."""
         out = self.bodies_at(integ.t, h)
         gone = self.points(points, out)
         j = integ.joints

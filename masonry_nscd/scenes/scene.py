@@ -249,8 +249,9 @@ class Scene:
         for hd in self.holds:
             if hd not in self.holds_at(t):
                 limit = min(limit, math.floor(hd.from_s / h + 1e-9) * h)
-        if self.removal is not None and self.removal.next_at_s(t, h) is not None:
-            limit = min(limit, self.removal.next_at_s(t, h))
+        leaves = None if self.removal is None else self.removal.next_at_s(t, h)
+        if leaves is not None:
+            limit = min(limit, leaves)
         if self.turns_s and self.solver.max_growth:
             limit = min(limit, self._turn_limit_s(t))
         return limit
