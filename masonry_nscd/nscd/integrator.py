@@ -524,10 +524,11 @@ class Integrator:
             status = np.empty_like(j.status)
             U_free = np.empty((s.npt, 3))  # the points' free relative velocities
             kernels.local_velocities(s.side_dofs, s.side_coef, v_free, U_free)
+            y_off, y = s.velocity_maps()
             with timing.part("Gauss-Seidel sweeps"):
                 sweeps, residual, amb = kernels.nlgs(
                     U_free, j.u, j.U, s.kind, s.law, self.params, s.area, s.W, s.side_dofs,
-                    s.side_coef, s.side_body, s.body_dof0, s.y_off, s.y, h, theta, j.uc,
+                    s.side_coef, s.side_body, s.body_dof0, y_off, y, h, theta, j.uc,
                     j.beta, T, uc, beta, status, self._dv, self.tolerance, self.max_iterations,
                     self.check_every,
                 )

@@ -119,8 +119,6 @@ class System(DofLayout):
 
     minv: np.ndarray  # flat, dense M_hat^-1 per body (row-major, at minv_off)
     mhat: np.ndarray  # flat, dense M_hat per body (same offsets as minv)
-    y_off: np.ndarray  # (npt, 2) offsets into y, -1 where the side cannot move
-    y: np.ndarray  # flat Y_aB blocks (ndof_B, 3)
     W: np.ndarray  # (npt, 3, 3)
     h: float
     theta: float
@@ -130,6 +128,31 @@ class System(DofLayout):
         # of the flat arrays above); the Newton solver makes its own by the M_hat it is given
         self.minv_op = BlockDiagonal(self.body_dof0, self.minv_off, self.minv)
         self.k_op = BlockDiagonal(self.body_dof0, self.k_off, self.k)
+        self._velocity_maps: tuple[np.ndarray, np.ndarray] | None = None
+
+    def velocity_maps(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(y_off, y)``: the blocks ``Y_aB`` (ndof_B, 3) of every side that can move, laid
+        end to end in the order of the points and their sides (``y``, flat), and each side's
+        offset into ``y`` (``y_off``, (npt, 2), -1 where the side cannot move).
+
+        Only the Gauss-Seidel sweeps use them (``kernels.nlgs``): made at the first call and
+        kept, so that a system stepped by Newton alone never holds them (6 ndof_B floats per
+        point and side: 2.6 kB per point on the study's walls, for each step size)."""
+        if self._velocity_maps is None:
+            npt = len(self.area)
+            sizes = np.diff(self.body_dof0)
+            maps = list(_side_maps(self, self.minv))
+            moving = np.zeros((npt, 2), dtype=bool)
+            for a, s, Y in maps:
+                moving[a, s] = True
+            y_size = np.where(moving, 3 * sizes[np.maximum(self.side_body, 0)], 0)
+            y_off = np.where(moving, np.cumsum(y_size.ravel()).reshape(npt, 2) - y_size, -1)
+            y = np.empty(int(y_size.sum()))
+            for a, s, Y in maps:
+                if len(a):
+                    y[y_off[a, s][:, None] + np.arange(Y[0].size)] = Y.reshape(len(a), -1)
+            self._velocity_maps = (y_off, y)
+        return self._velocity_maps
 
 
 def _rigid_inverse(body: RigidBody) -> tuple[np.ndarray, np.ndarray]:
@@ -180,34 +203,17 @@ def build_system(bodies, points: list[ContactPoint], h: float, theta: float,
         Mhat, minv_b = _rigid_inverse(lay.bodies[i])
         mhat_flat[minv_off[i]:minv_off[i] + 36] = Mhat.ravel()
         minv[minv_off[i]:minv_off[i] + 36] = minv_b.ravel()
-    # Y = M_hat^-1 H of each side and W_aa = sum of H^T Y, body by body
+    # W_aa = sum of H^T Y over the point's sides, Y = M_hat^-1 H made body by body and let go
+    # (``System.velocity_maps`` makes them again for the Gauss-Seidel sweeps)
     npt = len(lay.area)
-    side_body = lay.side_body
     W = np.zeros((npt, 3, 3))
-    Y_of = {}  # body -> its moving sides (points a, sides s), their Y (k, nB, 3) and H^T Y
-    moving = np.zeros((npt, 2), dtype=bool)
-    for b in np.unique(side_body[side_body >= 0]):
-        a, s = np.nonzero(side_body == b)
-        d0, nB = body_dof0[b], sizes[b]
-        H = np.zeros((len(a), nB, 3))
-        sd = lay.side_dofs[a, s]
-        i, j = np.nonzero(sd >= 0)
-        H[i, sd[i, j] - d0] = lay.side_coef[a, s][i, j]
-        Y = np.matmul(minv[minv_off[b]:minv_off[b] + nB * nB].reshape(nB, nB), H)
-        nz = np.any(Y, axis=(1, 2))  # a fixed body: impulses do not move it
-        moving[a[nz], s[nz]] = True
-        Y_of[b] = (a[nz], s[nz], Y[nz], np.matmul(H[nz].transpose(0, 2, 1), Y[nz]))
+    HtY_of = [(a, s, np.matmul(H.transpose(0, 2, 1), Y))
+              for a, s, Y, H in _side_maps(lay, minv, with_h=True)]
     for side in (0, 1):  # W = (0 + side 0) + side 1, as the sum point by point
-        for a, s, _, HtY in Y_of.values():
+        for a, s, HtY in HtY_of:
             on = s == side
             W[a[on]] += HtY[on]
-    # Y laid end to end in the order of the points and their sides
-    y_size = np.where(moving, 3 * sizes[np.maximum(side_body, 0)], 0)
-    y_off = np.where(moving, np.cumsum(y_size.ravel()).reshape(npt, 2) - y_size, -1)
-    y = np.empty(int(y_size.sum()))
-    for a, s, Y, _ in Y_of.values():
-        if len(a):
-            y[y_off[a, s][:, None] + np.arange(Y[0].size)] = Y.reshape(len(a), -1)
+    del HtY_of
     # A direction along which no free body can move (an imposed dof of a rigid body, say) has a
     # zero row in W_aa: the relative motion there is kinematic and the point carries no traction
     # in it. Give it a finite compliance in the local problem (the predictor along it is zero,
@@ -219,4 +225,26 @@ def build_system(bodies, points: list[ContactPoint], h: float, theta: float,
         W[stuck, :, i] = 0.0
         W[stuck, i, i] = np.where(dmax[stuck] > 0, dmax[stuck], 1.0)
     return System(**{f.name: getattr(lay, f.name) for f in fields(DofLayout)}, minv=minv,
-                  mhat=mhat_flat, y_off=y_off, y=y, W=W, h=h, theta=theta)
+                  mhat=mhat_flat, W=W, h=h, theta=theta)
+
+
+def _side_maps(lay: DofLayout, minv: np.ndarray, with_h: bool = False):
+    """Per body that a contact point's side lies on (in increasing order), the sides that can
+    move: their points ``a`` and sides ``s`` and ``Y = M_hat^-1 H`` of each ``(k, n_B, 3)``
+    (``with_h``: and their ``H``, the same shape), one body at a time. A fixed body (impulses
+    do not move it, ``Y = 0``) gives no side."""
+    body_dof0, sizes, minv_off = lay.body_dof0, np.diff(lay.body_dof0), lay.minv_off
+    side_body = lay.side_body
+    for b in np.unique(side_body[side_body >= 0]):
+        a, s = np.nonzero(side_body == b)
+        d0, nB = body_dof0[b], sizes[b]
+        H = np.zeros((len(a), nB, 3))
+        sd = lay.side_dofs[a, s]
+        i, j = np.nonzero(sd >= 0)
+        H[i, sd[i, j] - d0] = lay.side_coef[a, s][i, j]
+        Y = np.matmul(minv[minv_off[b]:minv_off[b] + nB * nB].reshape(nB, nB), H)
+        nz = np.any(Y, axis=(1, 2))  # a fixed body: impulses do not move it
+        if with_h:
+            yield a[nz], s[nz], Y[nz], H[nz]
+        else:
+            yield a[nz], s[nz], Y[nz]
