@@ -304,9 +304,16 @@ class _Cycle:
         return False
 
 
-_NO_SLOT = np.zeros(0, dtype=np.int64)
-_NO_INT = np.zeros(0, dtype=np.int64)
+_NO_SLOT = np.zeros(0, dtype=np.int32)
+_NO_INT = np.zeros(0, dtype=np.int32)
 _NO_FLOAT = np.zeros(0)
+
+
+def index_type(largest: int) -> type:
+    """The integer type of the indices of a sparse pattern whose indices, counts and places
+    stay below ``largest``: 32 bits where they fit (half the memory of the triplets, the
+    slots and the pattern's rows, which grow with the wall), else 64."""
+    return np.int32 if largest < np.iinfo(np.int32).max else np.int64
 
 
 def jacobian_coo(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_coef, mult_of,
@@ -322,8 +329,9 @@ def jacobian_coo(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_c
     ms = 2 * side_dofs.shape[2]
     cap = int(np.sum(np.diff(body_dof0) ** 2)) + side_dofs.shape[0] * (ms * ms + 6 * ms) \
         + 9 * Gr.shape[0]
-    rows = np.empty(cap, dtype=np.int64)
-    cols = np.empty(cap, dtype=np.int64)
+    kind = index_type(nfree + 3 * Gr.shape[0])  # of the rows and columns
+    rows = np.empty(cap, dtype=kind)
+    cols = np.empty(cap, dtype=kind)
     vals = np.empty(cap)
     k = _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_coef,
                           mult_of, area, K, Gu, Gr, full_block, h, theta, keep_zeros, eliminate,
@@ -348,7 +356,7 @@ def jacobian_values(slot, nnz, body_dof0, mhat_off, mhat, free_index, nfree, sid
                     eliminate=False, bodies=None) -> np.ndarray:
     """The values (``nnz``) of the Newton matrix in a fixed pattern whose entry ``k`` of
     ``jacobian_coo(..., keep_zeros=True)`` sits at ``slot[k]``: the same sums, without the
-    triplets (24 bytes per entry). ``eliminate``: of
+    triplets (two indices and a value per entry). ``eliminate``: of
     the body system ``S``, in the pattern of ``jacobian_coo(..., True, True)``. ``bodies``:
     :func:`bodies_values` of these bodies' blocks, onto a copy of which only the other
     entries are summed (the same sums bit for bit)."""
@@ -383,22 +391,24 @@ def csc_slots(rows, cols, n, indptr):
     (``n + 1``), the rows of each column sorted and unique, as ``np.unique`` of the keys
     ``cols n + rows`` gives them. The triplets are bucketed by column (a counting sort) and
     each column's rows sorted alone, where ``np.unique`` sorts all the keys at once: linear
-    in the triplets but for the short sorts of the columns, against ``n log n`` of one sort."""
+    in the triplets but for the short sorts of the columns, against ``n log n`` of one sort.
+    The triplets' places, the slots and the rows are of the type of ``rows`` (32 bits where
+    the triplets and the rows fit in it: ``_Pattern``)."""
     ntrip = rows.shape[0]
     start = np.zeros(n + 1, dtype=np.int64)
     for k in range(ntrip):
         start[cols[k] + 1] += 1
     for j in range(n):
         start[j + 1] += start[j]
-    order = np.empty(ntrip, dtype=np.int64)
+    order = np.empty(ntrip, dtype=rows.dtype)
     fill = start[:n].copy()
     for k in range(ntrip):
         c = cols[k]
         order[fill[c]] = k
         fill[c] += 1
-    slot = np.empty(ntrip, dtype=np.int64)
-    indices = np.empty(ntrip, dtype=np.int64)
-    key = np.empty(ntrip, dtype=np.int64)  # the rows of the triplets in ``order``
+    slot = np.empty(ntrip, dtype=rows.dtype)
+    indices = np.empty(ntrip, dtype=rows.dtype)
+    key = np.empty(ntrip, dtype=rows.dtype)  # the rows of the triplets in ``order``
     for q in range(ntrip):
         key[q] = rows[order[q]]
     nnz = 0
@@ -474,18 +484,21 @@ class _Pattern:
         """CSC arrays of the pattern of (rows, cols) and the slot of each triplet: by
         ``np.unique`` of the keys ``cols n + rows`` up to ``KERNEL_TRIPLETS`` triplets, by the
         compiled :func:`csc_slots` above (the same arrays; its compilation would add to a small
-        case's first run more than it saves)."""
+        case's first run more than it saves). The slots and the rows in 32 bits where the
+        triplets and the rows fit (``index_type``): 4 bytes per triplet and per entry less
+        than 64 bits, and PARDISO takes the rows as they are, without a copy of its own."""
         n = self.n
+        kind = index_type(max(len(rows), n))
+        rows, cols = np.asarray(rows, dtype=kind), np.asarray(cols, dtype=kind)
         self._rows, self._cols = rows, cols
         if len(rows) >= self.KERNEL_TRIPLETS:
             self.indptr = np.empty(n + 1, dtype=np.int64)
-            slot, self.indices = csc_slots(np.asarray(rows, dtype=np.int64),
-                                           np.asarray(cols, dtype=np.int64), n, self.indptr)
+            slot, self.indices = csc_slots(rows, cols, n, self.indptr)
             return slot
-        uniq, slot = np.unique(cols * n + rows, return_inverse=True)
+        uniq, slot = np.unique(cols.astype(np.int64) * n + rows, return_inverse=True)
         self.indptr = np.searchsorted(uniq // n, np.arange(n + 1)).astype(np.int64)
-        self.indices = (uniq % n).astype(np.int64)
-        return slot.astype(np.int64)
+        self.indices = (uniq % n).astype(kind)
+        return slot.astype(kind)
 
     def sibling(self) -> _Pattern | None:
         """The same pattern with a PARDISO handle of its own (its own analysis and
@@ -525,7 +538,7 @@ class _Pattern:
             place = lu.perm_c.astype(np.int64)
             self.order = np.argsort(place)
             self.slot = self._slots(place[self._rows], place[self._cols])
-            self._rows = self._cols = None  # not needed again (16 bytes per triplet)
+            self._rows = self._cols = None  # not needed again (two indices per triplet)
             return lu
         lu = spla.splu(self.matrix(data), permc_spec="NATURAL", diag_pivot_thresh=0.0,
                        options=opts)
@@ -700,7 +713,7 @@ class NewtonSolver:
         """Use the patterns of ``other``, a solver of the same scene with another step size:
         they depend on the bodies, the points and the free dofs only, so the adaptive step's
         rungs and the halves need not make theirs (the time of making a pattern, and the slots'
-        memory, 8 bytes per triplet, grow with the wall). A PARDISO pattern is shared
+        memory, 4 bytes per triplet, grow with the wall). A PARDISO pattern is shared
         with a handle of its own (``_Pattern.sibling``): a handle keeps one factorisation."""
         if not (np.array_equal(self.free, other.free) and np.array_equal(self.mult, other.mult)):
             return
