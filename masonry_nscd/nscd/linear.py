@@ -314,8 +314,9 @@ class KrylovSolver:
                         self._local, self._size_of, flat)
         groups = []
         if self._last_blocks is None:
-            # the blocks the inverses are of, laid out as ``flat``
-            self._last_blocks = (flat.copy(), [None] * len(self.groups))
+            # the blocks the inverses are of, laid out as ``flat`` (``flat`` itself: it is
+            # this set-up's, and only the blocks inverted again write into it later)
+            self._last_blocks = (flat, [None] * len(self.groups))
         made_of, inverses = self._last_blocks
         for n, ((k, starts), off) in enumerate(zip(self.groups, self._group_off[:-1],
                                                     strict=True)):
@@ -331,11 +332,15 @@ class KrylovSolver:
                                      old.reshape(len(starts), k * k), self.block_tolerance)
                 changed = np.flatnonzero(moved)
                 # in place: a preconditioner serves until the next set-up (a copy of every
-                # inverse would cost a large share of the local level's set-up)
+                # inverse would cost a large share of the local level's set-up); a few hundred
+                # blocks at a time, so that the blocks taken out and their inverses are not a
+                # second and third copy of every block of a large wall
                 inv = inverses[n]
-                if len(changed):
-                    inv[changed] = _inverses(blocks[changed])
-                    old[changed] = blocks[changed]
+                for lo in range(0, len(changed), REINVERTED_AT_ONCE):
+                    some = changed[lo:lo + REINVERTED_AT_ONCE]
+                    taken = blocks[some]
+                    inv[some] = _inverses(taken)
+                    old[some] = taken
                 self.blocks_inverted += len(changed)
             inverses[n] = inv
             groups.append((idx, inv))
@@ -558,6 +563,10 @@ def moved_blocks(blocks, made_of, tolerance):
 
 #: the fewest blocks a thread inverts (a thread's hand-over costs about one 54 x 54 inverse)
 MIN_BLOCKS_PER_THREAD = 16
+#: the most blocks inverted again in one batch (``KrylovSolver.local_inverses``): each block
+#: is inverted alone by the same LAPACK call whatever the batch, so the batch bounds only the
+#: temporary copies (6 MB of 54 x 54 blocks)
+REINVERTED_AT_ONCE = 256
 
 
 def _inverses(blocks: np.ndarray) -> np.ndarray:
