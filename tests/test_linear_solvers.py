@@ -591,6 +591,36 @@ def test_the_adaptive_steps_rungs_share_the_newton_pattern_with_handles_of_their
     assert np.array_equal(shared.u, own.u) and np.array_equal(shared.joints.T, own.joints.T)
 
 
+@pytest.mark.skipif(not pardiso.available(), reason="PARDISO needs MKL")
+def test_the_adaptive_steps_rungs_share_the_krylov_solvers_fixed_parts(monkeypatch):
+    """On krylov the rungs take the run's solver's coarse space, block numbering, coarse seed
+    and analysed coarse pattern (with a PARDISO handle of their own), and step to the same
+    states bit for bit as rungs that made their own."""
+    sets = [*QUIET, "solver.linear=krylov", "solver.max_time_step_s=8e-3",
+            "solver.grow_after_steps=1", "solver.easy_iterations=20"]
+    runs = []
+    for share in (True, False):
+        if not share:
+            monkeypatch.setattr(linear.KrylovSolver, "share", lambda self, other: None)
+        integ = build_scene(load_case(SMOKE, sets)).integrator()
+        for _ in range(12):
+            integ.step()
+        assert integ._rungs, "the step did not grow"
+        runs.append(integ)
+    for integ, share in zip(runs, (True, False), strict=True):
+        base = integ.newton._krylov
+        for rung in integ._rungs.values():
+            own = rung.newton._krylov
+            assert (own.R is base.R and own._block_of is base._block_of) == share
+            assert (own._coarse_seed is base._coarse_seed) == share
+            assert (own._coarse_pattern.keys is base._coarse_pattern.keys) == share
+            assert own._coarse_pattern.handle is not base._coarse_pattern.handle
+            assert own.coarse_analyses == 1
+    shared, own = runs
+    assert shared.solver_counts() == own.solver_counts()
+    assert np.array_equal(shared.u, own.u) and np.array_equal(shared.joints.T, own.joints.T)
+
+
 def test_nonzero_csr_drops_the_patterns_zeros_as_scipy_does():
     """A fixed pattern's CSR arrays with structural zeros: the same matrix as scipy's
     ``eliminate_zeros`` (entries, order and values), with 32-bit indices."""

@@ -60,6 +60,7 @@ suite or study with the other one; a case that names its solver keeps it.
 
 from __future__ import annotations
 
+import copy
 import math
 import os
 
@@ -213,6 +214,8 @@ class KrylovSolver:
         self._size_of = np.repeat(sizes, sizes).astype(np.int64)
         # the coarse matrix's analysed pattern (``_CoarsePattern``)
         self._coarse_pattern: _CoarsePattern | None = None
+        # a solver of the same free dofs and bodies whose parts this one shares (``share``)
+        self._like: KrylovSolver | None = None
         self.coarse_analyses = 0  # analyses of the coarse pattern so far
         #: every entry the body system can have, ``(indptr, indices)`` of a CSR pattern with
         #: its zeros (the Newton solver's fixed pattern), when known: the coarse pattern is
@@ -226,6 +229,27 @@ class KrylovSolver:
         #: a body's block is inverted again when it moved by more than this fraction of its
         #: Frobenius norm since its inverse was made (0: at any change)
         self.block_tolerance = BLOCK_TOLERANCE
+
+    #: what depends on the free dofs and their bodies alone (``share``)
+    SHARED = ("body_of", "modes", "R", "RT", "coarse_columns", "groups", "_group_off",
+              "_block_of", "_local", "_size_of")
+
+    def share(self, other: KrylovSolver) -> None:
+        """Take the parts of ``other``, a solver of the same free dofs, bodies and modes (the
+        Newton solver of another step size of the scene), that depend on nothing else: the
+        coarse space and its transpose, the modes, the numbering of the bodies' blocks
+        (``SHARED``), and later the coarse seed and its analysed pattern, with a PARDISO
+        handle of its own (``_CoarsePattern.sibling``: a handle keeps one factorisation).
+        About 1 kB per contact point that each step size's solver no longer makes again
+        (docs/scaling.md). Nothing when the two differ or are not of this class (PETSc's,
+        ``petsc_solve.py``, keeps its own)."""
+        if type(self) is not KrylovSolver or type(other) is not KrylovSolver or \
+                not (np.array_equal(self.body_of, other.body_of)
+                     and np.array_equal(self.modes, other.modes)):
+            return
+        for name in self.SHARED:
+            setattr(self, name, getattr(other, name))
+        self._like = other
 
     def factorise(self, J: sp.spmatrix) -> KrylovOperator:
         """The preconditioner of ``J`` (free dofs first, then three rows per multiplier
@@ -291,7 +315,14 @@ class KrylovSolver:
         if not pardiso.available():
             return None
         if self._coarse_pattern is None:
-            self._analyse(_ones(seed.indptr, seed.indices, seed.shape))
+            like = self._like
+            if like is not None and like._coarse_seed is seed and \
+                    like._coarse_pattern is not None and like._coarse_pattern.seeded:
+                # the same seed's analysed pattern, shared with a handle of its own
+                self._coarse_pattern = like._coarse_pattern.sibling()
+                self.coarse_analyses += 1
+            else:
+                self._analyse(_ones(seed.indptr, seed.indices, seed.shape)).seeded = True
         kept = self._coarse_pattern
         data = np.zeros(len(kept.keys) + 1)  # the last: the terms that found no entry
         data[-1] = coarse_entries(rows.indptr, rows.indices, rows.data, row0, body_of, modes,
@@ -349,6 +380,11 @@ class KrylovSolver:
     def coarse_seed(self) -> sp.csc_matrix | None:
         """Every entry the coarse matrix can have, ``|R|^T P |R|`` with ``P`` the ones of
         ``structure`` (CSC; None while ``structure`` is not known), made once."""
+        like = self._like
+        if self._coarse_seed is None and like is not None and like._coarse_seed is not None \
+                and like.structure is not None and self.structure is not None \
+                and like.structure[1] is self.structure[1]:
+            self._coarse_seed = like._coarse_seed  # the same pattern's: the same seed
         if self._coarse_seed is None and self.structure is not None:
             indptr, indices = self.structure
             P = sp.csr_matrix((np.ones(len(indices)), indices, indptr), shape=(self.nf, self.nf))
@@ -398,9 +434,18 @@ class _CoarsePattern:
     def __init__(self, pattern: sp.csc_matrix):
         self.indptr, self.indices = pattern.indptr.copy(), pattern.indices.copy()
         self.keys = _keys(pattern)
-        self.handle = pardiso.Pardiso(pattern.indptr, pattern.indices, pattern.shape[0],
-                                      order=2)
+        self.handle = pardiso.Pardiso(self.indptr, self.indices, pattern.shape[0], order=2)
         self._pairs = None
+        #: analysed from a coarse seed as it is (``KrylovSolver.coarse_on_seed``), not grown
+        self.seeded = False
+
+    def sibling(self) -> _CoarsePattern:
+        """The same pattern, its arrays shared, with a PARDISO handle of its own (analysed at
+        its first factorisation, as this one's was: the same pattern, the same order)."""
+        other = copy.copy(self)
+        other.handle = pardiso.Pardiso(self.indptr, self.indices, len(self.indptr) - 1,
+                                       order=2)
+        return other
 
     def pairs(self, columns: np.ndarray, n_bodies: int) -> tuple[np.ndarray, np.ndarray]:
         """Where the entries of each pair of bodies are, for ``coarse_entries``: the pairs'

@@ -717,6 +717,8 @@ class NewtonSolver:
         with a handle of its own (``_Pattern.sibling``): a handle keeps one factorisation."""
         if not (np.array_equal(self.free, other.free) and np.array_equal(self.mult, other.mult)):
             return
+        if self._krylov is not None and other._krylov is not None:
+            self._krylov.share(other._krylov)
         if self._krylov is not None and other._krylov_pattern is not None:
             self._krylov_pattern = other._krylov_pattern
         if self._pattern is None and other._pattern is not None:
