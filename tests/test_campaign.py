@@ -258,22 +258,6 @@ def test_cyclic_option_makes_cycles_of_a_cyclic_row_only():
     assert mono.loading.horizontal.history == "monotonic"
 
 
-def test_cyclic_runs_halve_after_a_failure_and_monotonic_ones_keep_the_template():
-    """A cyclic run makes the steps after a failed one as halves at once; a monotonic run (a
-    monotonic row, or a cyclic row without ``cyclic``) keeps the template's setting, and a
-    template that gives one keeps it for the cycles too."""
-    base = read_yaml(TEMPLATE.read_text())
-    assert "halved_steps_after_failure" not in base.get("solver", {})
-    run = case_from_dict(campaign.case_for_row(base, _row("SC5"), cyclic=True))
-    assert run.solver.halved_steps_after_failure == campaign.CYCLIC_HALVED_STEPS >= 1
-    for row, cyclic in (("SC5", False), ("SC7", True)):
-        mono = case_from_dict(campaign.case_for_row(base, _row(row), cyclic=cyclic))
-        assert mono.solver.halved_steps_after_failure == 0
-    given = {**base, "solver": {**base["solver"], "halved_steps_after_failure": 4}}
-    run = case_from_dict(campaign.case_for_row(given, _row("SC5"), cyclic=True))
-    assert run.solver.halved_steps_after_failure == 4
-
-
 def test_energy_per_cycle_ignores_noise_at_zero_and_envelopes():
     """Jitter of a measured signal around u = 0 does not cut a cycle in pieces, and a curve
     whose displacements never decrease (an envelope) has no cycles."""

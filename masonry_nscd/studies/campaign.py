@@ -20,8 +20,7 @@ Loads
     peak. Cyclic tests run monotonic, compared with the envelope of the measured cycles,
     unless ``cyclic``: then reversed cycles of 0.25, 0.5 and 1 times that target, one each,
     and the energy of the last cycle against ``4 F_max U_max`` beside the measured cycle of
-    the nearest amplitude; a cyclic run makes the steps after one that failed as halves at
-    once (``CYCLIC_HALVED_STEPS``). The push lasts as long as the template's (its target over its
+    the nearest amplitude. The push lasts as long as the template's (its target over its
     rate), so a tall push is a faster one.
 Materials
     The rules of :mod:`masonry_nscd.materials.rules` (joint and ENDO3D units), the same for
@@ -81,14 +80,6 @@ PUSH_FACTOR = 1.5
 #: ``--cyclic``: the amplitudes of a cyclic row's reversed cycles, one cycle each, as fractions
 #: of its push's target (the largest is the target itself)
 CYCLE_FRACTIONS = (0.25, 0.5, 1.0)
-#: ``--cyclic``: a cyclic run's ``solver.halved_steps_after_failure`` where the template gives
-#: none. On the unloading branches the steps that fail at h come in clusters (a few steps
-#: apart), and each attempt at h costs up to 50 Newton iterations, most of them with a fresh
-#: ENDO3D tangent and factorisation: made as halves at once after a failure (longer runs of
-#: halves when the attempt after them fails again), SC5's cyclic run took 364 s instead of
-#: 532 s with the same peaks and its last cycle's energy within 0.3 % (docs/campaign.md,
-#: "Where a cyclic run's time goes"). The monotonic push keeps the template's setting.
-CYCLIC_HALVED_STEPS = 1
 #: Within this relative error a prediction "hits".
 HIT = 0.15
 #: Secant stiffness at this fraction of the peak.
@@ -207,8 +198,6 @@ def case_for_row(template: dict[str, Any], row: dict[str, str], cyclic: bool = F
     if run_cyclic:
         hor.update({"history": "cyclic", "cycles_per_amplitude": 1,
                     "amplitudes_m": [f * target for f in CYCLE_FRACTIONS]})
-        d.setdefault("solver", {}).setdefault("halved_steps_after_failure",
-                                              CYCLIC_HALVED_STEPS)
     d["name"] = name
     d["description"] = (f"{row.get('reference', '').strip()} {name}: {L:g} x {H:g} x {t:g} mm, "
                         f"H0 {H0:g} mm, {row.get('loading', '').strip().lower()} test run "
