@@ -546,6 +546,11 @@ def limit_cmd(
         "--start", help="With --flow non-associative, the normal forces the iteration starts "
         "from: elastic (the joints' springs under the dead loads, Coulomb friction) or "
         "associative (the associative solution at collapse).")] = "elastic",
+    method: Annotated[str, typer.Option(
+        "--method", help="With --flow non-associative: fixed-point (the iteration of fixed "
+        "friction capacities, seconds) or load-path (the load followed from rest on the "
+        "joints' springs, the run's path without inertia; minutes on hundreds of blocks).")
+    ] = "fixed-point",
     overrides: SetOption = None,
     overwrite: OverwriteOption = False,
 ) -> None:
@@ -559,13 +564,24 @@ def limit_cmd(
     dual. Writes limit.json,
     mechanism.vtu, joint_forces.csv, joint_forces.vtu and mechanism.png (docs/limit.md)."""
     case = _load_case_or_exit(case_file, overrides)
-    from masonry_nscd.limit.analysis import FLOWS, analyse, format_result, write_outputs
+    from masonry_nscd.limit.analysis import (
+        FLOWS,
+        METHODS,
+        analyse,
+        format_result,
+        write_outputs,
+    )
     from masonry_nscd.limit.lp import SOLVERS, STARTS
 
     if flow not in FLOWS:
         _fail(f"--flow: one of {', '.join(FLOWS)}, got {flow!r}", 2)
     if start not in STARTS:
         _fail(f"--start: one of {', '.join(STARTS)}, got {start!r}", 2)
+    if method not in METHODS:
+        _fail(f"--method: one of {', '.join(METHODS)}, got {method!r}", 2)
+    if method == "load-path" and (tension or compressive is not None):
+        _fail("--method load-path: the joints' springs carry no tension and crush nowhere; "
+              "leave out --tension and --compressive-strength", 2)
     if not (facets == 0 or 3 <= facets <= 1024):
         _fail(f"--facets: 0 (the cone) or from 3 to 1024, got {facets}", 2)
     if solver not in SOLVERS or (solver == "highs" and not facets):
@@ -575,7 +591,7 @@ def limit_cmd(
     if compressive is not None and not compressive > 0.0:
         _fail(f"--compressive-strength: a stress > 0 Pa, got {compressive:g}", 2)
     result = analyse(case, facets=facets, tension=tension, flow=flow, solver=solver,
-                     compressive_Pa=compressive, start=start)
+                     compressive_Pa=compressive, start=start, method=method)
     for line in format_result(result.record):
         typer.echo(line)
     paths = write_outputs(result, outdir)

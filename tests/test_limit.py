@@ -18,9 +18,10 @@ from typer.testing import CliRunner
 
 from masonry_nscd.case import load_case
 from masonry_nscd.cli import app
-from masonry_nscd.limit import friction, mechanism
+from masonry_nscd.limit import friction, mechanism, path
 from masonry_nscd.limit.analysis import analyse
 from masonry_nscd.limit.lp import elastic_state, solve_limit, solve_non_associative
+from masonry_nscd.limit.path import follow_load
 from masonry_nscd.limit.statics import rigid_model
 from masonry_nscd.limit.thickness import threshold
 from masonry_nscd.scenes import build_scene
@@ -512,3 +513,47 @@ def test_the_barrel_vault_collapses_as_its_weakest_ring():
     other, rec = solve_non_associative(m, start="associative")
     assert rec["converged"]
     assert other.multiplier == pytest.approx(expected, rel=1e-2)
+
+
+# --- the load followed from rest (--method load-path) -----------------------------------------
+
+@pytest.mark.parametrize("width, height, mu", [(0.1, 0.4, 0.6), (0.3, 0.4, 0.5)])
+def test_the_load_path_topples_or_slides_the_block(width, height, mu):
+    """The tilting table followed from rest on the base's springs: the block topples about its
+    toe at b/h when b/h < mu and slides at mu otherwise, within the bracket's width (``RTOL``
+    of the multiplier) below the exact value."""
+    m = rigid_model(tilting_block(width=width, height=height, mu=mu))
+    sol, record = follow_load(m)
+    expected = min(width / height, mu)
+    lo, hi = record["bracket"]
+    assert expected * (1.0 - 2.0 * path.RTOL) <= lo <= expected * (1.0 + 1e-9) <= hi
+    assert sol.multiplier == lo
+    kinds = [j["kind"] for j in mechanism.joints(m, sol.point_velocity, {"groups": ["base"]})]
+    assert kinds == (["hinge"] if width / height < mu else ["sliding"])
+
+
+def test_the_load_path_slides_the_wedged_block_at_mu():
+    """The block touching two walls without pressure (above): loaded from rest nothing presses
+    the walls, which carry nothing, and the block slides on its base at lambda = mu."""
+    mu = 0.5
+    m = rigid_model(tilting_block(width=0.2, height=0.1, depth=0.2, mu=mu, walls=True,
+                                  direction=(0.0, 0.0, 1.0)))
+    sol, record = follow_load(m)
+    lo, hi = record["bracket"]
+    assert mu * (1.0 - 2.0 * path.RTOL) <= lo <= mu * (1.0 + 1e-9) <= hi
+    side = m.group == 1  # nothing on the walls, to the equilibrium's tolerance
+    assert np.abs(sol.forces[side]).max() < path.TOLERANCE * np.abs(sol.forces).max()
+
+
+def test_the_load_path_finds_the_arch_four_hinges():
+    """The shipped arch followed from rest (no joint slides at its mu): the kinematic theorem's
+    least four-hinge multiplier within the bracket, with the same four hinges, from the
+    command with its record."""
+    expected, hinges = four_hinge_multiplier(24, 1.0, 0.15)
+    result = analyse(load_case(ARCH), flow="non-associative", method="load-path")
+    lo, hi = result.record["load_path"]["bracket"]
+    assert expected * (1.0 - 2.0 * path.RTOL) <= lo <= expected * (1.0 + 1e-9) <= hi
+    assert result.solution.multiplier == lo == result.record["multiplier"]["value"]
+    assert sorted((h["joint"], h["side"]) for h in result.record["hinges"]) == sorted(hinges)
+    with pytest.raises(ValueError, match="load-path"):
+        analyse(load_case(ARCH), flow="non-associative", method="load-path", tension=True)

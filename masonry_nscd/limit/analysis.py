@@ -27,11 +27,16 @@ from masonry_nscd.limit.lp import (
     solve_limit,
     solve_non_associative,
 )
+from masonry_nscd.limit.path import follow_load
 from masonry_nscd.limit.picture import draw_mechanism
 from masonry_nscd.limit.statics import RigidModel, rigid_model
 from masonry_nscd.scenes import build_scene
 
 FLOWS = ("associative", "non-associative")
+#: How the non-associative multiplier is found, the default first: the iteration of fixed
+#: friction capacities (:func:`.lp.solve_non_associative`) or the load followed from rest on
+#: the joints' springs (:func:`.path.follow_load`).
+METHODS = ("fixed-point", "load-path")
 METHOD = "rigid-block limit analysis: static programme (Coulomb's cone or its pyramid), mechanism from its dual"
 
 
@@ -47,10 +52,14 @@ class LimitResult:
     groups: tuple[str, ...]  # the scene's joint group names, by id
 
 
-def _kind(flow: str, iteration: dict | None) -> str:
+def _kind(flow: str, iteration: dict | None, method: str = METHODS[0]) -> str:
     if flow == "associative":
         return ("associative: the collapse multiplier of the normality rule (a sliding joint "
                 "dilates); an upper bound of the non-associative one where sliding matters")
+    if method == "load-path":
+        return ("non-associative: the load followed from rest, rigid blocks on the joints' "
+                "springs, Coulomb friction without dilatancy; the last load at rest before "
+                "the blocks move the collapse displacement")
     done = "converged" if iteration and iteration.get("converged") else "not converged"
     start = (iteration or {}).get("start", STARTS[0])
     origin = ("the elastic state under the dead loads (least complementary energy, successive "
@@ -63,18 +72,28 @@ def _kind(flow: str, iteration: dict | None) -> str:
 
 def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = False,
             flow: str = "associative", solver: str = SOLVERS[0],
-            compressive_Pa: float | None = None, start: str = STARTS[0]) -> LimitResult:
+            compressive_Pa: float | None = None, start: str = STARTS[0],
+            method: str = METHODS[0]) -> LimitResult:
     """The limit analysis of ``case`` (module docstring); ``start``: the non-associative
-    iteration's start (:data:`.lp.STARTS`)."""
+    iteration's start (:data:`.lp.STARTS`); ``method``: how the non-associative multiplier is
+    found (:data:`METHODS`; ``load-path`` has no tension and no compressive bound)."""
     if flow not in FLOWS:
         raise ValueError(f"flow: one of {', '.join(FLOWS)}, got {flow!r}")
+    if method not in METHODS:
+        raise ValueError(f"method: one of {', '.join(METHODS)}, got {method!r}")
+    path = flow == "non-associative" and method == "load-path"
+    if path and (tension or compressive_Pa is not None):
+        raise ValueError("method load-path: the joints' springs carry no tension and crush "
+                         "nowhere; leave out --tension and --compressive-strength")
     t0 = time.perf_counter()
     scene = build_scene(case)
     t1 = time.perf_counter()
     model = rigid_model(scene)
     t2 = time.perf_counter()
     iteration = None
-    if flow == "associative":
+    if path:
+        sol, iteration = follow_load(model, collapse_m=case.collapse.displacement_m)
+    elif flow == "associative":
         sol = solve_limit(model, facets, tension=tension, solver=solver,
                           compressive_Pa=compressive_Pa)
     else:
@@ -95,12 +114,15 @@ def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = Fals
         "status": sol.status,
         "lp_message": sol.message,
         "multiplier": {"name": model.factor, "unit": model.factor_unit,
-                       "value": sol.multiplier, "kind": _kind(flow, iteration)},
+                       "value": sol.multiplier, "kind": _kind(flow, iteration, method)},
         "flow": flow,
-        "friction": {"facets": facets,
-                     "model": f"pyramid of {facets} facets, inscribed" if facets
-                     else "Coulomb's cone (second-order cone)",
-                     "cone_error_bound": friction.cone_error_bound(facets)},
+        "non_associative_method": method if flow == "non-associative" else None,
+        "friction": ({"facets": 0, "model": "Coulomb's cone (the joints' return map)",
+                      "cone_error_bound": 0.0} if path else
+                     {"facets": facets,
+                      "model": f"pyramid of {facets} facets, inscribed" if facets
+                      else "Coulomb's cone (second-order cone)",
+                      "cone_error_bound": friction.cone_error_bound(facets)}),
         "solver": solver,
         "compressive_strength_Pa": compressive_Pa,
         "tension": tension,
@@ -113,7 +135,7 @@ def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = Fals
         record["note"] = ("the case has no growing load (a load factor with a rate): "
                           "the programme says only whether the dead loads can be carried")
     if iteration is not None:
-        record["non_associative"] = iteration
+        record["load_path" if path else "non_associative"] = iteration
     return LimitResult(model, sol, found, record, tuple(scene.groups))
 
 
@@ -193,6 +215,13 @@ def format_result(record: dict[str, Any]) -> list[str]:
                      + f"; from the {it.get('start', STARTS[0])} state"
                      + (f"; associative multiplier {it['associative']:.6g}"
                         if it.get("associative") is not None else ""))
+    if "load_path" in record:
+        it = record["load_path"]
+        lines.append(f"load path: {it['steps']} load steps, {it['viscous_steps']} viscous "
+                     f"steps, {it['newton_iterations']} Newton iterations"
+                     + (f"; collapse between {it['bracket'][0]:.6g} and {it['bracket'][1]:.6g}"
+                        if it.get("bracket") else "")
+                     + (f" ({it['stopped_by']})" if it.get("stopped_by") else ""))
     lines.append(f"times: scene {t['scene']:.3f} s, programme {t['assemble']:.3f} s, "
                  f"solve {t['solve']:.3f} s")
     return lines

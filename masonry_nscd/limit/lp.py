@@ -285,7 +285,12 @@ def _mechanism(m: RigidModel, marginals: np.ndarray, row_scale: np.ndarray) -> n
     (module docstring)."""
     y = np.zeros(6 * m.bodies)
     y[m.free] = np.asarray(marginals) / row_scale
-    vel = y.reshape(-1, 6)
+    return normalised_mechanism(m, y.reshape(-1, 6))
+
+
+def normalised_mechanism(m: RigidModel, vel: np.ndarray) -> np.ndarray:
+    """The bodies' velocities ``vel`` (b, 6) scaled so that the fastest node of a free body
+    moves at 1 and the growing load does positive work."""
     if float(m.live @ vel.ravel()) < 0.0:
         vel = -vel
     speed = 0.0
@@ -294,7 +299,6 @@ def _mechanism(m: RigidModel, marginals: np.ndarray, row_scale: np.ndarray) -> n
         v = vel[b, :3] + np.cross(vel[b, 3:], X - m.reference[b])
         speed = max(speed, float(np.linalg.norm(v, axis=1).max()))
     return vel / speed if speed > 0.0 else vel
-
 
 
 #: The weight of the normal forces' sum in a step of the non-associative iteration (forces in

@@ -1,0 +1,326 @@
+r"""The non-associative collapse load by following the load from rest: rigid blocks on the
+joints' springs, Coulomb friction without dilatancy, the growing load raised step by step.
+
+With Coulomb friction that does not dilate, the collapse load of rigid blocks is not unique:
+it depends on how the normal forces were built up (docs/limit.md). The iteration of fixed
+friction capacities (:func:`masonry_nscd.limit.lp.solve_non_associative`) finds one fixed
+point, not necessarily the one the structure loaded from rest reaches. This module follows
+that structure: an incremental static analysis of rigid blocks whose joints are the case's
+springs, the same unknowns and interface points as the static programme
+(:mod:`.statics`).
+
+Unknowns: the small displacement ``u`` (m, rad) of every body's reference point, six per free
+body. The relative displacement of a point, in its frame ``(n, t, s)``, is ``g = B^T u``
+(``B`` the equilibrium matrix, :func:`masonry_nscd.limit.statics.equilibrium_matrix`;
+``g_n > 0`` opens). Each point is a spring of stiffness ``k_n = A / c_n`` in compression (no
+tension) and ``k_t = A / c_t`` in shear (N/m; ``A`` its area, ``c`` the joint's compliances),
+with Coulomb's friction and a plastic slip ``p`` (m) that remembers the path:
+
+    N = k_n max(0, -g_n),     F* = -k_t (g_t - p),     F = F*                 if |F*| <= mu N
+                                                        F = mu N F* / |F*|     otherwise
+
+(the return to the cone along ``F*``: the slip has no normal part, no dilatancy). Equilibrium
+of the free dofs at load factor ``lambda``:
+
+    R(u) = B f(B^T u; p) + F_dead + lambda F_live = 0                   (N, N m)
+
+solved by Newton's method on the non-smooth ``R`` (the slip's tangent is not symmetric) with a
+line search on ``max |R|``. The dead loads are applied in ten steps, then ``lambda`` grows in
+steps; each converged step updates the slip ``p``.
+
+**Viscous steps.** Where a step finds no static state (a point that sticks and slips in turn,
+or a slip that must run before the blocks lock again) it is taken in pseudo-time: each step
+solves ``R(u) = c (u - u_k)``, a dashpot ``c`` (N/m) on every dof pulling toward the last
+state (the Duvaut-Lions regularisation of plasticity; a proximal point step of the equilibrium),
+halving ``c`` after a success and multiplying it by 8 after a failure. The blocks are at rest
+when the dashpot's force ``c |u_{k+1} - u_k|`` is below the tolerance of equilibrium; they
+collapse when a block point has moved ``collapse_m`` (the case's ``collapse.displacement_m``,
+as the NSCD run's collapse test) since the load step began. The collapse multiplier is then
+bracketed between the last load at rest and the first that collapses, the step halved until
+the bracket is narrower than ``rtol`` of the multiplier.
+
+The mechanism is the displacement of the collapsing flow (the bodies' motion from the last
+state at rest), normalised as the programme's dual (fastest node 1); the joint forces are those
+of the last state at rest. Displacements are small: the joints' geometry is that of the scene.
+This is the quasi-static counterpart of the NSCD run with rigid blocks: no inertia, no
+impacts, no large displacements.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spl
+
+from masonry_nscd.limit.lp import LimitSolution, normalised_mechanism
+from masonry_nscd.limit.statics import RigidModel, point_velocities
+
+#: Newton's tolerance: ``max |R|`` below this times the largest load component.
+TOLERANCE = 1e-7
+#: Newton iterations per (static or viscous) step.
+NEWTON_ITERATIONS = 20
+#: The dead loads' steps.
+DEAD_STEPS = 10
+#: The first load step, as a part of the dead loads' largest component over the live load's.
+FIRST_STEP = 0.01
+#: The bracket of the collapse multiplier, relative.
+RTOL = 1e-3
+#: Load steps at most.
+MAX_STEPS = 2000
+#: Viscous steps per load step at most, and the dashpot's range over the mean stiffness.
+FLOW_STEPS = 5000
+DASHPOT_MIN, DASHPOT_FIRST, DASHPOT_MAX = 1e-9, 1e-6, 1e3
+
+
+def joint_forces(g: np.ndarray, slip: np.ndarray, kn: np.ndarray, kt: np.ndarray,
+                 mu: np.ndarray, glued: np.ndarray):
+    """The forces ``(N, T, S)`` (p, 3) (N) of the points at relative displacement ``g`` (p, 3)
+    (m) with plastic slip ``slip`` (p, 2) (module docstring), their tangent ``df/dg`` (p, 3, 3)
+    (N/m), the slip after the step, and the masks of the closed and sliding points. A glued
+    point is a linear spring in every direction."""
+    closed = (g[:, 0] <= 0.0) | glued
+    N = np.where(glued, -kn * g[:, 0], kn * np.maximum(0.0, -g[:, 0]))
+    trial = -kt[:, None] * (g[:, 1:] - slip)
+    size = np.linalg.norm(trial, axis=1)
+    cap = mu * N
+    sliding = closed & ~glued & (size > cap)
+    F = np.where(closed[:, None], trial, 0.0)
+    e = trial / np.maximum(size, 1e-300)[:, None]
+    F[sliding] = cap[sliding, None] * e[sliding]
+    D = np.zeros((len(g), 3, 3))
+    D[closed, 0, 0] = -kn[closed]
+    stick = closed & ~sliding
+    D[stick, 1, 1] = D[stick, 2, 2] = -kt[stick]
+    s = np.flatnonzero(sliding)
+    if len(s):
+        P = np.eye(2)[None] - e[s, :, None] * e[s, None, :]
+        D[s, 1:, 1:] = (-kt[s] * cap[s] / size[s])[:, None, None] * P
+        D[s, 1:, 0] = -(mu[s] * kn[s])[:, None] * e[s]
+    after = slip.copy()
+    after[~closed] = g[~closed, 1:]
+    after[sliding] = g[sliding, 1:] + F[sliding] / kt[sliding, None]
+    f = np.concatenate([N[:, None], F], axis=1)
+    return f, D, after, closed, sliding
+
+
+class _Points:
+    """The map between the free dofs and the points: ``G`` (p, 12, 3), each point's three
+    frame directions as generalised forces on the six dofs of its two bodies (the columns of
+    ``B``), ``dof`` (p, 12) their free-dof numbers (-1: not free); the Newton matrix
+    ``B D B^T`` summed into a fixed pattern."""
+
+    def __init__(self, m: RigidModel):
+        self.n = int(m.free.sum())
+        number = np.full(6 * m.bodies, -1)
+        number[m.free] = np.arange(self.n)
+        G = np.zeros((m.points, 12, 3))
+        dof = np.zeros((m.points, 12), np.int64)
+        for side, sign in ((0, 1.0), (1, -1.0)):
+            b = m.pair[:, side]
+            r = m.x - m.reference[b]
+            for k in range(3):
+                d = m.frame[:, k, :]
+                G[:, 6 * side:6 * side + 3, k] = sign * d
+                G[:, 6 * side + 3:6 * side + 6, k] = sign * np.cross(r, d)
+            dof[:, 6 * side:6 * side + 6] = number[6 * b[:, None] + np.arange(6)]
+        G[dof < 0] = 0.0
+        self.G, self.dof, self.used = G, dof, dof >= 0
+        i = np.repeat(dof, 12, axis=1).ravel()
+        j = np.tile(dof, (1, 12)).ravel()
+        self.pair_used = (i >= 0) & (j >= 0)
+        key, self.slot = np.unique(i[self.pair_used] * self.n + j[self.pair_used],
+                                   return_inverse=True)
+        self.rows, self.cols = key // self.n, key % self.n
+
+    def gap(self, x: np.ndarray) -> np.ndarray:
+        """``B^T u`` (p, 3) for the free dofs' displacements ``x``."""
+        xe = np.where(self.used, x[np.maximum(self.dof, 0)], 0.0)
+        return np.einsum("pik,pi->pk", self.G, xe)
+
+    def force(self, f: np.ndarray) -> np.ndarray:
+        """``B f`` on the free dofs for the point forces ``f`` (p, 3)."""
+        v = np.einsum("pik,pk->pi", self.G, f)
+        return np.bincount(self.dof[self.used], weights=v[self.used], minlength=self.n)
+
+    def matrix(self, D: np.ndarray) -> sp.csc_matrix:
+        """``B D B^T`` on the free dofs for the point blocks ``D`` (p, 3, 3)."""
+        local = np.einsum("pik,pkl,pjl->pij", self.G, D, self.G).reshape(-1)[self.pair_used]
+        data = np.bincount(self.slot, weights=local, minlength=len(self.rows))
+        return sp.csc_matrix((data, (self.rows, self.cols)), shape=(self.n, self.n))
+
+
+def _stiffness(m: RigidModel) -> tuple[np.ndarray, np.ndarray]:
+    """The points' springs ``k_n, k_t`` (N/m); a joint without springs (zero compliance) as
+    stiff as the others (as in shear as in compression if none has one, 1e11 Pa/m)."""
+    out = []
+    for c in (m.compliance_n, m.compliance_t):
+        c = np.asarray(c, float).copy()
+        soft = c > 0.0
+        c[~soft] = c[soft].mean() if soft.any() else 1e-11
+        out.append(m.area / c)
+    return out[0], out[1]
+
+
+class _Path:
+    """The state along the load path and its steps (module docstring)."""
+
+    def __init__(self, m: RigidModel, collapse_m: float):
+        self.m, self.collapse_m = m, collapse_m
+        self.points = _Points(m)
+        self.kn, self.kt = _stiffness(m)
+        self.free = np.flatnonzero(m.free)
+        D0 = np.zeros((m.points, 3, 3))
+        D0[:, 0, 0] = -self.kn
+        self.stiff = float(np.abs(self.points.matrix(D0).diagonal()).mean()) or 1.0
+        self.dashpot = DASHPOT_FIRST * self.stiff
+        self.identity = sp.identity(self.points.n, format="csc")
+        reach = np.zeros(m.bodies)  # a body's largest node distance from its reference (m)
+        for b, (X, _) in enumerate(m.meshes):
+            if len(X):
+                reach[b] = float(np.linalg.norm(X - m.reference[b], axis=1).max())
+        self.reach = reach
+        self.x = np.zeros(self.points.n)
+        self.slip = np.zeros((m.points, 2))
+        self.newton = self.flow_steps = 0
+
+    def moved(self, x: np.ndarray, x0: np.ndarray) -> float:
+        """The largest displacement of a block point between two states (m; a bound: the
+        translation plus the rotation times the body's reach)."""
+        d = np.zeros(6 * self.m.bodies)
+        d[self.free] = x - x0
+        d = d.reshape(-1, 6)
+        return float((np.linalg.norm(d[:, :3], axis=1)
+                      + np.linalg.norm(d[:, 3:], axis=1) * self.reach).max())
+
+    def _residual(self, x, F, x0, c, slip):
+        m = self.m
+        f, D, after, closed, sliding = joint_forces(self.points.gap(x), slip, self.kn,
+                                                    self.kt, m.mu, m.glued)
+        return self.points.force(f) + F - c * (x - x0), D, (f, after, closed, sliding)
+
+    def step(self, F: np.ndarray, x0: np.ndarray, slip: np.ndarray, c: float):
+        """Newton on ``R(x) = c (x - x0)``; ``(x, (f, slip, closed, sliding))`` or None."""
+        scale = max(float(np.abs(F).max()), 1e-300)
+        x = x0.copy()
+        r, D, state = self._residual(x, F, x0, c, slip)
+        res = float(np.abs(r).max()) / scale
+        for _ in range(NEWTON_ITERATIONS):
+            self.newton += 1
+            if res < TOLERANCE:
+                return x, state
+            J = self.points.matrix(D) - c * self.identity
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("error")
+                    dx = spl.splu(J).solve(-r)
+            except (RuntimeError, spl.MatrixRankWarning, RuntimeWarning):
+                return None
+            if not np.all(np.isfinite(dx)):
+                return None
+            t = 1.0
+            while True:
+                trial = self._residual(x + t * dx, F, x0, c, slip)
+                new = float(np.abs(trial[0]).max()) / scale
+                if new < (1.0 - 1e-4 * t) * res or t < 1e-3:
+                    break
+                t *= 0.5
+            if new >= res:
+                return None
+            x = x + t * dx
+            r, D, state = trial
+            res = new
+            if self.moved(x, x0) > self.collapse_m:
+                return None
+        return None
+
+    def settle(self, F: np.ndarray):
+        """The state at rest under the free dofs' load ``F`` from the current one, by viscous
+        steps (module docstring): ``(x, (f, slip, closed, sliding))``, or ``(None, why,
+        x_last)`` when the blocks move ``collapse_m`` or no step converges."""
+        scale = max(float(np.abs(F).max()), 1e-300)
+        x0 = self.x.copy()
+        x, slip, c = x0.copy(), self.slip, self.dashpot
+        for _ in range(FLOW_STEPS):
+            self.flow_steps += 1
+            out = self.step(F, x, slip, c)
+            if out is None:
+                c *= 8.0
+                if c > DASHPOT_MAX * self.stiff:
+                    return None, "no viscous step converges", x
+                continue
+            new, state = out
+            speed = float(np.abs(new - x).max())
+            x, slip = new, state[1]
+            if self.moved(x, x0) > self.collapse_m:
+                return None, f"the blocks moved {self.collapse_m:g} m", x
+            if c * speed <= 100.0 * TOLERANCE * scale:
+                self.dashpot = max(c / 8.0, DASHPOT_MIN * self.stiff)
+                return x, state
+            c = max(c / 2.0, DASHPOT_MIN * self.stiff)
+        return None, f"not at rest after {FLOW_STEPS} viscous steps", x
+
+
+def follow_load(m: RigidModel, *, collapse_m: float = 0.01, rtol: float = RTOL
+                ) -> tuple[LimitSolution, dict]:
+    """The collapse multiplier of the growing load followed from rest (module docstring):
+    the solution (its multiplier the last load at rest, the forces there, the mechanism of
+    the collapsing flow) and the record (``dead_loads``, ``steps``, ``viscous_steps``,
+    ``newton_iterations``, ``bracket``, ``stopped_by``)."""
+    t0 = time.perf_counter()
+    path = _Path(m, collapse_m)
+    F_dead, F_live = m.dead[path.free], m.live[path.free]
+    record = {"method": "load followed from rest, rigid blocks on the joints' springs, "
+                        "viscous steps where no static state is found",
+              "collapse_m": collapse_m, "rtol": rtol, "dead_loads": "carried", "steps": 0,
+              "bracket": None, "stopped_by": None}
+    npt = m.points
+    forces, velocity, status, message, multiplier = np.zeros((npt, 3)), np.zeros((m.bodies, 6)), \
+        "optimal", "", None
+    state = None
+    for k in range(1, DEAD_STEPS + 1):
+        out = path.settle(k / DEAD_STEPS * F_dead)
+        if out[0] is None:
+            record["dead_loads"] = f"not carried: at {k}/{DEAD_STEPS} of them, {out[1]}"
+            status, message = "infeasible", record["dead_loads"]
+            break
+        path.x, state = out
+        path.slip = state[1]
+    if status == "optimal" and m.factor is not None:
+        big = float(np.abs(F_live).max()) or 1.0
+        first = FIRST_STEP * max(float(np.abs(F_dead).max()), 1e-12) / big
+        lam, dl = 0.0, first
+        while dl > rtol * max(lam, 1e-300):
+            if record["steps"] >= MAX_STEPS:
+                record["stopped_by"] = f"no collapse within {MAX_STEPS} load steps"
+                status, message = "unbounded", record["stopped_by"]
+                break
+            out = path.settle(F_dead + (lam + dl) * F_live)
+            if out[0] is None:
+                record["stopped_by"] = out[1]
+                record["bracket"] = [lam, lam + dl]
+                fall = out[2]
+                dl *= 0.5
+                continue
+            path.x, state = out
+            path.slip = state[1]
+            lam += dl
+            record["steps"] += 1
+            dl = min(1.5 * dl, first)
+        multiplier = lam if status == "optimal" else None
+        if record["bracket"] is not None and multiplier is not None:
+            d = np.zeros(6 * m.bodies)
+            d[path.free] = fall - path.x
+            velocity = normalised_mechanism(m, d.reshape(-1, 6))
+    if state is not None:
+        forces = state[0]
+    record["viscous_steps"] = path.flow_steps
+    record["newton_iterations"] = path.newton
+    counts = {"bodies": m.bodies, "free_bodies": int((~m.support).sum()), "points": npt,
+              "glued_points": int(m.glued.sum()), "dofs": path.points.n}
+    sol = LimitSolution(status, message, multiplier, forces, velocity,
+                        point_velocities(m, velocity), counts,
+                        {"assemble": 0.0, "solve": time.perf_counter() - t0})
+    return sol, record
