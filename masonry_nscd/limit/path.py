@@ -128,6 +128,7 @@ class _Points:
             dof[:, 6 * side:6 * side + 6] = number[6 * b[:, None] + np.arange(6)]
         G[dof < 0] = 0.0
         self.G, self.dof, self.used = G, dof, dof >= 0
+        self.Gt = np.ascontiguousarray(G.transpose(0, 2, 1))
         i = np.repeat(dof, 12, axis=1).ravel()
         j = np.tile(dof, (1, 12)).ravel()
         self.pair_used = (i >= 0) & (j >= 0)
@@ -138,16 +139,16 @@ class _Points:
     def gap(self, x: np.ndarray) -> np.ndarray:
         """``B^T u`` (p, 3) for the free dofs' displacements ``x``."""
         xe = np.where(self.used, x[np.maximum(self.dof, 0)], 0.0)
-        return np.einsum("pik,pi->pk", self.G, xe)
+        return np.matmul(xe[:, None, :], self.G)[:, 0, :]
 
     def force(self, f: np.ndarray) -> np.ndarray:
         """``B f`` on the free dofs for the point forces ``f`` (p, 3)."""
-        v = np.einsum("pik,pk->pi", self.G, f)
+        v = np.matmul(self.G, f[:, :, None])[:, :, 0]
         return np.bincount(self.dof[self.used], weights=v[self.used], minlength=self.n)
 
     def matrix(self, D: np.ndarray) -> sp.csc_matrix:
         """``B D B^T`` on the free dofs for the point blocks ``D`` (p, 3, 3)."""
-        local = np.einsum("pik,pkl,pjl->pij", self.G, D, self.G).reshape(-1)[self.pair_used]
+        local = np.matmul(np.matmul(self.G, D), self.Gt).reshape(-1)[self.pair_used]
         data = np.bincount(self.slot, weights=local, minlength=len(self.rows))
         return sp.csc_matrix((data, (self.rows, self.cols)), shape=(self.n, self.n))
 
