@@ -724,6 +724,21 @@ class NewtonSolver:
         if self._pattern is None and other._pattern is not None:
             self._pattern = other._pattern.sibling()
 
+    def release(self) -> None:
+        """Let go of the Krylov solver's matrix and preconditioner (the body system ``S``, the
+        multipliers' blocks, the local inverses and the blocks they were made of, the coarse
+        factor) while the run makes its steps with another step size: about 4.6 kB per
+        contact point of the study's walls (docs/scaling.md). The next step of this solver
+        starts with a new set-up at its first iterate, where it would have started with the
+        matrix of its last step: other iterates, as after any refactorisation. Nothing with
+        a direct solver (its factors in PARDISO's handle, and the shipped cases' iterates
+        kept) or PETSc's (``petsc_solve.py``)."""
+        if type(self._krylov) is not linear_solvers.KrylovSolver:
+            return
+        self.lu = None
+        self._K_factorised = None
+        self._krylov.release()
+
     def set_iteration_mhat(self, mhat_jac: np.ndarray) -> None:
         """Use other body blocks (same layout as ``mhat``) in the Newton matrix."""
         self.mhat_jac = mhat_jac
