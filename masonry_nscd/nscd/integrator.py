@@ -352,12 +352,30 @@ class Integrator:
         return replace(rep, sweeps=rep.sweeps + sweeps)
 
     def release(self) -> None:
-        """Let go of what this step size keeps for its next step and can make again
-        (``NewtonSolver.release``), and so do its halves: the run steps with another size."""
+        """Let go of what this step size keeps for its next step and can make again, and so
+        do its halves: the run steps with another size. The Krylov solver's matrix and
+        preconditioner (``NewtonSolver.release``); without ENDO3D blocks (whose tangent the
+        Newton matrix's blocks hold, ``_update_tangent``), the bodies' ``M_hat`` and
+        ``M_hat^-1`` (``System.release``), made again with the same bits at the next step
+        (``_restore``)."""
         if self.newton is not None:
             self.newton.release()
+        if self.material is None and not self.sys.released:
+            self.sys.release()
+            self._minv_free = None
+            if self.newton is not None:
+                self.newton.use_mhat(None)
         if self._half is not None:
             self._half.release()
+
+    def _restore(self) -> None:
+        """Make again what ``release`` let go of, before a step."""
+        if not self.sys.released:
+            return
+        self.sys.restore()
+        if self.newton is not None:
+            self.newton.use_mhat(self.sys.mhat)
+        self._products_without_blocks()
 
     def _release_idle(self, level: int) -> None:
         """Before and after a step of the adaptive step size at ``level``: the other step
@@ -517,6 +535,7 @@ class Integrator:
 
     def _step(self) -> StepReport:
         """One step of h (the module docstring's items 1 to 5), not subdivided."""
+        self._restore()
         s = self.sys
         h, theta = s.h, s.theta
         t1 = self.t + h
