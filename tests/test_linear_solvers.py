@@ -719,3 +719,36 @@ def test_the_coarse_pattern_is_analysed_once_per_solver():
     ks = integ.newton._krylov
     assert integ.newton.factorisations > 1
     assert ks.coarse_analyses == 1
+
+
+
+def test_idle_step_sizes_let_go_and_step_the_same_when_the_run_comes_back():
+    """The step sizes the run is not stepping with hold no Krylov matrix, no preconditioner
+    blocks and no ``M_hat``, ``M_hat^-1``. With a direct solver (whose factors are kept) an
+    integrator that let go of its ``M_hat`` and ``M_hat^-1`` between two steps steps to the
+    same states bit for bit as one that kept them: they are made again by the same calls."""
+    sets = [*QUIET, "solver.max_time_step_s=8e-3", "solver.grow_after_steps=1",
+            "solver.easy_iterations=20"]
+    integ = build_scene(load_case(SMOKE, [*sets, "solver.linear=krylov"])).integrator()
+    levels = []
+    for _ in range(6):
+        integ.step()
+        levels.append(integ._made_by)
+        for k, other in {0: integ, **integ._rungs}.items():
+            if k != integ._made_by:
+                assert other.sys.minv is None and other.sys.mhat is None
+                assert other.newton.lu is None and other.newton._krylov._last_blocks is None
+    assert len(set(levels)) >= 2, "the step did not grow"
+    direct = "pardiso" if pardiso.available() else "lu"
+    runs = []
+    for release in (True, False):
+        run = build_scene(load_case(SMOKE, [*QUIET, f"solver.linear={direct}"])).integrator()
+        for n in range(6):
+            if release and n in (2, 4):
+                run.release()
+                assert run.sys.minv is None and run.newton.mhat is None
+            run.step()
+        runs.append(run)
+    released, kept = runs
+    assert np.array_equal(released.u, kept.u) and np.array_equal(released.v, kept.v)
+    assert np.array_equal(released.joints.T, kept.joints.T)

@@ -322,6 +322,7 @@ class Integrator:
         until = math.inf if self.step_limit is None else self.step_limit(self.t)
         n = round(self.t / h)
         k = self.control.level_for(n, math.floor(until / h + 1e-6))
+        self._release_idle(k)  # before the step: its set-up can take their room
         sweeps = 0  # the iterations of discarded attempts
         while k > 0:
             rung = self._rung(k)
@@ -337,6 +338,7 @@ class Integrator:
             if rep is not None and rep.converged:
                 self._take(rung)
                 self.control.accepted(k, rep.sweeps, True, rep.damage_growth)
+                self._release_idle(k)
                 return replace(rep, step=self.step_index, sweeps=rep.sweeps + sweeps,
                                span=1 << k)
             self._made_by = -1  # the rung's state is the failed attempt's
@@ -346,7 +348,45 @@ class Integrator:
         rep = self._step_h()
         self.control.accepted(0, rep.sweeps, rep.converged and rep.substeps == 1,
                               rep.damage_growth)
+        self._release_idle(0)
         return replace(rep, sweeps=rep.sweeps + sweeps)
+
+    def release(self) -> None:
+        """Let go of what this step size keeps for its next step and can make again, and so
+        do its halves: the run steps with another size. The Krylov solver's matrix and
+        preconditioner (``NewtonSolver.release``); without ENDO3D blocks (whose tangent the
+        Newton matrix's blocks hold, ``_update_tangent``), the bodies' ``M_hat`` and
+        ``M_hat^-1`` (``System.release``), made again with the same bits at the next step
+        (``_restore``)."""
+        if self.newton is not None:
+            self.newton.release()
+        if self.material is None and not self.sys.released:
+            self.sys.release()
+            self._minv_free = None
+            if self.newton is not None:
+                self.newton.use_mhat(None)
+        if self._half is not None:
+            self._half.release()
+
+    def _restore(self) -> None:
+        """Make again what ``release`` let go of, before a step."""
+        if not self.sys.released:
+            return
+        self.sys.restore()
+        if self.newton is not None:
+            self.newton.use_mhat(self.sys.mhat)
+        self._products_without_blocks()
+
+    def _release_idle(self, level: int) -> None:
+        """Before and after a step of the adaptive step size at ``level``: the other step
+        sizes let go of what they keep (``release``), so that one holds its matrix and
+        preconditioner at a time, not every size the run has met (docs/scaling.md). Those
+        released already have nothing more to let go of."""
+        for k, rung in self._rungs.items():
+            if k != level:
+                rung.release()
+        if level != 0:
+            self.release()
 
     def solver_counts(self) -> dict[str, int]:
         """Work of the Newton linear solves so far, summed over this integrator and the ones it
@@ -428,6 +468,8 @@ class Integrator:
             rep = None
         if rep is not None and rep.converged:
             self._halve_run = self.halve_after_failure
+            if self._half is not None:  # idle until a step fails again
+                self._half.release()
             return rep
         self._halve_next = self._halve_run
         self._halve_run = min(2 * self._halve_run, MAX_HALVE_RUN)
@@ -493,6 +535,7 @@ class Integrator:
 
     def _step(self) -> StepReport:
         """One step of h (the module docstring's items 1 to 5), not subdivided."""
+        self._restore()
         s = self.sys
         h, theta = s.h, s.theta
         t1 = self.t + h

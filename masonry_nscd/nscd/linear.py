@@ -251,6 +251,13 @@ class KrylovSolver:
             setattr(self, name, getattr(other, name))
         self._like = other
 
+    def release(self) -> None:
+        """Let go of what the local level keeps from one set-up to the next: the blocks its
+        inverses were made of and the inverses (two arrays of every body's dense block). The
+        solver of a step size the run has left (``NewtonSolver.release``); its next set-up
+        inverts every block, as the first one did."""
+        self._last_blocks = None
+
     def factorise(self, J: sp.spmatrix) -> KrylovOperator:
         """The preconditioner of ``J`` (free dofs first, then three rows per multiplier
         point) and the object whose ``solve`` answers ``J x = b``."""

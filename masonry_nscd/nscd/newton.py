@@ -570,9 +570,7 @@ class NewtonSolver:
         for a rigid body), for the rigid-body modes of the Krylov solver's coarse space."""
         self.sys = sys
         self.mhat_off = mhat_off
-        self.mhat = mhat
-        self.mhat_op = BlockDiagonal(sys.body_dof0, mhat_off, mhat)
-        self._mhat_without: tuple[tuple | None, BlockDiagonal | None] = (None, None)
+        self.use_mhat(mhat)
         self.tolerance = tolerance
         self.max_iterations = max_iterations
         free = np.ones(sys.ndof, dtype=bool)
@@ -629,9 +627,6 @@ class NewtonSolver:
         self._bodies_part: tuple | None = None
         # fixed pattern and order of the Newton matrix, found at the first factorisation
         self._pattern: _Pattern | None = None
-        # the body blocks of the Newton matrix; the ENDO3D blocks' tangent may replace the
-        # elastic one (``set_iteration_mhat``), the residual keeps the elastic decomposition
-        self.mhat_jac = mhat
         # called before refactorising when the iterations slow down or a direction fails (a
         # refresh of the material's part of the matrix)
         self.on_slow = None
@@ -649,6 +644,20 @@ class NewtonSolver:
         self._solutions: list[tuple[float | None, np.ndarray, np.ndarray, float]] = []
         # steps given up because their iterations cycled (``_Cycle``)
         self.cycles = 0
+
+    def use_mhat(self, mhat: np.ndarray | None) -> None:
+        """Use the bodies' blocks ``mhat`` (flat at ``mhat_off``) in the residual and the
+        matrix: at the start, and when the integrator's system makes them again after it let
+        go of them (``Integrator.release``; None while it has, the matrices' values that the
+        blocks make let go of too)."""
+        self.mhat = mhat
+        self.mhat_op = None if mhat is None else BlockDiagonal(self.sys.body_dof0,
+                                                               self.mhat_off, mhat)
+        self._mhat_without: tuple[tuple | None, BlockDiagonal | None] = (None, None)
+        # the body blocks of the Newton matrix; the ENDO3D blocks' tangent may replace the
+        # elastic one (``set_iteration_mhat``), the residual keeps the elastic decomposition
+        self.mhat_jac = mhat
+        self._bodies_part = None
 
     def mhat_without(self, bodies) -> BlockDiagonal | None:
         """The product by ``M_hat`` of every body but ``bodies`` (zero on their dofs), kept for
@@ -723,6 +732,21 @@ class NewtonSolver:
             self._krylov_pattern = other._krylov_pattern
         if self._pattern is None and other._pattern is not None:
             self._pattern = other._pattern.sibling()
+
+    def release(self) -> None:
+        """Let go of the Krylov solver's matrix and preconditioner (the body system ``S``, the
+        multipliers' blocks, the local inverses and the blocks they were made of, the coarse
+        factor) while the run makes its steps with another step size: about 4.6 kB per
+        contact point of the study's walls (docs/scaling.md). The next step of this solver
+        starts with a new set-up at its first iterate, where it would have started with the
+        matrix of its last step: other iterates, as after any refactorisation. Nothing with
+        a direct solver (its factors in PARDISO's handle, and the shipped cases' iterates
+        kept) or PETSc's (``petsc_solve.py``)."""
+        if type(self._krylov) is not linear_solvers.KrylovSolver:
+            return
+        self.lu = None
+        self._K_factorised = None
+        self._krylov.release()
 
     def set_iteration_mhat(self, mhat_jac: np.ndarray) -> None:
         """Use other body blocks (same layout as ``mhat``) in the Newton matrix."""

@@ -117,8 +117,9 @@ class System(DofLayout):
     """A layout and what steps of ``h`` add to it: flat arrays shared by the kernels
     (read-only during a step)."""
 
-    minv: np.ndarray  # flat, dense M_hat^-1 per body (row-major, at minv_off)
-    mhat: np.ndarray  # flat, dense M_hat per body (same offsets as minv)
+    minv: np.ndarray | None  # flat, dense M_hat^-1 per body (row-major, at minv_off)
+    mhat: np.ndarray | None  # flat, dense M_hat per body (same offsets as minv); both None
+    # while released (``release``)
     W: np.ndarray  # (npt, 3, 3)
     h: float
     theta: float
@@ -129,6 +130,23 @@ class System(DofLayout):
         self.minv_op = BlockDiagonal(self.body_dof0, self.minv_off, self.minv)
         self.k_op = BlockDiagonal(self.body_dof0, self.k_off, self.k)
         self._velocity_maps: tuple[np.ndarray, np.ndarray] | None = None
+
+    def release(self) -> None:
+        """Let go of ``M_hat``, ``M_hat^-1`` and the velocity maps (two dense blocks per body:
+        3 kB per contact point on the study's walls) while the run steps with another step
+        size; :meth:`restore` makes them again."""
+        self.minv = self.mhat = self.minv_op = None
+        self._velocity_maps = None
+
+    @property
+    def released(self) -> bool:
+        return self.minv is None
+
+    def restore(self) -> None:
+        """Make again what :meth:`release` let go of (``body_blocks``: the same bits)."""
+        if self.minv is None:
+            self.mhat, self.minv = body_blocks(self, self.h, self.theta)
+            self.minv_op = BlockDiagonal(self.body_dof0, self.minv_off, self.minv)
 
     def velocity_maps(self) -> tuple[np.ndarray, np.ndarray]:
         """``(y_off, y)``: the blocks ``Y_aB`` (ndof_B, 3) of every side that can move, laid
@@ -176,14 +194,11 @@ def _rigid_inverse(body: RigidBody) -> tuple[np.ndarray, np.ndarray]:
     return Mhat, minv
 
 
-def build_system(bodies, points: list[ContactPoint], h: float, theta: float,
-                 layout: DofLayout | None = None) -> System:
-    """The system of steps ``h``: each body's ``M_hat`` and its inverse, and the Delassus
-    blocks of the contact points (module docstring), from ``layout`` (made from ``bodies``
-    and ``points`` when None; another step's system will do). The products are those of a
-    body and a point at a time, batched per body (numpy's stacked LAPACK and BLAS calls, the
-    same per block)."""
-    lay = DofLayout.of(bodies, points) if layout is None else layout
+def body_blocks(lay: DofLayout, h: float, theta: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(M_hat, M_hat^-1)`` of every body for steps of ``h``, flat at ``lay.minv_off``: the
+    blocks' ``M_hat = diag(m) + (theta h)^2 K`` inverted by size group (numpy's stacked
+    LAPACK call, the same per block whatever the batch), a rigid body's its mass matrix and
+    the inverse of its free block (``_rigid_inverse``). The same bits at every call."""
     body_dof0, sizes = lay.body_dof0, np.diff(lay.body_dof0)
     minv_off = lay.minv_off
     minv = np.zeros(int(np.sum(sizes ** 2)))
@@ -203,6 +218,18 @@ def build_system(bodies, points: list[ContactPoint], h: float, theta: float,
         Mhat, minv_b = _rigid_inverse(lay.bodies[i])
         mhat_flat[minv_off[i]:minv_off[i] + 36] = Mhat.ravel()
         minv[minv_off[i]:minv_off[i] + 36] = minv_b.ravel()
+    return mhat_flat, minv
+
+
+def build_system(bodies, points: list[ContactPoint], h: float, theta: float,
+                 layout: DofLayout | None = None) -> System:
+    """The system of steps ``h``: each body's ``M_hat`` and its inverse, and the Delassus
+    blocks of the contact points (module docstring), from ``layout`` (made from ``bodies``
+    and ``points`` when None; another step's system will do). The products are those of a
+    body and a point at a time, batched per body (numpy's stacked LAPACK and BLAS calls, the
+    same per block)."""
+    lay = DofLayout.of(bodies, points) if layout is None else layout
+    mhat_flat, minv = body_blocks(lay, h, theta)
     # W_aa = sum of H^T Y over the point's sides, Y = M_hat^-1 H made body by body and let go
     # (``System.velocity_maps`` makes them again for the Gauss-Seidel sweeps)
     npt = len(lay.area)
