@@ -554,6 +554,8 @@ def test_the_load_path_finds_the_arch_four_hinges():
     lo, hi = result.record["load_path"]["bracket"]
     assert expected * (1.0 - 2.0 * path.RTOL) <= lo <= expected * (1.0 + 1e-9) <= hi
     assert result.solution.multiplier == lo == result.record["multiplier"]["value"]
+    assert result.record["load_path"]["collapsed"]
+    assert "collapse displacement" in result.record["multiplier"]["kind"]
     assert sorted((h["joint"], h["side"]) for h in result.record["hinges"]) == sorted(hinges)
     with pytest.raises(ValueError, match="load-path"):
         analyse(load_case(ARCH), flow="non-associative", method="load-path", tension=True)

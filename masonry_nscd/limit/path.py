@@ -68,6 +68,8 @@ DEAD_STEPS = 10
 FIRST_STEP = 0.01
 #: The bracket of the collapse multiplier, relative.
 RTOL = 1e-3
+#: The reason a load step ends in collapse (other reasons are the solver's failures).
+COLLAPSED = "the blocks moved"
 #: Load steps at most.
 MAX_STEPS = 2000
 #: Viscous steps per load step at most, and the dashpot's range over the mean stiffness.
@@ -256,7 +258,7 @@ class _Path:
             speed = float(np.abs(new - x).max())
             x, slip = new, state[1]
             if self.moved(x, x0) > self.collapse_m:
-                return None, f"the blocks moved {self.collapse_m:g} m", x
+                return None, f"{COLLAPSED} {self.collapse_m:g} m", x
             if c * speed <= 100.0 * TOLERANCE * scale:
                 self.dashpot = max(c / 8.0, DASHPOT_MIN * self.stiff)
                 return x, state
@@ -269,7 +271,8 @@ def follow_load(m: RigidModel, *, collapse_m: float = 0.01, rtol: float = RTOL
     """The collapse multiplier of the growing load followed from rest (module docstring):
     the solution (its multiplier the last load at rest, the forces there, the mechanism of
     the collapsing flow) and the record (``dead_loads``, ``steps``, ``viscous_steps``,
-    ``newton_iterations``, ``bracket``, ``stopped_by``)."""
+    ``newton_iterations``, ``bracket``, ``stopped_by``, ``collapsed``: whether the last load
+    step above the multiplier collapsed or the solver failed there)."""
     t0 = time.perf_counter()
     path = _Path(m, collapse_m)
     F_dead, F_live = m.dead[path.free], m.live[path.free]
@@ -317,6 +320,8 @@ def follow_load(m: RigidModel, *, collapse_m: float = 0.01, rtol: float = RTOL
             velocity = normalised_mechanism(m, d.reshape(-1, 6))
     if state is not None:
         forces = state[0]
+    # a collapse, or the solver's failure above the last load at rest (said, not hidden)
+    record["collapsed"] = str(record["stopped_by"] or "").startswith(COLLAPSED)
     record["viscous_steps"] = path.flow_steps
     record["newton_iterations"] = path.newton
     counts = {"bodies": m.bodies, "free_bodies": int((~m.support).sum()), "points": npt,
