@@ -563,6 +563,23 @@ def test_newton_matrix_values_fill_the_pattern_as_its_triplets_do(smoke_scene):
         jacobian_values(np.append(pat.slot, 0), len(pat.indices), *args)
 
 
+def _with_and_without_sharing(monkeypatch, solver: str, cls, method: str) -> list:
+    """The smoke wall stepped 12 times with a step that grows (rungs made), with the rungs
+    sharing the run's solver's parts, then with ``cls.method`` doing nothing (each its own)."""
+    sets = [*QUIET, f"solver.linear={solver}", "solver.max_time_step_s=8e-3",
+            "solver.grow_after_steps=1", "solver.easy_iterations=20"]
+    runs = []
+    for share in (True, False):
+        if not share:
+            monkeypatch.setattr(cls, method, lambda self, other: None)
+        integ = build_scene(load_case(SMOKE, sets)).integrator()
+        for _ in range(12):
+            integ.step()
+        assert integ._rungs, "the step did not grow"
+        runs.append(integ)
+    return runs
+
+
 @pytest.mark.skipif(not pardiso.available(), reason="PARDISO needs MKL")
 def test_the_adaptive_steps_rungs_share_the_newton_pattern_with_handles_of_their_own(
         monkeypatch):
@@ -571,17 +588,7 @@ def test_the_adaptive_steps_rungs_share_the_newton_pattern_with_handles_of_their
     same states as rungs that made their own."""
     from masonry_nscd.nscd.newton import NewtonSolver
 
-    sets = [*QUIET, "solver.linear=pardiso", "solver.max_time_step_s=8e-3",
-            "solver.grow_after_steps=1", "solver.easy_iterations=20"]
-    runs = []
-    for share in (True, False):
-        if not share:
-            monkeypatch.setattr(NewtonSolver, "share_pattern", lambda self, other: None)
-        integ = build_scene(load_case(SMOKE, sets)).integrator()
-        for _ in range(12):
-            integ.step()
-        assert integ._rungs, "the step did not grow"
-        runs.append(integ)
+    runs = _with_and_without_sharing(monkeypatch, "pardiso", NewtonSolver, "share_pattern")
     for integ, share in zip(runs, (True, False), strict=True):
         base = integ.newton._pattern
         for rung in integ._rungs.values():
@@ -596,17 +603,7 @@ def test_the_adaptive_steps_rungs_share_the_krylov_solvers_fixed_parts(monkeypat
     """On krylov the rungs take the run's solver's coarse space, block numbering, coarse seed
     and analysed coarse pattern (with a PARDISO handle of their own), and step to the same
     states bit for bit as rungs that made their own."""
-    sets = [*QUIET, "solver.linear=krylov", "solver.max_time_step_s=8e-3",
-            "solver.grow_after_steps=1", "solver.easy_iterations=20"]
-    runs = []
-    for share in (True, False):
-        if not share:
-            monkeypatch.setattr(linear.KrylovSolver, "share", lambda self, other: None)
-        integ = build_scene(load_case(SMOKE, sets)).integrator()
-        for _ in range(12):
-            integ.step()
-        assert integ._rungs, "the step did not grow"
-        runs.append(integ)
+    runs = _with_and_without_sharing(monkeypatch, "krylov", linear.KrylovSolver, "share")
     for integ, share in zip(runs, (True, False), strict=True):
         base = integ.newton._krylov
         for rung in integ._rungs.values():
