@@ -124,7 +124,7 @@ def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = Fals
                       "model": f"pyramid of {facets} facets, inscribed" if facets
                       else "Coulomb's cone (second-order cone)",
                       "cone_error_bound": friction.cone_error_bound(facets)}),
-        "solver": solver,
+        "solver": None if path else solver,
         "compressive_strength_Pa": compressive_Pa,
         "tension": tension,
         **named,
@@ -189,7 +189,7 @@ def format_result(record: dict[str, Any]) -> list[str]:
             f"{100 * fr['cone_error_bound']:.2f} %)" if fr["facets"] else "Coulomb's cone")
     lines = [(f"{record['case']}: {c['bodies']} bodies ({c['free_bodies']} free), "
              f"{c['points']} interface points, {c['joints']} joints; {cone}, "
-             f"{record.get('solver', SOLVERS[0])}")]
+             f"{record.get('solver', SOLVERS[0]) or 'the load followed from rest (Newton, SuperLU)'}")]
     if mult["name"] is None:
         carried = "carried" if record["status"] == "optimal" else "not carried"
         lines.append(f"dead loads: {carried} ({record['status']})")
