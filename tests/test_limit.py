@@ -559,3 +559,16 @@ def test_the_load_path_finds_the_arch_four_hinges():
     assert sorted((h["joint"], h["side"]) for h in result.record["hinges"]) == sorted(hinges)
     with pytest.raises(ValueError, match="load-path"):
         analyse(load_case(ARCH), flow="non-associative", method="load-path", tension=True)
+
+
+def test_the_command_refuses_the_load_path_with_tension(tmp_path):
+    """``--method load-path`` with ``--tension`` (its springs carry none) or an unknown method:
+    exit 2 with one message naming the option, nothing written."""
+    runner = CliRunner()
+    for extra, word in ((["--method", "load-path", "--tension"], "--tension"),
+                        (["--method", "fastest"], "--method")):
+        res = runner.invoke(app, ["limit", str(ARCH), "--flow", "non-associative", *extra,
+                                  "-o", str(tmp_path / "out")])
+        assert res.exit_code == 2
+        assert res.output.count("error") == 1 and word in res.output
+        assert not (tmp_path / "out").exists()

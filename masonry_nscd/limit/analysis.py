@@ -3,7 +3,8 @@ mechanism, and the files that say them.
 
 :func:`analyse` builds the scene with the case's builder (:func:`masonry_nscd.scenes.build_scene`),
 takes it as rigid blocks (:mod:`.statics`), solves the static programme (:mod:`.lp`; with
-``flow="non-associative"`` its iteration of fixed friction capacities), and reads the
+``flow="non-associative"`` its iteration of fixed friction capacities, or with
+``method="load-path"`` the load followed from rest, :mod:`.path`), and reads the
 mechanism joint by joint (:mod:`.mechanism`). :func:`write_outputs` writes the folder
 (:mod:`masonry_nscd.io.limit_analysis`). :func:`stands` says whether the dead loads alone can
 be carried (the feasibility that :mod:`.thickness` bisects on).
