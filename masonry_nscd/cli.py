@@ -591,7 +591,8 @@ def limit_cmd(
     if compressive is not None and not compressive > 0.0:
         _fail(f"--compressive-strength: a stress > 0 Pa, got {compressive:g}", 2)
     result = analyse(case, facets=facets, tension=tension, flow=flow, solver=solver,
-                     compressive_Pa=compressive, start=start, method=method)
+                     compressive_Pa=compressive, start=start, method=method,
+                     progress=lambda line: typer.echo(line, err=True))
     for line in format_result(result.record):
         typer.echo(line)
     paths = write_outputs(result, outdir)

@@ -550,8 +550,13 @@ def test_the_load_path_finds_the_arch_four_hinges():
     least four-hinge multiplier within the bracket, with the same four hinges, from the
     command with its record."""
     expected, hinges = four_hinge_multiplier(24, 1.0, 0.15)
-    result = analyse(load_case(ARCH), flow="non-associative", method="load-path")
+    lines: list[str] = []
+    result = analyse(load_case(ARCH), flow="non-associative", method="load-path",
+                     progress=lines.append)
     lo, hi = result.record["load_path"]["bracket"]
+    # a line per load step: each step at rest, then the halvings above the multiplier
+    assert sum("at rest" in line for line in lines) == result.record["load_path"]["steps"]
+    assert "the step halved" in lines[-1]
     assert expected * (1.0 - 2.0 * path.RTOL) <= lo <= expected * (1.0 + 1e-9) <= hi
     assert result.solution.multiplier == lo == result.record["multiplier"]["value"]
     assert result.record["load_path"]["collapsed"]

@@ -75,10 +75,11 @@ def _kind(flow: str, iteration: dict | None, method: str = METHODS[0]) -> str:
 def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = False,
             flow: str = "associative", solver: str = SOLVERS[0],
             compressive_Pa: float | None = None, start: str = STARTS[0],
-            method: str = METHODS[0]) -> LimitResult:
+            method: str = METHODS[0], progress=None) -> LimitResult:
     """The limit analysis of ``case`` (module docstring); ``start``: the non-associative
     iteration's start (:data:`.lp.STARTS`); ``method``: how the non-associative multiplier is
-    found (:data:`METHODS`; ``load-path`` has no tension and no compressive bound)."""
+    found (:data:`METHODS`; ``load-path`` has no tension and no compressive bound);
+    ``progress``: a callable given the load path's line per load step."""
     if flow not in FLOWS:
         raise ValueError(f"flow: one of {', '.join(FLOWS)}, got {flow!r}")
     if method not in METHODS:
@@ -94,7 +95,8 @@ def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = Fals
     t2 = time.perf_counter()
     iteration = None
     if path:
-        sol, iteration = follow_load(model, collapse_m=case.collapse.displacement_m)
+        sol, iteration = follow_load(model, collapse_m=case.collapse.displacement_m,
+                                     progress=progress)
     elif flow == "associative":
         sol = solve_limit(model, facets, tension=tension, solver=solver,
                           compressive_Pa=compressive_Pa)

@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from collections.abc import Callable
 
 import numpy as np
 import scipy.sparse as sp
@@ -266,13 +267,20 @@ class _Path:
         return None, f"not at rest after {FLOW_STEPS} viscous steps", x
 
 
-def follow_load(m: RigidModel, *, collapse_m: float = 0.01, rtol: float = RTOL
-                ) -> tuple[LimitSolution, dict]:
+def follow_load(m: RigidModel, *, collapse_m: float = 0.01, rtol: float = RTOL,
+                progress: Callable[[str], None] | None = None) -> tuple[LimitSolution, dict]:
     """The collapse multiplier of the growing load followed from rest (module docstring):
     the solution (its multiplier the last load at rest, the forces there, the mechanism of
     the collapsing flow) and the record (``dead_loads``, ``steps``, ``viscous_steps``,
     ``newton_iterations``, ``bracket``, ``stopped_by``, ``collapsed``: whether the last load
-    step above the multiplier collapsed or the solver failed there)."""
+    step above the multiplier collapsed or the solver failed there). ``progress``, if given,
+    is called with a line per load step (the load, at rest or why not, the viscous steps and
+    the time so far)."""
+    def say(text: str) -> None:
+        if progress is not None:
+            progress(f"load path: {text} ({path.flow_steps} viscous steps, "
+                     f"{time.perf_counter() - t0:.0f} s)")
+
     t0 = time.perf_counter()
     path = _Path(m, collapse_m)
     F_dead, F_live = m.dead[path.free], m.live[path.free]
@@ -302,6 +310,8 @@ def follow_load(m: RigidModel, *, collapse_m: float = 0.01, rtol: float = RTOL
                 status, message = "unbounded", record["stopped_by"]
                 break
             out = path.settle(F_dead + (lam + dl) * F_live)
+            say(f"{m.factor} = {lam + dl:.6g}: " + ("at rest" if out[0] is not None
+                                                    else f"{out[1]}; the step halved"))
             if out[0] is None:
                 record["stopped_by"] = out[1]
                 record["bracket"] = [lam, lam + dl]
