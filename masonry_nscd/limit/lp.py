@@ -49,7 +49,12 @@ import numpy as np
 import scipy.sparse as sp
 
 from masonry_nscd.limit import friction
-from masonry_nscd.limit.statics import RigidModel, equilibrium_matrix, point_velocities
+from masonry_nscd.limit.statics import (
+    RigidModel,
+    equilibrium_matrix,
+    point_velocities,
+    spring_compliances,
+)
 
 #: The solvers of the programme (module docstring), the default first.
 SOLVERS = ("clarabel", "highs")
@@ -329,11 +334,7 @@ def _energy_weights(m: RigidModel) -> np.ndarray:
     S^2)) / A`` of the joints' springs, scaled to a mean normal weight of 1; a joint without
     springs (zero compliance, a ``coulomb`` joint) counts as a spring as stiff as the others'
     (as stiff in shear as in compression if none has one)."""
-    cn = np.asarray(m.compliance_n, float).copy()
-    ct = np.asarray(m.compliance_t, float).copy()
-    for c in (cn, ct):
-        soft = c > 0.0
-        c[~soft] = c[soft].mean() if soft.any() else 1.0
+    cn, ct = spring_compliances(m)
     area = np.maximum(m.area, 1e-300)
     wn, wt = cn / area, ct / area
     unit = float(wn.mean())

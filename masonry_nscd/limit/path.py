@@ -57,7 +57,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spl
 
 from masonry_nscd.limit.lp import LimitSolution, normalised_mechanism
-from masonry_nscd.limit.statics import RigidModel, point_velocities
+from masonry_nscd.limit.statics import RigidModel, point_velocities, spring_compliances
 
 #: Newton's tolerance: ``max |R|`` below this times the largest load component.
 TOLERANCE = 1e-7
@@ -157,15 +157,9 @@ class _Points:
 
 
 def _stiffness(m: RigidModel) -> tuple[np.ndarray, np.ndarray]:
-    """The points' springs ``k_n, k_t`` (N/m); a joint without springs (zero compliance) as
-    stiff as the others (as in shear as in compression if none has one, 1e11 Pa/m)."""
-    out = []
-    for c in (m.compliance_n, m.compliance_t):
-        c = np.asarray(c, float).copy()
-        soft = c > 0.0
-        c[~soft] = c[soft].mean() if soft.any() else 1e-11
-        out.append(m.area / c)
-    return out[0], out[1]
+    """The points' springs ``k_n = A / c_n``, ``k_t = A / c_t`` (N/m)."""
+    cn, ct = spring_compliances(m)
+    return m.area / cn, m.area / ct
 
 
 class _Path:

@@ -220,6 +220,24 @@ def equilibrium_matrix(m: RigidModel) -> sp.csr_matrix:
                          shape=(6 * m.bodies, 3 * npt))
 
 
+#: The compliance (m/Pa) of every joint's springs when no joint of the scene has any: the
+#: stiffness 1e11 Pa/m of the shipped dry joints.
+STIFF_COMPLIANCE = 1e-11
+
+
+def spring_compliances(m: RigidModel) -> tuple[np.ndarray, np.ndarray]:
+    """The points' normal and tangential compliances (m/Pa), a joint without springs (zero
+    compliance, a ``coulomb`` joint) as stiff as the others (in shear as in compression, and
+    :data:`STIFF_COMPLIANCE`, if none has one)."""
+    out = []
+    for c in (m.compliance_n, m.compliance_t):
+        c = np.asarray(c, float).copy()
+        soft = c > 0.0
+        c[~soft] = c[soft].mean() if soft.any() else STIFF_COMPLIANCE
+        out.append(c)
+    return out[0], out[1]
+
+
 def point_velocities(m: RigidModel, velocity: np.ndarray) -> np.ndarray:
     """The relative velocity (p, 3) of each point's candidate to its antagonist in the
     point's frame (n, t, s), for the rigid velocities ``velocity`` (b, 6) (v of the reference
