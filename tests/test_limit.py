@@ -566,6 +566,30 @@ def test_the_load_path_finds_the_arch_four_hinges():
         analyse(load_case(ARCH), flow="non-associative", method="load-path", tension=True)
 
 
+def test_the_load_path_collapses_the_barrel_vault_by_its_staggered_ring():
+    """Two rings of the barrel vault (the second staggered), high friction, followed from
+    rest: the faces between the rings carry nothing, so the vault falls as its staggered
+    ring, at the kinematic theorem's least four-hinge multiplier of that ring's voussoirs
+    (within the bracket), with that ring's four hinges; each linear solver (PARDISO where
+    installed, SuperLU) finds it."""
+    case = load_case(CASES / "vault_barrel.yaml",
+                     ["joint.mu=2.0", "vault.rings=2", "vault.depth_m=0.5"])
+    expected = four_hinge_multiplier(0, 1.0, 0.15,
+                                     geometry=ring_voussoirs(24, 1.0, 0.15, True))[0]
+    result = analyse(case, flow="non-associative", method="load-path")
+    record = result.record["load_path"]
+    _, superlu = follow_load(result.model, linear="lu")
+    for rec in (record, superlu):
+        lo, hi = rec["bracket"]
+        assert expected * (1.0 - 2.0 * path.RTOL) <= lo <= expected * (1.0 + 1e-9) <= hi
+        assert rec["collapsed"]
+    # the collapsing flow from the last state at rest: the mechanism, and the elastic part of
+    # the last load increment (below 1e-4 of the fastest node)
+    hinges = [h for h in result.record["hinges"] if h["max_opening_rate"] > 1e-3]
+    assert len(hinges) == 4
+    assert all(any(b.startswith("ring 2") for b in h["bodies"]) for h in hinges)
+
+
 def test_the_command_refuses_the_load_path_with_tension(tmp_path):
     """``--method load-path`` with ``--tension`` (its springs carry none) or an unknown method:
     exit 2 with one message naming the option, nothing written."""

@@ -183,6 +183,11 @@ def write_outputs(result: LimitResult, outdir: Path | str) -> list[Path]:
     return paths
 
 
+def _path_solver(record: dict[str, Any]) -> str:
+    linear = (record.get("load_path") or {}).get("linear_solver", "SuperLU")
+    return f"the load followed from rest (Newton, {linear})"
+
+
 def format_result(record: dict[str, Any]) -> list[str]:
     """The lines that ``masonry limit`` prints."""
     mult = record["multiplier"]
@@ -192,7 +197,7 @@ def format_result(record: dict[str, Any]) -> list[str]:
             f"{100 * fr['cone_error_bound']:.2f} %)" if fr["facets"] else "Coulomb's cone")
     lines = [(f"{record['case']}: {c['bodies']} bodies ({c['free_bodies']} free), "
              f"{c['points']} interface points, {c['joints']} joints; {cone}, "
-             f"{record.get('solver', SOLVERS[0]) or 'the load followed from rest (Newton, SuperLU)'}")]
+             f"{record.get('solver', SOLVERS[0]) or _path_solver(record)}")]
     if mult["name"] is None:
         carried = "carried" if record["status"] == "optimal" else "not carried"
         lines.append(f"dead loads: {carried} ({record['status']})")

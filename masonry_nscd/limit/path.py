@@ -25,8 +25,11 @@ of the free dofs at load factor ``lambda``:
     R(u) = B f(B^T u; p) + F_dead + lambda F_live = 0                   (N, N m)
 
 solved by Newton's method on the non-smooth ``R`` (the slip's tangent is not symmetric) with a
-line search on ``max |R|``. The dead loads are applied in ten steps, then ``lambda`` grows in
-steps; each converged step updates the slip ``p``.
+line search on ``max |R|``; where even a thousandth of the step does not descend (a point
+closes, sticks or slips within it) the full step is taken, up to three times a step, as the
+active-set method takes all its steps. Each matrix is factorised by PARDISO (its pattern
+analysed once) where MKL is installed, by SuperLU otherwise. The dead loads are applied in
+ten steps, then ``lambda`` grows in steps; each converged step updates the slip ``p``.
 
 **Viscous steps.** Where a step finds no static state (a point that sticks and slips in turn,
 or a slip that must run before the blocks lock again) it is taken in pseudo-time: each step
@@ -35,7 +38,11 @@ state (the Duvaut-Lions regularisation of plasticity; a proximal point step of t
 halving ``c`` after a success and multiplying it by 8 after a failure. The blocks are at rest
 when the dashpot's force ``c |u_{k+1} - u_k|`` is below the tolerance of equilibrium; they
 collapse when a block point has moved ``collapse_m`` (the case's ``collapse.displacement_m``,
-as the NSCD run's collapse test) since the load step began. The collapse multiplier is then
+as the NSCD run's collapse test) since the load step began, or when the flow is steady: the
+same out-of-balance load over three successful steps at whatever dashpot means constant
+forces, and a flow at constant forces only changes when an open point closes. It then runs
+along its last step to the first such closing in one move, or is a collapse if the blocks
+move ``collapse_m`` before any closes. The collapse multiplier is then
 bracketed between the last load at rest and the first that collapses, the step halved until
 the bracket is narrower than ``rtol`` of the multiplier.
 
@@ -58,11 +65,17 @@ import scipy.sparse.linalg as spl
 
 from masonry_nscd.limit.lp import LimitSolution, normalised_mechanism
 from masonry_nscd.limit.statics import RigidModel, point_velocities, spring_compliances
+from masonry_nscd.nscd import pardiso
 
 #: Newton's tolerance: ``max |R|`` below this times the largest load component.
 TOLERANCE = 1e-7
+#: At rest: the dashpot's force (the out-of-balance load) below this times the largest load
+#: component.
+REST = TOLERANCE
 #: Newton iterations per (static or viscous) step.
 NEWTON_ITERATIONS = 20
+#: Full Newton steps taken without descent of ``max |R|`` per (static or viscous) step.
+UNGUARDED = 3
 #: The dead loads' steps.
 DEAD_STEPS = 10
 #: The first load step, as a part of the dead loads' largest component over the live load's.
@@ -76,6 +89,12 @@ MAX_STEPS = 2000
 #: Viscous steps per load step at most, and the dashpot's range over the mean stiffness.
 FLOW_STEPS = 5000
 DASHPOT_MIN, DASHPOT_FIRST, DASHPOT_MAX = 1e-9, 1e-6, 1e3
+#: A steady flow: this many successful viscous steps in a row whose out-of-balance loads
+#: agree within ``STEADY`` of the largest component, at whatever dashpot.
+STEADY_STEPS, STEADY = 3, 1e-6
+#: A point's gap closes in a flow when it shrinks faster than this part of the fastest
+#: gap's rate (slower: rounding).
+RATE_FLOOR = 1e-9
 
 
 def joint_forces(g: np.ndarray, slip: np.ndarray, kn: np.ndarray, kt: np.ndarray,
@@ -115,7 +134,7 @@ class _Points:
     ``B``), ``dof`` (p, 12) their free-dof numbers (-1: not free); the Newton matrix
     ``B D B^T`` summed into a fixed pattern."""
 
-    def __init__(self, m: RigidModel):
+    def __init__(self, m: RigidModel, linear: str = "auto"):
         self.n = int(m.free.sum())
         number = np.full(6 * m.bodies, -1)
         number[m.free] = np.arange(self.n)
@@ -135,9 +154,17 @@ class _Points:
         i = np.repeat(dof, 12, axis=1).ravel()
         j = np.tile(dof, (1, 12)).ravel()
         self.pair_used = (i >= 0) & (j >= 0)
-        key, self.slot = np.unique(i[self.pair_used] * self.n + j[self.pair_used],
-                                   return_inverse=True)
-        self.rows, self.cols = key // self.n, key % self.n
+        # the pattern in compressed columns, with the whole diagonal (the dashpot's)
+        n = self.n
+        diagonal = np.arange(n) * (n + 1)
+        key, slot = np.unique(np.concatenate([j[self.pair_used] * n + i[self.pair_used],
+                                              diagonal]), return_inverse=True)
+        self.slot, self.diagonal = slot[:-n or None], slot[len(slot) - n:]
+        self.indices = (key % n).astype(np.int32)
+        self.indptr = np.searchsorted(key // n, np.arange(n + 1)).astype(np.int32)
+        self.nnz = len(key)
+        self._pardiso = pardiso.Pardiso(self.indptr, self.indices, n) \
+            if linear == "auto" and pardiso.available() and n else None
 
     def gap(self, x: np.ndarray) -> np.ndarray:
         """``B^T u`` (p, 3) for the free dofs' displacements ``x``."""
@@ -149,11 +176,27 @@ class _Points:
         v = np.matmul(self.G, f[:, :, None])[:, :, 0]
         return np.bincount(self.dof[self.used], weights=v[self.used], minlength=self.n)
 
-    def matrix(self, D: np.ndarray) -> sp.csc_matrix:
-        """``B D B^T`` on the free dofs for the point blocks ``D`` (p, 3, 3)."""
+    def matrix(self, D: np.ndarray, c: float = 0.0) -> np.ndarray:
+        """The values of ``B D B^T - c I`` on the free dofs, in the pattern's order, for the
+        point blocks ``D`` (p, 3, 3) and the dashpot ``c``."""
         local = np.matmul(np.matmul(self.G, D), self.Gt).reshape(-1)[self.pair_used]
-        data = np.bincount(self.slot, weights=local, minlength=len(self.rows))
-        return sp.csc_matrix((data, (self.rows, self.cols)), shape=(self.n, self.n))
+        data = np.bincount(self.slot, weights=local, minlength=self.nnz)
+        data[self.diagonal] -= c
+        return data
+
+    def solve(self, data: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """``x`` with ``J x = b``, ``J`` the matrix of values ``data``: PARDISO, its pattern
+        analysed once, where MKL is installed; SuperLU otherwise. Raises ``RuntimeError``
+        where the matrix is singular."""
+        if self._pardiso is not None:
+            return self._pardiso.factorise(data).solve(b)
+        J = sp.csc_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            try:
+                return spl.splu(J).solve(b)
+            except (spl.MatrixRankWarning, RuntimeWarning) as error:
+                raise RuntimeError(str(error)) from error
 
 
 def _stiffness(m: RigidModel) -> tuple[np.ndarray, np.ndarray]:
@@ -165,16 +208,15 @@ def _stiffness(m: RigidModel) -> tuple[np.ndarray, np.ndarray]:
 class _Path:
     """The state along the load path and its steps (module docstring)."""
 
-    def __init__(self, m: RigidModel, collapse_m: float):
+    def __init__(self, m: RigidModel, collapse_m: float, linear: str = "auto"):
         self.m, self.collapse_m = m, collapse_m
-        self.points = _Points(m)
+        self.points = _Points(m, linear)
         self.kn, self.kt = _stiffness(m)
         self.free = np.flatnonzero(m.free)
         D0 = np.zeros((m.points, 3, 3))
         D0[:, 0, 0] = -self.kn
-        self.stiff = float(np.abs(self.points.matrix(D0).diagonal()).mean()) or 1.0
+        self.stiff = float(np.abs(self.points.matrix(D0)[self.points.diagonal]).mean()) or 1.0
         self.dashpot = DASHPOT_FIRST * self.stiff
-        self.identity = sp.identity(self.points.n, format="csc")
         reach = np.zeros(m.bodies)  # a body's largest node distance from its reference (m)
         for b, (X, _) in enumerate(m.meshes):
             if len(X):
@@ -182,7 +224,7 @@ class _Path:
         self.reach = reach
         self.x = np.zeros(self.points.n)
         self.slip = np.zeros((m.points, 2))
-        self.newton = self.flow_steps = 0
+        self.newton = self.flow_steps = self.jumps = 0
 
     def moved(self, x: np.ndarray, x0: np.ndarray) -> float:
         """The largest displacement of a block point between two states (m; a bound: the
@@ -205,16 +247,14 @@ class _Path:
         x = x0.copy()
         r, D, state = self._residual(x, F, x0, c, slip)
         res = float(np.abs(r).max()) / scale
+        unguarded = 0
         for _ in range(NEWTON_ITERATIONS):
             self.newton += 1
             if res < TOLERANCE:
                 return x, state
-            J = self.points.matrix(D) - c * self.identity
             try:
-                with warnings.catch_warnings():
-                    warnings.simplefilter("error")
-                    dx = spl.splu(J).solve(-r)
-            except (RuntimeError, spl.MatrixRankWarning, RuntimeWarning):
+                dx = self.points.solve(self.points.matrix(D, c), -r)
+            except RuntimeError:  # PardisoError is one
                 return None
             if not np.all(np.isfinite(dx)):
                 return None
@@ -226,7 +266,14 @@ class _Path:
                     break
                 t *= 0.5
             if new >= res:
-                return None
+                if unguarded == UNGUARDED:
+                    return None
+                # no descent: a kink (a point that closes, sticks or slips) within the
+                # shortest trial; the full step crosses it, as the active-set method would
+                unguarded += 1
+                t = 1.0
+                trial = self._residual(x + dx, F, x0, c, slip)
+                new = float(np.abs(trial[0]).max()) / scale
             x = x + t * dx
             r, D, state = trial
             res = new
@@ -241,6 +288,7 @@ class _Path:
         scale = max(float(np.abs(F).max()), 1e-300)
         x0 = self.x.copy()
         x, slip, c = x0.copy(), self.slip, self.dashpot
+        last: list[np.ndarray] = []  # the out-of-balance of the last successful steps
         for _ in range(FLOW_STEPS):
             self.flow_steps += 1
             out = self.step(F, x, slip, c)
@@ -250,33 +298,66 @@ class _Path:
                     return None, "no viscous step converges", x
                 continue
             new, state = out
-            speed = float(np.abs(new - x).max())
+            dx = new - x
             x, slip = new, state[1]
             if self.moved(x, x0) > self.collapse_m:
                 return None, f"{COLLAPSED} {self.collapse_m:g} m", x
-            if c * speed <= 100.0 * TOLERANCE * scale:
+            pull = c * dx  # the dashpot's force: the out-of-balance load at x (N, N m)
+            if float(np.abs(pull).max()) <= REST * scale:
                 self.dashpot = max(c / 8.0, DASHPOT_MIN * self.stiff)
                 return x, state
+            last = last[-(STEADY_STEPS - 1):] + [pull]
+            if len(last) == STEADY_STEPS and all(
+                    float(np.abs(q - pull).max()) <= STEADY * float(np.abs(pull).max())
+                    for q in last[:-1]):
+                # a steady flow: the same out-of-balance whatever the dashpot, the forces
+                # constant; it runs along dx until an open point closes
+                self.jumps += 1
+                last = []
+                run = self.flow_run(x, dx)
+                per = self.moved(x + dx, x)
+                left = self.collapse_m - self.moved(x, x0)
+                if run * per >= left:
+                    return None, f"{COLLAPSED} {self.collapse_m:g} m (a steady flow)", \
+                        x + (left / per) * dx
+                x = x + run * dx
+                slip = joint_forces(self.points.gap(x), slip, self.kn, self.kt, self.m.mu,
+                                    self.m.glued)[2]
+                continue
             c = max(c / 2.0, DASHPOT_MIN * self.stiff)
         return None, f"not at rest after {FLOW_STEPS} viscous steps", x
 
+    def flow_run(self, x: np.ndarray, dx: np.ndarray) -> float:
+        """How far a steady flow from ``x`` runs along ``dx`` (in multiples of ``dx``) before
+        an open point closes (``inf`` if none closes): in a steady flow the forces are
+        constant, the sliding points keep their direction and the closed points their
+        gaps, so the first open point to close is the flow's only event."""
+        g = self.points.gap(x)[:, 0]
+        rate = self.points.gap(dx)[:, 0]
+        closing = (g > 0.0) & (rate < -RATE_FLOOR * max(float(np.abs(rate).max()), 1e-300))
+        return float((g[closing] / -rate[closing]).min()) if closing.any() else np.inf
+
 
 def follow_load(m: RigidModel, *, collapse_m: float = 0.01, rtol: float = RTOL,
-                progress: Callable[[str], None] | None = None) -> tuple[LimitSolution, dict]:
+                progress: Callable[[str], None] | None = None,
+                linear: str = "auto") -> tuple[LimitSolution, dict]:
     """The collapse multiplier of the growing load followed from rest (module docstring):
     the solution (its multiplier the last load at rest, the forces there, the mechanism of
     the collapsing flow) and the record (``dead_loads``, ``steps``, ``viscous_steps``,
     ``newton_iterations``, ``bracket``, ``stopped_by``, ``collapsed``: whether the last load
     step above the multiplier collapsed or the solver failed there). ``progress``, if given,
     is called with a line per load step (the load, at rest or why not, the viscous steps and
-    the time so far)."""
+    the time so far). ``linear``: ``auto`` (PARDISO where MKL is installed, else SuperLU) or
+    ``lu`` (SuperLU)."""
+    if linear not in ("auto", "lu"):
+        raise ValueError(f"linear: auto or lu, got {linear!r}")
     def say(text: str) -> None:
         if progress is not None:
             progress(f"load path: {text} ({path.flow_steps} viscous steps, "
                      f"{time.perf_counter() - t0:.0f} s)")
 
     t0 = time.perf_counter()
-    path = _Path(m, collapse_m)
+    path = _Path(m, collapse_m, linear)
     F_dead, F_live = m.dead[path.free], m.live[path.free]
     record = {"method": "load followed from rest, rigid blocks on the joints' springs, "
                         "viscous steps where no static state is found",
@@ -328,6 +409,8 @@ def follow_load(m: RigidModel, *, collapse_m: float = 0.01, rtol: float = RTOL,
     record["collapsed"] = str(record["stopped_by"] or "").startswith(COLLAPSED)
     record["viscous_steps"] = path.flow_steps
     record["newton_iterations"] = path.newton
+    record["steady_flows"] = path.jumps
+    record["linear_solver"] = "PARDISO" if path.points._pardiso is not None else "SuperLU"
     counts = {"bodies": m.bodies, "free_bodies": int((~m.support).sum()), "points": npt,
               "glued_points": int(m.glued.sum()), "dofs": path.points.n}
     sol = LimitSolution(status, message, multiplier, forces, velocity,
