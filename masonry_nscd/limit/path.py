@@ -89,6 +89,8 @@ MAX_STEPS = 2000
 #: Viscous steps per load step at most, and the dashpot's range over the mean stiffness.
 FLOW_STEPS = 5000
 DASHPOT_MIN, DASHPOT_FIRST, DASHPOT_MAX = 1e-9, 1e-6, 1e3
+#: A line of progress every this many viscous steps within a load step.
+REPORT_STEPS = 500
 #: A steady flow: this many successful viscous steps in a row whose out-of-balance loads
 #: agree within ``STEADY`` of the largest component, at whatever dashpot.
 STEADY_STEPS, STEADY = 3, 1e-6
@@ -281,15 +283,22 @@ class _Path:
                 return None
         return None
 
-    def settle(self, F: np.ndarray):
+    def settle(self, F: np.ndarray, report: Callable[[str], None] | None = None):
         """The state at rest under the free dofs' load ``F`` from the current one, by viscous
         steps (module docstring): ``(x, (f, slip, closed, sliding))``, or ``(None, why,
-        x_last)`` when the blocks move ``collapse_m`` or no step converges."""
+        x_last)`` when the blocks move ``collapse_m`` or no step converges. ``report``, if
+        given, is told every ``REPORT_STEPS`` viscous steps how far the blocks have moved and
+        the out-of-balance load."""
         scale = max(float(np.abs(F).max()), 1e-300)
         x0 = self.x.copy()
         x, slip, c = x0.copy(), self.slip, self.dashpot
         last: list[np.ndarray] = []  # the out-of-balance of the last successful steps
-        for _ in range(FLOW_STEPS):
+        for k in range(1, FLOW_STEPS + 1):
+            if report is not None and k % REPORT_STEPS == 0:
+                pull = (f", out-of-balance {float(np.abs(last[-1]).max()) / scale:.2e} of the "
+                        "largest load" if last else "")
+                report(f"flowing after {k} viscous steps, moved {1e3 * self.moved(x, x0):.3g} "
+                       f"mm{pull}")
             self.flow_steps += 1
             out = self.step(F, x, slip, c)
             if out is None:
@@ -384,7 +393,8 @@ def follow_load(m: RigidModel, *, collapse_m: float = 0.01, rtol: float = RTOL,
                 record["stopped_by"] = f"no collapse within {MAX_STEPS} load steps"
                 status, message = "unbounded", record["stopped_by"]
                 break
-            out = path.settle(F_dead + (lam + dl) * F_live)
+            out = path.settle(F_dead + (lam + dl) * F_live,
+                              lambda text, v=lam + dl: say(f"{m.factor} = {v:.6g}: {text}"))
             say(f"{m.factor} = {lam + dl:.6g}: " + ("at rest" if out[0] is not None
                                                     else f"{out[1]}; the step halved"))
             if out[0] is None:
