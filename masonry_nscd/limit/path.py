@@ -377,13 +377,15 @@ def follow_load(m: RigidModel, *, collapse_m: float = 0.01, rtol: float = RTOL,
         "optimal", "", None
     state = None
     for k in range(1, DEAD_STEPS + 1):
-        out = path.settle(k / DEAD_STEPS * F_dead)
+        out = path.settle(k / DEAD_STEPS * F_dead,
+                          lambda text, k=k: say(f"dead loads {k}/{DEAD_STEPS}: {text}"))
         if out[0] is None:
             record["dead_loads"] = f"not carried: at {k}/{DEAD_STEPS} of them, {out[1]}"
             status, message = "infeasible", record["dead_loads"]
             break
         path.x, state = out
         path.slip = state[1]
+        say(f"dead loads {k}/{DEAD_STEPS}: carried")
     if status == "optimal" and m.factor is not None:
         big = float(np.abs(F_live).max()) or 1.0
         first = FIRST_STEP * max(float(np.abs(F_dead).max()), 1e-12) / big
