@@ -165,7 +165,8 @@ class _Points:
         self.indices = (key % n).astype(np.int32)
         self.indptr = np.searchsorted(key // n, np.arange(n + 1)).astype(np.int32)
         self.nnz = len(key)
-        self._pardiso = pardiso.Pardiso(self.indptr, self.indices, n) \
+        # one thread: the matrices are small, and a second OpenMP thread waits on a busy core
+        self._pardiso = pardiso.Pardiso(self.indptr, self.indices, n, n_threads=1) \
             if linear == "auto" and pardiso.available() and n else None
 
     def gap(self, x: np.ndarray) -> np.ndarray:
