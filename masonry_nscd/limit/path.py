@@ -187,6 +187,11 @@ class _Points:
         data[self.diagonal] -= c
         return data
 
+    @property
+    def linear_solver(self) -> str:
+        """The direct solver of the Newton matrices: ``PARDISO`` or ``SuperLU``."""
+        return "SuperLU" if self._pardiso is None else "PARDISO"
+
     def solve(self, data: np.ndarray, b: np.ndarray) -> np.ndarray:
         """``x`` with ``J x = b``, ``J`` the matrix of values ``data``: PARDISO, its pattern
         analysed once, where MKL is installed; SuperLU otherwise. Raises ``RuntimeError``
@@ -355,7 +360,8 @@ def follow_load(m: RigidModel, *, collapse_m: float = 0.01, rtol: float = RTOL,
     the solution (its multiplier the last load at rest, the forces there, the mechanism of
     the collapsing flow) and the record (``dead_loads``, ``steps``, ``viscous_steps``,
     ``newton_iterations``, ``bracket``, ``stopped_by``, ``collapsed``: whether the last load
-    step above the multiplier collapsed or the solver failed there). ``progress``, if given,
+    step above the multiplier collapsed or the solver failed there, ``steady_flows``: the
+    steady flows run in one move, ``linear_solver``). ``progress``, if given,
     is called with a line per load step (the load, at rest or why not, the viscous steps and
     the time so far). ``linear``: ``auto`` (PARDISO where MKL is installed, else SuperLU) or
     ``lu`` (SuperLU)."""
@@ -423,7 +429,7 @@ def follow_load(m: RigidModel, *, collapse_m: float = 0.01, rtol: float = RTOL,
     record["viscous_steps"] = path.flow_steps
     record["newton_iterations"] = path.newton
     record["steady_flows"] = path.jumps
-    record["linear_solver"] = "PARDISO" if path.points._pardiso is not None else "SuperLU"
+    record["linear_solver"] = path.points.linear_solver
     counts = {"bodies": m.bodies, "free_bodies": int((~m.support).sum()), "points": npt,
               "glued_points": int(m.glued.sum()), "dofs": path.points.n}
     sol = LimitSolution(status, message, multiplier, forces, velocity,
