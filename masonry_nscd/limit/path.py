@@ -161,7 +161,8 @@ class _Points:
         diagonal = np.arange(n) * (n + 1)
         key, slot = np.unique(np.concatenate([j[self.pair_used] * n + i[self.pair_used],
                                               diagonal]), return_inverse=True)
-        self.slot, self.diagonal = slot[:-n or None], slot[len(slot) - n:]
+        pairs = len(slot) - n  # the points' entries first, then the diagonal's
+        self.slot, self.diagonal = slot[:pairs], slot[pairs:]
         self.indices = (key % n).astype(np.int32)
         self.indptr = np.searchsorted(key // n, np.arange(n + 1)).astype(np.int32)
         self.nnz = len(key)
