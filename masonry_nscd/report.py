@@ -260,6 +260,12 @@ def _num(x: float | None) -> float | None:
     return x if math.isfinite(x) else None
 
 
+def _metres(ux_mm: float | None) -> float | None:
+    """A displacement in mm as metres, None where it is unknown or not finite."""
+    x = _num(ux_mm)
+    return None if x is None else 1e-3 * x
+
+
 # ---------------------------------------------------------------------------------------------
 # The largest damages of one output step, and where they are
 # ---------------------------------------------------------------------------------------------
@@ -469,7 +475,8 @@ def compute_summary(curve: Mapping[str, Sequence[float]], *, target_ux_mm: float
         out["damage_time_s"] = fields.time_s
         out["damage_ux_mm"] = _num(ux_by_step.get(fields.step))
         out["largest_damage"] = largest_damages(fields, scene)
-        out["failure_mode"] = failure_mode(fields, scene, fields.joint_u_m)
+        out["failure_mode"] = failure_mode(fields, scene, fields.joint_u_m,
+                                           _metres(ux_by_step.get(fields.step)))
     return out
 
 
@@ -496,10 +503,11 @@ def summarize_run(outdir: Path | str,
         steps = [k for k, _ in output_steps(h5)]
         peak = min(steps, key=lambda k: (abs(k - summary["step_at_peak"]), -k))
         at_peak = read_fields(h5, peak)
-        summary["failure_mode_at_peak"] = {"step": peak, **failure_mode(at_peak, scene,
-                                                                        at_peak.joint_u_m)}
         ux_by_step = dict(zip(np.asarray(curve["step"], dtype=int),
                               (float(v) for v in curve["ux_mm"]), strict=True))
+        summary["failure_mode_at_peak"] = {
+            "step": peak, **failure_mode(at_peak, scene, at_peak.joint_u_m,
+                                         _metres(ux_by_step.get(peak)))}
         summary["failure_sequence"] = failure_sequence(h5, scene, ux_by_step)
     if scene.get("limit_state"):  # an arch: its status, collapse and hinges
         keep = ("steps", "last_time_s", "unconverged_steps", "worst_residual",

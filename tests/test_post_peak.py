@@ -158,6 +158,12 @@ def test_the_failure_mode_is_named_from_the_damage(smoke_fields):
     u = np.zeros_like(f.joint_u_m)
     u[base & (f.contact_points_m[:, 0] < 0.3), 0] = 1e-3  # the heel end opens
     assert failure_mode(f, scene, u)["mode"] == "rocking"
+    # a base that lost its bond slides only if its slip is a quarter of the top's displacement
+    f.joint_beta[base] = 0.0
+    u[base, 1] = 1e-3  # 1 mm of slip under a heel open by 1 mm
+    assert failure_mode(f, scene, u, top_ux_m=10e-3)["mode"] == "rocking"  # 10 % of the top's
+    assert failure_mode(f, scene, u, top_ux_m=3e-3)["mode"] == "base sliding + rocking"
+    f.joint_beta[:] = beta
     head = f.contact_group == groups.index("head")
     middle = head & (np.abs(y - 0.16) < 0.06)  # the head joints of course 2, the middle one
     f.joint_beta[middle] = 0.0

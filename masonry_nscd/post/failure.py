@@ -9,13 +9,17 @@ of the tributary area. The mechanisms, read from the scene's joint groups and th
 
 ``base sliding``
     the base bed joint (the lowest joint of a ``bed`` group, the glue left out) has lost its
-    cohesion over at least 80 % of its area;
+    cohesion over at least 80 % of its area and, where the top's horizontal displacement
+    ``U`` is given, slipped by at least a quarter of it (area-weighted mean ``|u_t|``): a
+    joint that lost its bond under a rocking wall, its heel open and its toe pressed, has
+    not made the wall slide;
 ``rocking``
-    not base sliding, and the base bed joint is open (normal relative displacement above
-    0.1 mm) over at least 20 % of its area: the wall turns about its toe;
+    the base bed joint is open (normal relative displacement above 0.1 mm) over at least 20 %
+    of its area: the wall turns about its toe (with or without base sliding);
 ``bed joint sliding``
     a bed joint above the base (the points of a bed group at one height) has lost its cohesion
-    over at least 80 % of its area: the wall slides along it;
+    over at least 80 % of its area and slipped by a quarter of ``U``: the wall slides along
+    it;
 ``diagonal stair-step``
     in at least half of the courses between the bottom and the top ones a head joint has lost
     its cohesion over at least half of its area (a crack that steps through the courses);
@@ -48,6 +52,8 @@ from masonry_nscd.io.results_h5 import read_mesh_arrays, read_step_field
 COHESION_LOST_BETA = 0.01
 BASE_LOST_FRACTION = 0.8
 BASE_OPEN_FRACTION = 0.2
+#: A bed joint slides when its mean slip is at least this share of the top's displacement.
+SLIDING_SHARE = 0.25
 OPEN_M = 1e-4
 SLIP_M = 1e-4
 HEAD_LOST_FRACTION = 0.5
@@ -141,10 +147,13 @@ def failure_sequence(h5_path, scene: Mapping[str, Any], ux_by_step: Mapping[int,
     return out
 
 
-def failure_mode(fields, scene: Mapping[str, Any], joint_u_m: np.ndarray | None) -> dict[str, Any]:
+def failure_mode(fields, scene: Mapping[str, Any], joint_u_m: np.ndarray | None,
+                 top_ux_m: float | None = None) -> dict[str, Any]:
     """The failure mode at the output step of ``fields``
     (:class:`~masonry_nscd.io.results_h5.RunFields`); ``joint_u_m``: the relative
-    displacements of the contact points (n, t, s) at that step, m."""
+    displacements of the contact points (n, t, s) at that step, m; ``top_ux_m``: the top's
+    horizontal displacement then, m (None: a joint that lost its cohesion is taken to slide,
+    whatever its slip)."""
     groups = list(scene["groups"])
     structure = scene["structure"]
     if "head" not in groups or not any(g.startswith("bed") for g in groups) \
@@ -167,11 +176,20 @@ def failure_mode(fields, scene: Mapping[str, Any], joint_u_m: np.ndarray | None)
     out["base_joint_y_m"] = base["y_m"]
     out["base_joint_cohesion_lost"] = lost_base
     out["base_joint_open"] = open_base
-    if lost_base >= BASE_LOST_FRACTION:
+    slip_needed_mm = None if top_ux_m is None else SLIDING_SHARE * abs(top_ux_m) * 1e3
+    out["sliding_slip_needed_mm"] = slip_needed_mm
+
+    def slides(b) -> bool:
+        if b["cohesion_lost"] < BASE_LOST_FRACTION:
+            return False
+        return slip_needed_mm is None or b["mean_slip_mm"] is None \
+            or b["mean_slip_mm"] >= slip_needed_mm
+
+    if beds and slides(base):
         modes.append("base sliding")
-    elif open_base >= BASE_OPEN_FRACTION:
+    if open_base >= BASE_OPEN_FRACTION:
         modes.append("rocking")
-    sliding = [b["y_m"] for b in beds[1:] if b["cohesion_lost"] >= BASE_LOST_FRACTION]
+    sliding = [b["y_m"] for b in beds[1:] if slides(b)]
     out["sliding_bed_joints_y_m"] = sliding
     if sliding:
         modes.append("bed joint sliding")
