@@ -127,6 +127,39 @@ def test_case_without_mortar_modulus_uses_the_prism():
     assert h / 26000e6 + 1 / K == pytest.approx((h + j) / 360e6, rel=1e-12)
 
 
+def test_case_for_dry_row_takes_the_dry_law_and_touching_units():
+    base = read_yaml(TEMPLATE.read_text())
+    row = {**_row("SC5"), "joints": "Dry", "mortar_fc_MPa": "", "mortar_E_MPa": ""}
+    case = case_from_dict(campaign.case_for_row(base, row))
+    assert case.joint.law == "dry" and case.wall.joint_thickness_m == 0.0
+    # 900 mm high in 7 courses of 900 / 7 mm: the prism of one unit with the masonry's and the
+    # units' moduli in series gives the closure stiffness, a sixth of it less in shear
+    h = 0.9 / 7
+    E_m, E_u = float(row["masonry_E_compression_MPa"]), float(row["unit_E_MPa"])
+    assert case.wall.unit_height_m == pytest.approx(h)
+    assert h / (E_u * 1e6) + 1 / case.joint.K_n_Pa_m == pytest.approx(h / (E_m * 1e6), rel=1e-12)
+    assert case.joint.K_t_Pa_m == pytest.approx(case.joint.K_n_Pa_m / 2.4, rel=1e-12)
+    assert case.joint.mu == 0.65
+    assert case.blocks.material == "endo3d"  # the units crush and split, dry or mortared
+    assert case.blocks.endo3d.R_c_Pa == pytest.approx(float(row["unit_fc_MPa"]) * 1e6)
+
+
+def test_a_row_without_the_numbers_its_rules_need_is_named(tmp_path):
+    rows = list(csv.DictReader(TESTS_CSV.open()))
+    rows[0]["mortar_fc_MPa"] = ""                       # a mortared wall with no mortar test
+    rows[1]["joints"], rows[1]["masonry_E_compression_MPa"] = "dry", ""  # a dry one, no E_m
+    table = tmp_path / "tests.csv"
+    with table.open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows[:2])
+    with pytest.raises(campaign.SweepError) as err:
+        campaign.campaign_points(table, TEMPLATE)
+    text = str(err.value)
+    assert f"{rows[0]['test']}: mortar_fc_MPa is empty" in text
+    assert f"{rows[1]['test']}: masonry_E_compression_MPa is empty" in text
+
+
 def test_number_and_measured():
     assert campaign.number("110-140") == 125.0
     assert campaign.number("") is None

@@ -31,6 +31,17 @@ Joint (the project's ``fczm`` law, docs/model.md section 2):
   (2009) is not confirmed;
 - a virgin joint (``d_coh_initial = 0``): the joint's own strengths are the mortar's.
 
+Dry joint (the project's ``dry`` law: Coulomb friction in series with the joint's closure
+stiffnesses, no cohesion, no tension), where the test table names the joints dry:
+
+- normal stiffness from the prism's series springs with no joint thickness,
+  ``h/E_m = h/E_u + 1/K_n``: the masonry's extra compliance over its units' is the closure of
+  its dry joints;
+- shear stiffness ``K_t = K_n / (2 (1 + nu))``, as for mortared joints;
+- friction coefficient 0.65, the project's dry stone wall's (dressed sandstone on sandstone);
+  direct shear tests on dry joints of dressed granite (Vasconcelos and Lourenco 2009) gave
+  friction coefficients of the same order, 0.6 to 0.7 (recalled, not confirmed).
+
 Units (ENDO3D, docs/model.md section 3): ``E``, ``R_c`` the units' tested modulus and
 strength; ``R_t = 0.1 R_c`` (the order of the tensile over the compressive strength of rocks,
 e.g. granite 7-25 against 100-250 MPa; no source for these stones, not confirmed); tensile
@@ -58,6 +69,8 @@ LR_G_FII_N_MM = 0.125
 COHESION_OVER_TENSION = LR_COHESION_MPA / LR_TENSILE_BOND_MPA
 #: Friction coefficient: the project's default (Lourenco and Rots's set: 0.75).
 FRICTION = 0.7
+#: Friction coefficient of dry joints of dressed stone (the project's dry stone wall).
+DRY_FRICTION = 0.65
 #: Mode I and mode II fracture energies per unit strength (mm = kJ/m^2 per MPa):
 #: 0.018 / 0.25 = 0.072 and 0.125 / 0.35 = 0.357.
 G_FI_PER_FT_MM = LR_G_FI_N_MM / LR_TENSILE_BOND_MPA
@@ -141,7 +154,7 @@ def fracture_energies_J_m2(ft_MPa: float, c_MPa: float) -> tuple[float, float]:
     return G_FI_PER_FT_MM * ft_MPa * 1e3, G_FII_PER_C_MM * c_MPa * 1e3
 
 
-def joint_parameters(E_masonry_MPa: float, E_unit_MPa: float, unit_height_mm: float,
+def joint_parameters(E_masonry_MPa: float | None, E_unit_MPa: float, unit_height_mm: float,
                      mortar_fc_MPa: float, mortar_E_MPa: float | None = None,
                      joint_mm: float = 0.0) -> dict[str, float]:
     """The ``joint`` section (fczm law, SI) of the rules above: the normal stiffness the mortar
@@ -161,6 +174,16 @@ def joint_parameters(E_masonry_MPa: float, E_unit_MPa: float, unit_height_mm: fl
         "sigma_II_e_Pa": c * 1e6, "K_II_coh_Pa_m": COHESIVE_OVER_SPRING * K_t,
         "G_fII_J_m2": G_II, "d_coh_initial": 0.0, "mu": FRICTION, "p": 1.0,
     }
+
+
+def dry_joint_parameters(E_masonry_MPa: float, E_unit_MPa: float,
+                         unit_height_mm: float) -> dict[str, float | str]:
+    """The ``joint`` section (dry law, SI) of a wall whose units touch: the closure stiffness
+    of the prism (:func:`joint_normal_stiffness` with no joint thickness), its shear
+    stiffness and the dry friction coefficient."""
+    K_n = joint_normal_stiffness(E_masonry_MPa, E_unit_MPa, unit_height_mm, 0.0)
+    return {"law": "dry", "K_n_Pa_m": K_n, "K_t_Pa_m": joint_shear_stiffness(K_n),
+            "mu": DRY_FRICTION}
 
 
 def tensile_fracture_energy_J_m2(fc_MPa: float) -> float:

@@ -150,6 +150,20 @@ def wall_layout(L_mm: float, H_mm: float, unit_length_mm: float, unit_height_mm:
             "unit_length_mm": length, "half_unit_length_mm": (length - joint_mm) / 2.0}
 
 
+def dry_joints(row: dict[str, str]) -> bool:
+    """Whether a row's wall has dry joints: its ``joints`` column names them dry."""
+    return "dry" in (row.get("joints") or "").lower()
+
+
+def required(row: dict[str, str], column: str, why: str) -> float:
+    """A row's number in ``column``; ValueError naming the column and what needs it when the
+    cell is empty."""
+    value = number(row.get(column))
+    if value is None:
+        raise ValueError(f"{column} is empty: {why}")
+    return value
+
+
 def case_for_row(template: dict[str, Any], row: dict[str, str], cyclic: bool = False
                  ) -> dict[str, Any]:
     """The template's case (a mapping as read from YAML) made into the row's test; with
@@ -159,6 +173,9 @@ def case_for_row(template: dict[str, Any], row: dict[str, str], cyclic: bool = F
     H, L, t = number(row["H_mm"]), number(row["L_mm"]), number(row["t_mm"])
     H0 = number(row["H0_mm"])
     wall = d.setdefault("wall", {})
+    dry = dry_joints(row)
+    if dry:
+        wall["joint_thickness_m"] = 0.0  # the units touch
     joint_mm = 1e3 * float(wall.get("joint_thickness_m", 0.010))
     lay = wall_layout(L, H, number(row["unit_length_mm"]), number(row["unit_height_mm"]),
                       joint_mm)
@@ -175,14 +192,23 @@ def case_for_row(template: dict[str, Any], row: dict[str, str], cyclic: bool = F
         sup["load_height_m"] = max(0.0, (H0 - H) * 1e-3)
     else:
         sup["top_rotation"] = "fixed"
-    joint = rules.joint_parameters(number(row["masonry_E_compression_MPa"]),
-                                   number(row["unit_E_MPa"]), lay["unit_height_mm"],
-                                   number(row["mortar_fc_MPa"]),
-                                   mortar_E_MPa=number(row.get("mortar_E_MPa")),
-                                   joint_mm=joint_mm)
-    d["joint"] = {**{k: v for k, v in d.get("joint", {}).items()
-                     if k not in ("regions", "scatter", "K_n_Pa_m", "K_t_Pa_m")}, **joint}
-    units = rules.unit_parameters(number(row["unit_fc_MPa"]), number(row["unit_E_MPa"]))
+    E_u = required(row, "unit_E_MPa", "the units' modulus sets their elasticity and the joints'")
+    mortar_E = number(row.get("mortar_E_MPa"))
+    E_m = number(row.get("masonry_E_compression_MPa")) if mortar_E and not dry else \
+        required(row, "masonry_E_compression_MPa",
+                 "the joints' stiffness comes from the masonry's modulus")
+    if dry:  # the dry law alone: the template's cohesive numbers do not apply
+        d["joint"] = rules.dry_joint_parameters(E_m, E_u, lay["unit_height_mm"])
+    else:
+        joint = rules.joint_parameters(
+            E_m, E_u, lay["unit_height_mm"],
+            required(row, "mortar_fc_MPa", "a mortared wall's joint strengths come from its "
+                     "mortar's compressive strength (or name its joints dry in `joints`)"),
+            mortar_E_MPa=mortar_E, joint_mm=joint_mm)
+        d["joint"] = {**{k: v for k, v in d.get("joint", {}).items()
+                         if k not in ("regions", "scatter", "K_n_Pa_m", "K_t_Pa_m")}, **joint}
+    units = rules.unit_parameters(
+        required(row, "unit_fc_MPa", "the units' ENDO3D strength comes from it"), E_u)
     blocks = d.setdefault("blocks", {})
     blocks["density_kg_m3"] = rules.density_kg_m3()
     blocks["E_Pa"], blocks["nu"] = units.pop("E_Pa"), units.pop("nu")
