@@ -255,6 +255,19 @@ def test_result_row_of_a_made_up_run():
     assert row["predicted_stiffness_kN_mm"] == pytest.approx(100.0)      # 15 kN at 0.15 mm
     assert row["stiffness_ratio"] == pytest.approx(100 / 216)
     assert row["predicted_class"] == 0.0 == row["measured_class"]
+    # SC7 was pushed one way (monotonic): its push against the push, no pull
+    assert row["measured_peak_push_kN"] == 103.0 and row["measured_peak_pull_kN"] is None
+    assert row["peak_push_error"] == pytest.approx(100 / 103 - 1)
+    assert row.get("predicted_peak_pull_kN") is None
+    # a cyclic run of R4 (61.5 kN pushed, 69.8 pulled): each direction against its own
+    point = campaign.campaign_points(TESTS_CSV, TEMPLATE, ["R4"], cyclic=True)[0]
+    record = RunRecord("R4", "ok", curve={"ux_mm": [0.0, 5.0, 0.0, -5.0, 0.0],
+                                          "fx_kN": [0.0, 60.0, 0.0, -70.0, 0.0]}, outputs={})
+    cyc = campaign.result_row(_row("R4"), point, record)
+    assert (cyc["measured_peak_push_kN"], cyc["measured_peak_pull_kN"]) == (61.5, 69.8)
+    assert (cyc["predicted_peak_push_kN"], cyc["predicted_peak_pull_kN"]) == (60.0, 70.0)
+    assert cyc["peak_push_error"] == pytest.approx(60 / 61.5 - 1)
+    assert cyc["peak_pull_error"] == pytest.approx(70 / 69.8 - 1)
     stats = campaign.campaign_statistics([row, {**row, "drift_ratio": 1.9, "stiffness_ratio": 1.6,
                                                 "predicted_class": 1.0, "peak_error": 0.3}])
     assert stats["peak"]["within"] == 1 and stats["peak"]["count"] == 2    # -2.9 % and +30 %

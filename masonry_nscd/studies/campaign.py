@@ -395,6 +395,8 @@ def read_measured_curve(path: Path) -> tuple[np.ndarray, np.ndarray]:
 
 
 COLUMNS = ("test", "rig", "sigma0_MPa", "measured_peak_kN", "predicted_peak_kN", "peak_error",
+           "measured_peak_push_kN", "predicted_peak_push_kN", "peak_push_error",
+           "measured_peak_pull_kN", "predicted_peak_pull_kN", "peak_pull_error",
            "measured_drift_pct", "predicted_drift_pct", "drift_ratio",
            "measured_stiffness_kN_mm", "predicted_stiffness_kN_mm", "stiffness_ratio",
            "measured_class", "predicted_class", "failure_mode_at_peak",
@@ -405,8 +407,12 @@ COLUMNS = ("test", "rig", "sigma0_MPa", "measured_peak_kN", "predicted_peak_kN",
 def result_row(row: dict[str, str], point: Point, record: Any,
                measured_curve: tuple[np.ndarray, np.ndarray] | None = None) -> dict[str, Any]:
     """One line of ``campaign.csv``; for a cyclic run, the energy of its last cycle against
-    ``4 F_max U_max`` and the measured cycle nearest its amplitude (:func:`energy_per_cycle`)."""
+    ``4 F_max U_max`` and the measured cycle nearest its amplitude (:func:`energy_per_cycle`).
+
+    The peak in each direction: the push (positive U_x, the table's ``Vmax_pos``) and, for a
+    cyclic run, the pull (``Vmax_neg``), both as magnitudes; a monotonic run has no pull."""
     meas = measured(row)
+    push, pull = (number(row.get(c)) for c in ("Vmax_pos_kN", "Vmax_neg_kN"))
     case = case_from_dict(read_yaml(point.case_yaml))
     H = case.wall.wall_height_m * 1e3
     out: dict[str, Any] = {"test": point.name,
@@ -414,6 +420,8 @@ def result_row(row: dict[str, str], point: Point, record: Any,
                            else "fixed-fixed",
                            "sigma0_MPa": case.loading.vertical_stress.value_Pa / 1e6,
                            "measured_peak_kN": meas["peak_kN"],
+                           "measured_peak_push_kN": None if push is None else abs(push),
+                           "measured_peak_pull_kN": None if pull is None else abs(pull),
                            "measured_drift_pct": meas["drift_pct"],
                            "measured_stiffness_kN_mm": meas["stiffness_kN_mm"],
                            "measured_class": meas["failure_class"],
@@ -431,6 +439,13 @@ def result_row(row: dict[str, str], point: Point, record: Any,
         out["failure_mode_at_peak"] = mode
         out["predicted_class"] = failure_class(mode)
         out["peak_error"] = relative_error(out["predicted_peak_kN"], meas["peak_kN"])
+        out["predicted_peak_push_kN"] = out["predicted_peak_kN"]
+        out["peak_push_error"] = relative_error(out["predicted_peak_kN"],
+                                                out["measured_peak_push_kN"])
+        if case.loading.horizontal.history == "cyclic" and f.min() < 0.0:
+            out["predicted_peak_pull_kN"] = float(-f.min())
+            out["peak_pull_error"] = relative_error(out["predicted_peak_pull_kN"],
+                                                    out["measured_peak_pull_kN"])
         if meas["drift_pct"]:
             out["drift_ratio"] = out["predicted_drift_pct"] / meas["drift_pct"]
         if meas["stiffness_kN_mm"] and out["predicted_stiffness_kN_mm"]:
