@@ -260,10 +260,14 @@ def _num(x: float | None) -> float | None:
     return x if math.isfinite(x) else None
 
 
-def _metres(ux_mm: float | None) -> float | None:
-    """A displacement in mm as metres, None where it is unknown or not finite."""
-    x = _num(ux_mm)
-    return None if x is None else 1e-3 * x
+def _largest_ux_m(curve: Mapping[str, Sequence[float]], step: int) -> float | None:
+    """The largest |U_x| of the curve's converged and unconverged steps up to ``step`` (m):
+    the displacement a joint's slip is weighed against when the failure mode is named (for a
+    cyclic run, the amplitude reached, not the displacement of the moment); None without one."""
+    steps = np.asarray(curve.get("step", []), dtype=int)
+    ux = np.abs(np.asarray(curve.get("ux_mm", []), dtype=float)[steps <= step])
+    ux = ux[np.isfinite(ux)]
+    return 1e-3 * float(ux.max()) if ux.size else None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -476,7 +480,7 @@ def compute_summary(curve: Mapping[str, Sequence[float]], *, target_ux_mm: float
         out["damage_ux_mm"] = _num(ux_by_step.get(fields.step))
         out["largest_damage"] = largest_damages(fields, scene)
         out["failure_mode"] = failure_mode(fields, scene, fields.joint_u_m,
-                                           _metres(ux_by_step.get(fields.step)))
+                                           _largest_ux_m(curve, fields.step))
     return out
 
 
@@ -507,7 +511,7 @@ def summarize_run(outdir: Path | str,
                               (float(v) for v in curve["ux_mm"]), strict=True))
         summary["failure_mode_at_peak"] = {
             "step": peak, **failure_mode(at_peak, scene, at_peak.joint_u_m,
-                                         _metres(ux_by_step.get(peak)))}
+                                         _largest_ux_m(curve, peak))}
         summary["failure_sequence"] = failure_sequence(h5, scene, ux_by_step)
     if scene.get("limit_state"):  # an arch: its status, collapse and hinges
         keep = ("steps", "last_time_s", "unconverged_steps", "worst_residual",

@@ -215,3 +215,14 @@ def test_a_crushing_length_makes_the_compressive_softening_mesh_objective():
         # softened further (its band dissipates less: no convergence with the mesh)
         assert np.all(post_peak(0.0, h)(u) < ref * 0.98)
     assert np.allclose(post_peak(0.0, 0.05)(u), ref, rtol=1e-9)  # l_c = h: the same law
+
+
+def test_a_slip_is_weighed_against_the_largest_displacement_reached():
+    """After a cycle the top is back near zero: the slip that makes a joint slide is a quarter
+    of the amplitude reached, not of the displacement of the moment."""
+    from masonry_nscd.report import _largest_ux_m
+
+    curve = {"step": [1, 2, 3, 4, 5], "ux_mm": [0.0, 5.0, 0.0, -6.0, 0.5]}
+    assert _largest_ux_m(curve, 5) == pytest.approx(6e-3)
+    assert _largest_ux_m(curve, 2) == pytest.approx(5e-3)
+    assert _largest_ux_m({"step": [], "ux_mm": []}, 3) is None

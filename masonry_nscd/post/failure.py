@@ -9,8 +9,8 @@ of the tributary area. The mechanisms, read from the scene's joint groups and th
 
 ``base sliding``
     the base bed joint (the lowest joint of a ``bed`` group, the glue left out) has lost its
-    cohesion over at least 80 % of its area and, where the top's horizontal displacement
-    ``U`` is given, slipped by at least a quarter of it (area-weighted mean ``|u_t|``): a
+    cohesion over at least 80 % of its area and, where the top's largest horizontal
+    displacement so far ``U`` is given, slipped by at least a quarter of it (area-weighted mean ``|u_t|``): a
     joint that lost its bond under a rocking wall, its heel open and its toe pressed, has
     not made the wall slide;
 ``rocking``
@@ -152,8 +152,8 @@ def failure_mode(fields, scene: Mapping[str, Any], joint_u_m: np.ndarray | None,
     """The failure mode at the output step of ``fields``
     (:class:`~masonry_nscd.io.results_h5.RunFields`); ``joint_u_m``: the relative
     displacements of the contact points (n, t, s) at that step, m; ``top_ux_m``: the top's
-    horizontal displacement then, m (None: a joint that lost its cohesion is taken to slide,
-    whatever its slip)."""
+    largest horizontal displacement up to then, m (None: a joint that lost its cohesion is
+    taken to slide, whatever its slip)."""
     groups = list(scene["groups"])
     structure = scene["structure"]
     if "head" not in groups or not any(g.startswith("bed") for g in groups) \
