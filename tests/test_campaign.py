@@ -146,8 +146,8 @@ def test_case_for_dry_row_takes_the_dry_law_and_touching_units():
 
 def test_a_row_without_the_numbers_its_rules_need_is_named(tmp_path):
     rows = list(csv.DictReader(TESTS_CSV.open()))
-    rows[0]["mortar_fc_MPa"] = ""                       # a mortared wall with no mortar test
-    rows[1]["joints"], rows[1]["masonry_E_compression_MPa"] = "dry", ""  # a dry one, no E_m
+    rows[0]["unit_fc_MPa"] = ""                         # units with no compression test
+    rows[1]["joints"], rows[1]["masonry_E_compression_MPa"] = "dry", ""  # a dry wall, no E_m
     table = tmp_path / "tests.csv"
     with table.open("w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
@@ -156,8 +156,18 @@ def test_a_row_without_the_numbers_its_rules_need_is_named(tmp_path):
     with pytest.raises(campaign.SweepError) as err:
         campaign.campaign_points(table, TEMPLATE)
     text = str(err.value)
-    assert f"{rows[0]['test']}: mortar_fc_MPa is empty" in text
+    assert f"{rows[0]['test']}: unit_fc_MPa is empty" in text
     assert f"{rows[1]['test']}: masonry_E_compression_MPa is empty" in text
+
+
+def test_a_mortar_not_tested_takes_the_weakest_class():
+    """Where the mortar's strength is missing, the joint strengths are those published for the
+    weakest mortars (Eurocode 6, M1-M2: f_vk0 0.10 MPa), those of historic lime mortars."""
+    base = read_yaml(TEMPLATE.read_text())
+    case = case_from_dict(campaign.case_for_row(base, {**_row("SC5"), "mortar_fc_MPa": ""}))
+    assert case.joint.law == "fczm"
+    assert case.joint.sigma_II_e_Pa == pytest.approx(0.10e6 / 0.8)
+    assert case.joint.sigma_I_e_Pa == pytest.approx(0.10e6 / 0.8 / 1.4)
 
 
 def test_number_and_measured():

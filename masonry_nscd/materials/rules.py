@@ -19,7 +19,9 @@ Joint (the project's ``fczm`` law, docs/model.md section 2):
   initial shear strength f_vk0 of Eurocode 6 (EN 1996-1-1, table 3.4, natural stone units,
   general purpose mortar) divided by 0.8 (EN 1052-3: characteristic = 0.8 mean). The M2.5-M9
   row (0.15 MPa) is confirmed by a public quotation of the table; the M1-M2 (0.10) and
-  M10-M20 (0.20) rows and the 0.8 are recalled, not confirmed against the standards;
+  M10-M20 (0.20) rows and the 0.8 are recalled, not confirmed against the standards. Where
+  the mortar's strength was not measured, the weakest class's (M1-M2), that of historic lime
+  mortars;
 - tensile bond and fracture energies as ratios of the interface parameters Lourenco and Rots
   (1997) used for the TU Eindhoven shear walls: f_t 0.25 MPa, c 0.35 MPa, G_fI 0.018 N/mm,
   G_fII 0.125 N/mm, so ``f_t = c / 1.4``, ``G_fI = 0.072 f_t`` and ``G_fII = 0.357 c`` (f_t, c
@@ -124,19 +126,20 @@ def joint_shear_stiffness(K_n_Pa_m: float, nu: float = NU) -> float:
     return K_n_Pa_m / (2.0 * (1.0 + nu))
 
 
-def eurocode6_fvk0_MPa(mortar_fc_MPa: float) -> float:
+def eurocode6_fvk0_MPa(mortar_fc_MPa: float | None) -> float:
     """Characteristic initial shear strength f_vk0 (MPa) of natural stone units with general
     purpose mortar by the mortar's strength class (EN 1996-1-1, table 3.4): M1-M2 (below
     2.5 MPa) 0.10; M2.5-M9 0.15 (confirmed by a public quotation); M10-M20 0.20 (the first and
-    last rows recalled, not confirmed)."""
-    if mortar_fc_MPa < 2.5:
+    last rows recalled, not confirmed). Without the mortar's strength (None), the weakest
+    class's 0.10: the lime mortars of historic masonry lie below 2.5 MPa."""
+    if mortar_fc_MPa is None or mortar_fc_MPa < 2.5:
         return 0.10
     if mortar_fc_MPa < 10.0:
         return 0.15
     return 0.20
 
 
-def joint_cohesion_MPa(mortar_fc_MPa: float) -> float:
+def joint_cohesion_MPa(mortar_fc_MPa: float | None) -> float:
     """Mean cohesion c (MPa): ``f_vk0 / 0.8`` (:func:`eurocode6_fvk0_MPa`; the 0.8 of
     EN 1052-3, recalled, not confirmed)."""
     return eurocode6_fvk0_MPa(mortar_fc_MPa) / CHARACTERISTIC_OVER_MEAN
@@ -155,7 +158,7 @@ def fracture_energies_J_m2(ft_MPa: float, c_MPa: float) -> tuple[float, float]:
 
 
 def joint_parameters(E_masonry_MPa: float | None, E_unit_MPa: float, unit_height_mm: float,
-                     mortar_fc_MPa: float, mortar_E_MPa: float | None = None,
+                     mortar_fc_MPa: float | None, mortar_E_MPa: float | None = None,
                      joint_mm: float = 0.0) -> dict[str, float]:
     """The ``joint`` section (fczm law, SI) of the rules above: the normal stiffness the mortar
     layer's (:func:`mortar_joint_normal_stiffness`) where the mortar's modulus is measured,
