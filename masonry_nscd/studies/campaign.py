@@ -194,9 +194,11 @@ def case_for_row(template: dict[str, Any], row: dict[str, str], cyclic: bool = F
         sup["top_rotation"] = "fixed"
     E_u = required(row, "unit_E_MPa", "the units' modulus sets their elasticity and the joints'")
     mortar_E = number(row.get("mortar_E_MPa"))
-    E_m = number(row.get("masonry_E_compression_MPa")) if mortar_E and not dry else \
-        required(row, "masonry_E_compression_MPa",
-                 "the joints' stiffness comes from the masonry's modulus")
+    if dry or not mortar_E:  # the joints' stiffness from the prism: the masonry's modulus needed
+        E_m = required(row, "masonry_E_compression_MPa",
+                       "the joints' stiffness comes from the masonry's modulus")
+    else:
+        E_m = number(row.get("masonry_E_compression_MPa"))
     if dry:  # the dry law alone: the template's cohesive numbers do not apply
         d["joint"] = rules.dry_joint_parameters(E_m, E_u, lay["unit_height_mm"])
     else:
