@@ -545,6 +545,23 @@ def test_the_load_path_slides_the_wedged_block_at_mu():
     assert np.abs(sol.forces[side]).max() < path.TOLERANCE * np.abs(sol.forces).max()
 
 
+def test_the_load_path_tells_its_progress_by_the_clock(monkeypatch):
+    """A load step of a large scene runs viscous steps of seconds each: the user is told how
+    far the blocks have moved at most every ``REPORT_S`` seconds, not after a count of steps
+    (with it at zero, before every viscous step; at its default, never on this small one)."""
+    m = rigid_model(tilting_block(width=0.2, height=0.1, depth=0.2, mu=0.5,
+                                  direction=(0.0, 0.0, 1.0)))
+    quiet: list[str] = []
+    follow_load(m, progress=quiet.append)
+    assert not any("flowing after" in line for line in quiet)
+    monkeypatch.setattr(path, "REPORT_S", 0.0)
+    told: list[str] = []
+    _, record = follow_load(m, progress=told.append)
+    flowing = [line for line in told if "flowing after" in line]
+    assert len(flowing) == record["viscous_steps"]
+    assert all(" mm" in line for line in flowing)
+
+
 def test_the_load_path_finds_the_arch_four_hinges():
     """The shipped arch followed from rest (no joint slides at its mu): the kinematic theorem's
     least four-hinge multiplier within the bracket, with the same four hinges, from the

@@ -89,8 +89,10 @@ MAX_STEPS = 2000
 #: Viscous steps per load step at most, and the dashpot's range over the mean stiffness.
 FLOW_STEPS = 5000
 DASHPOT_MIN, DASHPOT_FIRST, DASHPOT_MAX = 1e-9, 1e-6, 1e3
-#: A line of progress every this many viscous steps within a load step.
-REPORT_STEPS = 500
+#: A line of progress at most this often within a load step (s of wall clock): a viscous step
+#: of a large scene takes seconds (the nave bay's 17,478 dofs: about 13 Newton iterations of
+#: 0.1 s each), so a count of steps would leave the user minutes without a word.
+REPORT_S = 15.0
 #: A steady flow: this many successful viscous steps in a row whose out-of-balance loads
 #: agree within ``STEADY`` of the largest component, at whatever dashpot.
 STEADY_STEPS, STEADY = 3, 1e-6
@@ -294,14 +296,16 @@ class _Path:
         """The state at rest under the free dofs' load ``F`` from the current one, by viscous
         steps (module docstring): ``(x, (f, slip, closed, sliding))``, or ``(None, why,
         x_last)`` when the blocks move ``collapse_m`` or no step converges. ``report``, if
-        given, is told every ``REPORT_STEPS`` viscous steps how far the blocks have moved and
-        the out-of-balance load."""
+        given, is told at most every ``REPORT_S`` seconds how far the blocks have moved and the
+        out-of-balance load."""
         scale = max(float(np.abs(F).max()), 1e-300)
         x0 = self.x.copy()
         x, slip, c = x0.copy(), self.slip, self.dashpot
         last: list[np.ndarray] = []  # the out-of-balance of the last successful steps
+        told = time.perf_counter()
         for k in range(1, FLOW_STEPS + 1):
-            if report is not None and k % REPORT_STEPS == 0:
+            if report is not None and time.perf_counter() - told >= REPORT_S:
+                told = time.perf_counter()
                 pull = (f", out-of-balance {float(np.abs(last[-1]).max()) / scale:.2e} of the "
                         "largest load" if last else "")
                 report(f"flowing after {k} viscous steps, moved {1e3 * self.moved(x, x0):.3g} "
