@@ -615,20 +615,25 @@ def moved_blocks(blocks, made_of, tolerance):
 
 #: the fewest blocks a thread inverts (a thread's hand-over costs about one 54 x 54 inverse)
 MIN_BLOCKS_PER_THREAD = 16
-#: the most blocks inverted again in one batch (``KrylovSolver.local_inverses``): each block
-#: is inverted alone by the same LAPACK call whatever the batch, so the batch bounds only the
-#: temporary copies (6 MB of 54 x 54 blocks)
+#: the most blocks inverted in one batch (``KrylovSolver.local_inverses``, ``_inverses``): each
+#: block is inverted alone by the same LAPACK call whatever the batch, so the batch bounds only
+#: the temporary copies (6 MB of 54 x 54 blocks)
 REINVERTED_AT_ONCE = 256
 
 
 def _inverses(blocks: np.ndarray) -> np.ndarray:
     """The inverses of the stacked blocks ``(g, k, k)``, the stack cut into ranges inverted on
     the kernels' threads (``threads.run_ranges``: numpy's LAPACK loop releases the interpreter),
-    each block by the same LAPACK call as on one thread: the same inverses bit for bit."""
+    each block by the same LAPACK call as on one thread: the same inverses bit for bit. A
+    range is inverted ``REINVERTED_AT_ONCE`` blocks at a time, so that LAPACK's result is not
+    a second copy of every block beside ``out`` (at a run's first set-up, or the first after a
+    step size let go of its inverses, the peak of a large wall's memory)."""
     out = np.empty_like(blocks)
 
     def invert(lo, hi):
-        out[lo:hi] = np.linalg.inv(blocks[lo:hi])
+        for a in range(lo, hi, REINVERTED_AT_ONCE):
+            b = min(hi, a + REINVERTED_AT_ONCE)
+            out[a:b] = np.linalg.inv(blocks[a:b])
 
     threads.run_ranges(invert, len(blocks), min_size=MIN_BLOCKS_PER_THREAD)
     return out

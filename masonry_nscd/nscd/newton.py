@@ -100,7 +100,8 @@ def _emit(k, row, col, val, rows, cols, vals, slot, data):
     else:
         rows[k] = row
         cols[k] = col
-        vals[k] = val
+        if vals.shape[0] > 0:  # none: the pattern's triplets alone (``jacobian_coo``)
+            vals[k] = val
     return k + 1
 
 
@@ -317,26 +318,29 @@ def index_type(largest: int) -> type:
 
 
 def jacobian_coo(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_coef, mult_of,
-                 area, K, Gu, Gr, full_block, h, theta, keep_zeros=False, eliminate=False):
+                 area, K, Gu, Gr, full_block, h, theta, keep_zeros=False, eliminate=False,
+                 values=True):
     """COO triplets of the Newton matrix (free dofs, then 3 impulses per multiplier point: glue
     and rigid contacts, rows ``Gu H^T`` and ``Gr``, of which only the diagonal unless
-    ``full_block``).
+    ``full_block``): ``(rows, cols, vals)``, or ``(rows, cols)`` without ``values``.
 
     ``keep_zeros``: emit every entry that can be non-zero, zeros included, always in the same
     order; the triplets then fit the fixed pattern of ``NewtonSolver`` (``_Pattern``), and
     later matrices are summed straight into its values (``jacobian_values``). ``eliminate``:
-    the body system ``S`` of the Krylov solver instead (``_jacobian_entries``)."""
+    the body system ``S`` of the Krylov solver instead (``_jacobian_entries``). Without
+    ``values`` the triplets are the pattern's alone: a third less memory while the pattern is
+    sorted, the largest transient of a run on a large wall (docs/scaling.md)."""
     ms = 2 * side_dofs.shape[2]
     cap = int(np.sum(np.diff(body_dof0) ** 2)) + side_dofs.shape[0] * (ms * ms + 6 * ms) \
         + 9 * Gr.shape[0]
     kind = index_type(nfree + 3 * Gr.shape[0])  # of the rows and columns
     rows = np.empty(cap, dtype=kind)
     cols = np.empty(cap, dtype=kind)
-    vals = np.empty(cap)
+    vals = np.empty(cap) if values else _NO_FLOAT
     k = _jacobian_entries(body_dof0, mhat_off, mhat, free_index, nfree, side_dofs, side_coef,
                           mult_of, area, K, Gu, Gr, full_block, h, theta, keep_zeros, eliminate,
                           0, 0, _NO_SLOT, rows, cols, vals, _NO_FLOAT)
-    return rows[:k], cols[:k], vals[:k]
+    return (rows[:k], cols[:k], vals[:k]) if values else (rows[:k], cols[:k])
 
 
 def bodies_values(slot, nnz, body_dof0, mhat_off, mhat, free_index, nfree, side_dofs,
@@ -788,10 +792,10 @@ class NewtonSolver:
         pat = self._pattern
         if pat is None:
             with timing.part("Newton matrix pattern"):
-                r, c, v = jacobian_coo(*args, True)
+                r, c = jacobian_coo(*args, True, values=False)
                 pat = self._pattern = _Pattern(r, c, n, pardiso=self.linear == "pardiso")
-                data = pat.values(v)
-                del r, c, v
+                del r, c
+                data = jacobian_values(pat.slot, len(pat.indices), *args)
         else:
             with timing.part("Newton matrix"):
                 data = jacobian_values(pat.slot, len(pat.indices), *args,
@@ -831,12 +835,12 @@ class NewtonSolver:
         pat = self._krylov_pattern
         if pat is None:
             with timing.part("Newton matrix pattern"):
-                r, c, v = jacobian_coo(*args, True, True)
+                r, c = jacobian_coo(*args, True, True, values=False)
                 # the pattern of S^T in compressed columns: S in compressed rows
                 pat = self._krylov_pattern = _Pattern(c, r, nf)
                 pat._rows = pat._cols = None  # never reordered
-                data = pat.values(v)
-                del r, c, v
+                del r, c
+                data = jacobian_values(pat.slot, len(pat.indices), *args, eliminate=True)
         else:
             with timing.part("Newton matrix"):
                 data = jacobian_values(pat.slot, len(pat.indices), *args, eliminate=True)
