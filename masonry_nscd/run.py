@@ -124,7 +124,8 @@ _RUN_PARTS = ("scene build", "steps", "outputs")
 def _log_end(log: RunLog, integ, secs: float, ux: float, top, unconverged: int, worst: float,
              spans: dict[int, int], h: float) -> None:
     """The closing lines of ``run.log``: the run's end, the linear solver's work, where the
-    time went (``masonry_nscd.timing``), the step sizes taken and the energy balance."""
+    time went (``masonry_nscd.timing``), the step sizes taken, the peak memory of each
+    process and the energy balance."""
     log(f"done: {integ.step_index} steps in {secs:.1f} s, Ux {1e3 * ux:.4f} mm, "
         f"Fx {1e-3 * top[0]:.3f} kN; {unconverged} steps not converged "
         f"(worst residual {worst:.2e})")
@@ -149,6 +150,10 @@ def _log_end(log: RunLog, integ, secs: float, ux: float, top, unconverged: int, 
             "(the Newton iterations' own work, the step's set-up)")
     if any(k > 1 for k in spans):
         log("step sizes: " + ", ".join(f"{spans[k]} of {k * h:g} s" for k in sorted(spans)))
+    memory = mpi.peak_memory_per_process()
+    log(f"memory: peak {memory[0]:,.0f} MiB" if len(memory) == 1 else
+        "memory: peak per process " + " + ".join(f"{m:,.0f}" for m in memory)
+        + f" = {sum(memory):,.0f} MiB")
     if integ.energy_account is not None:
         e = integ.energy_account.balance(integ)
         log(f"energy: external work {e['external_work']:.6g} J = kinetic {e['kinetic']:.4g} "

@@ -1,4 +1,5 @@
-r"""Where a run's time goes: wall-clock time and calls of the solver's parts and the outputs.
+r"""Where a run's time goes: wall-clock time and calls of the solver's parts and the outputs;
+and the process's peak memory (``peak_memory_mib``).
 
 The parts are timed where they are called (``with timing.part("factorisation"):``), on the
 calling thread, once per call of the whole part (a kernel that the threads of
@@ -15,6 +16,7 @@ sweeps' workers do); ``reset`` starts a run's. Not re-entrant: a part does not c
 from __future__ import annotations
 
 import statistics
+import sys
 import time
 from dataclasses import dataclass
 
@@ -76,3 +78,12 @@ def table() -> list[PartTime]:
             for name, t in _timers.items() if t.durations]
     return sorted(rows, key=lambda r: -r.total_s)
 
+
+
+def peak_memory_mib() -> float:
+    """The peak resident memory of this process so far (MiB: the kernel's high-water mark of
+    its resident set, ``ru_maxrss``)."""
+    import resource
+
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return rss / 2**20 if sys.platform == "darwin" else rss / 1024.0  # bytes / KiB

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -177,6 +178,12 @@ def test_a_run_on_several_processes_is_the_run_on_one(one_process_curve, process
     assert f"linear solver krylov on {processes} processes" in log
     assert "0 solves made by LU" in log
     assert f"(PETSc KSP gmres, PC mg on {processes} processes)" in log
+    # every process's peak memory, and their sum
+    memory = re.search(r"memory: peak per process ([\d, +]+) = ([\d,]+) MiB", log)
+    assert memory is not None
+    each = [float(m.replace(",", "")) for m in memory.group(1).split(" + ")]
+    assert len(each) == processes and all(m > 0.0 for m in each)
+    assert abs(sum(each) - float(memory.group(2).replace(",", ""))) <= processes
     a, b = one_process_curve, _curve(out)
     assert len(a) == len(b) and np.array_equal(a["step"], b["step"])
     tol = load_case(SMOKE).solver.tolerance

@@ -61,3 +61,7 @@ def test_run_log_ends_with_where_the_time_went(tmp_path):
     inner = [float(s) for s in re.findall(r"time in the steps: [^\n]*? ([\d.]+) s \(\d+ calls",
                                           log)]
     assert inner and sum(inner) <= outer["steps"] + 0.01
+    # the process's peak memory: at least what it holds now, and the mesh's arrays besides
+    peak = re.search(r"memory: peak ([\d,]+) MiB", log)
+    assert peak is not None
+    assert float(peak.group(1).replace(",", "")) >= timing.peak_memory_mib() - 1.0 > 0.0

@@ -11,7 +11,8 @@ Process 0 runs the case as on one process (the joints, the blocks, Newton's iter
 Newton matrix, the outputs). It drives the others by commands (``command``): a new solver
 (``INIT``), a new matrix (``SETUP``: it then sends every process its rows of ``S``, their
 arrays as they are in memory, ``send_rows``), a solve (``SOLVE``), a solver dropped
-(``FORGET``), the end of the run (``STOP``). The other processes wait for them (``serve``),
+(``FORGET``), each process's peak memory (``MEMORY``, gathered on process 0:
+``peak_memory_per_process``), the end of the run (``STOP``). The other processes wait for them (``serve``),
 looking every ``POLL_S`` and sleeping in between, so that they leave the cores to process 0's
 kernels. So the linear solve's work and memory are split; the rest of a step is not yet
 (``docs/scaling.md``, "Beyond one machine").
@@ -29,7 +30,7 @@ import traceback
 import numpy as np
 import scipy.sparse as sp
 
-from masonry_nscd import MPI_SIZE_VARIABLES
+from masonry_nscd import MPI_SIZE_VARIABLES, timing
 from masonry_nscd.nscd import linear
 
 #: the environment variables in which mpiexec gives the number of processes and this one's rank
@@ -44,7 +45,7 @@ MISSING = ("several processes need PETSc, petsc4py and mpi4py built on the syste
            "make mpi (docs/guide/solvers.md)")
 
 #: process 0's commands to the others (module docstring)
-STOP, INIT, SETUP, SOLVE, FORGET = range(5)
+STOP, INIT, SETUP, SOLVE, FORGET, MEMORY = range(6)
 _comm = None
 _stopped = False
 _forgotten: list[int] = []  # ids of process 0's solvers gone since its last command
@@ -170,6 +171,16 @@ def record_exit(code: int) -> None:
             f.write(str(code))
 
 
+def peak_memory_per_process() -> list[float]:
+    """The peak resident memory of every process so far (MiB), process 0 first: this one's
+    alone without mpiexec. Process 0 only (the others answer its ``MEMORY`` command)."""
+    comm = world()
+    if comm is None:
+        return [timing.peak_memory_mib()]
+    command(comm, MEMORY, 0)
+    return [float(m) for m in comm.gather(timing.peak_memory_mib(), root=0)]
+
+
 def partition(body_of: np.ndarray, parts: int) -> np.ndarray:
     """The first free dof of each process's range, then the number of free dofs (``(parts +
     1,)``): ranges of whole bodies (``body_of``, the body of each free dof, sorted), each cut
@@ -256,6 +267,9 @@ def serve(comm) -> None:
             code, ident = _next_command(comm)
             if code == STOP:
                 break
+            if code == MEMORY:
+                comm.gather(timing.peak_memory_mib(), root=0)
+                continue
             petsc_solve.serve_command(comm, parts, code, ident)
     except Exception:  # noqa: BLE001 (any error: the others must not wait for this one)
         traceback.print_exc()

@@ -483,14 +483,6 @@ def pareto_front(times: Sequence[float], errors: Sequence[float]) -> NDArray[np.
 # ---------------------------------------------------------------------------------------------
 
 
-def peak_rss_mib() -> float:
-    """Peak resident memory of this process so far (MiB)."""
-    import resource
-
-    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    return rss / 2**20 if sys.platform == "darwin" else rss / 1024.0  # bytes / KiB
-
-
 def _child_run(spec: Mapping[str, Any]) -> dict[str, Any]:
     """One run of a case to its target (``kind: run``), every step timed, as a point of the
     study (:func:`~masonry_nscd.studies.point.run_point`); see :func:`run_in_child`."""
@@ -562,7 +554,7 @@ def _write_partial(spec: Mapping[str, Any], out: Mapping[str, Any]) -> None:
         return
     path = Path(spec["result"])
     tmp = path.with_suffix(".part")
-    tmp.write_text(json.dumps({**out, "status": "partial", "peak_rss_MiB": peak_rss_mib()}))
+    tmp.write_text(json.dumps({**out, "status": "partial", "peak_rss_MiB": timing.peak_memory_mib()}))
     tmp.replace(path)
 
 
@@ -589,7 +581,7 @@ def _child_main(spec_path: str) -> int:
                    f"address space: MemoryError {exc}")
     except Exception as exc:  # noqa: BLE001 - reported to the parent as the run's outcome
         out = {"status": "error", "message": f"{type(exc).__name__}: {exc}"}
-    out["peak_rss_MiB"] = peak_rss_mib()
+    out["peak_rss_MiB"] = timing.peak_memory_mib()
     Path(spec["result"]).write_text(json.dumps(out))
     return 0
 
