@@ -2,6 +2,7 @@
 
     python cases/make_nave_bay_mesh.py               # writes cases/nave_bay.msh
     python cases/make_nave_bay_mesh.py --scale 0.5 -o small.msh
+    python cases/make_nave_bay_mesh.py --bays 20 -o nave.msh --case nave.yaml   # a nave
 
 y is up, the nave's axis along x, z across the nave; the bay is centred on the origin, its
 floor at y = 0. Lengths in m. Every block is one physical volume of 8-node hexahedra (several
@@ -49,6 +50,10 @@ the clerestory walls), side by side (``north``: +z, ``south``: -z; ``east``: +x,
 Simplifications: square piers and buttresses, one flyer per pier, no roof, the webs as a
 groin vault whose groin stones are the diagonal ribs, the bay alone (the next bays' thrusts
 along x are not there).
+
+``--bays N`` writes a nave of N such bays along x instead (:func:`nave_blocks`: the lines of
+piers shared, one transverse rib on each line), and ``--case FILE`` a case for it: the
+shipped bay's case with this mesh and every foundation fixed.
 """
 
 from __future__ import annotations
@@ -192,9 +197,9 @@ class Vault:
     courses cut the angle from 0 to the crown into equal parts at each radius (the crown joint
     is the vertical plane of the axis)."""
 
-    def __init__(self, bay: Bay):
+    def __init__(self, bay: Bay, span_m: float | None = None):
         self.bay = bay
-        self.a, self.b = bay.bay_m, bay.nave_m
+        self.a, self.b = bay.bay_m if span_m is None else span_m, bay.nave_m
         self.R = bay.vault_radius_m
         self.c = self.R - self.b / 2.0
         self.t = bay.vault_thickness_m
@@ -303,8 +308,11 @@ class Vault:
         return self.block(corners)
 
 
-def vault_blocks(bay: Bay) -> list[tuple[str, list[np.ndarray]]]:
-    v = Vault(bay)
+def vault_blocks(bay: Bay, span_m: float | None = None) -> list[tuple[str, list[np.ndarray]]]:
+    """The vault's blocks; ``span_m``: the webs' length along x (default the bay's, the
+    transverse ribs beyond the webs' ends; in a nave the bay less a rib's width, each rib
+    straddling the line between two bays)."""
+    v = Vault(bay, span_m)
     out = []
     boss = []
     ribs: dict[tuple[str, int], list[np.ndarray]] = {}
@@ -482,8 +490,67 @@ def nave_bay_blocks(bay: Bay, parts=PARTS
     return blocks, supports
 
 
-def _pier(blocks, supports, bay, corner, place):
-    """A pier of drums, its upper pier and its foundation."""
+def nave_blocks(bay: Bay, bays: int, parts=PARTS
+                ) -> tuple[list[tuple[str, list[np.ndarray]]], list[str]]:
+    """The blocks and the fixed supports of a nave of ``bays`` bays along x, centred on the
+    origin (one bay: :func:`nave_bay_blocks`, the shipped bay). Two neighbouring bays share
+    the line of piers between them: its piers, attached buttresses, flyers and flyer piers
+    are built once, the upper piers and upper buttresses and the flyers' heads from one
+    bay's arcade springing bed to the other's (the nave's two ends as in a bay); each bay has
+    its arcades, walls and vault, the webs shortened by a transverse rib's width so that one
+    rib straddles each line (``bay K ...``; the piers' lines ``... <side> line I ...``, I
+    from 0 at the west end)."""
+    if bays == 1:
+        return nave_bay_blocks(bay, parts)
+    h = bay.bay_m / 2.0
+
+    def centre(k: int) -> float:
+        return (k - (bays - 1) / 2.0) * bay.bay_m
+
+    blocks: list[tuple[str, list[np.ndarray]]] = []
+    supports: list[str] = []
+    own = [(n, hx) for n, hx in nave_bay_blocks(bay, tuple(p for p in parts if p == "walls"))[0]]
+    if "vault" in parts:
+        own += vault_blocks(bay, bay.bay_m - bay.transverse_rib_width_m)
+    for k in range(bays):
+        for name, hexes in own:
+            if name.startswith("west rib") and k > 0:
+                continue  # the rib on this line is the bay before's east rib
+            moved = []
+            for X in hexes:
+                Y = X.copy()
+                Y[:, 0] += centre(k)
+                moved.append(Y)
+            blocks.append((f"bay {k + 1} {name}", moved))
+    for i in range(bays + 1):
+        # a line as the east end of the bay before it (the west end: as the first bay's west)
+        e = -1.0 if i == 0 else 1.0
+        dx = centre(0) if i == 0 else centre(i - 1)
+        far = None if i in (0, bays) else 2.0 * h - bay.upper_pier_x
+        for side in ("north", "south"):
+            s = _SIGN[side]
+            corner = f"{side} line {i}"
+
+            def place(lo, hi, s=s, e=e, dx=dx):
+                """A box given for the north-east corner of a bay centred on the origin,
+                placed at this line and side."""
+                X = box(lo, hi)
+                X[:, 0] = X[:, 0] * e + dx
+                X[:, 2] *= s
+                return hexahedron(X)
+
+            if "piers" in parts:
+                _pier(blocks, supports, bay, corner, place, far)
+            if "buttresses" in parts:
+                _buttress(blocks, supports, bay, corner, place)
+            if "flyers" in parts:
+                _flyer(blocks, supports, bay, corner, place, e, s, far, dx)
+    return blocks, supports
+
+
+def _pier(blocks, supports, bay, corner, place, far=None):
+    """A pier of drums, its upper pier (from the arcade's springing bed to ``far``, by default
+    the pier's outer face) and its foundation."""
     pz0, pz1 = bay.pier_z
     h, p = bay.bay_m / 2.0, bay.pier_m / 2.0
     levels = _levels(0.0, bay.arcade_spring_m, bay.drum_m)
@@ -493,7 +560,8 @@ def _pier(blocks, supports, bay, corner, place):
     levels = _levels(bay.arcade_spring_m, bay.vault_spring_m, bay.drum_m)
     for k, (y0, y1) in enumerate(pairwise(levels)):
         blocks.append((f"upper pier {corner} {k + 1}",
-                       [place((bay.upper_pier_x, y0, pz0), (h + p, y1, pz1))]))
+                       [place((bay.upper_pier_x, y0, pz0), (h + p if far is None else far,
+                                                           y1, pz1))]))
     m = 0.1 * p
     blocks.append((f"foundation pier {corner}",
                    [place((h - p - m, -bay.foundation_depth_m, pz0 - m), (h + p + m, 0.0, pz1))]))
@@ -515,17 +583,18 @@ def _buttress(blocks, supports, bay, corner, place):
     supports.append(f"foundation buttress {corner}")
 
 
-def _flyer(blocks, supports, bay, corner, place, e, s):
+def _flyer(blocks, supports, bay, corner, place, e, s, far=None, dx=0.0):
     """A flying buttress: the upper buttress above the upper pier and the attached buttress, up
     to the walls' top against the wall's end; the flyer, a quarter circle of voussoirs from its
     head (a vertical joint against the upper buttress's outer face) down to its springing (a
     horizontal bed on the flyer pier); the flyer pier with its pinnacle beyond the flyer's
-    foot, and its foundation."""
+    foot, and its foundation. ``far``: the x of the upper buttress's and the flyer's far face
+    (by default the attached buttress's); ``dx``: the bay's centre along x."""
     h, bw = bay.bay_m / 2.0, bay.buttress_width_m / 2.0
     _, pz1 = bay.pier_z
     z_out = pz1 + bay.buttress_depth_m  # the attached buttress's outer face
     z_in = bay.wall_z[0] + 0.25 * bay.wall_thickness_m  # clear of the transverse rib's foot
-    x0, x1 = bay.upper_pier_x, h + bw
+    x0, x1 = bay.upper_pier_x, h + bw if far is None else far
     levels = _levels(bay.vault_spring_m, bay.wall_top_m, bay.buttress_course_m)
     for k, (y0, y1) in enumerate(pairwise(levels)):
         blocks.append((f"upper buttress {corner} course {k + 1}",
@@ -537,7 +606,7 @@ def _flyer(blocks, supports, bay, corner, place, e, s):
         X = np.array([[x, yc + r * math.cos(a), z_out + r * math.sin(a)]
                       for x, r, a in ((x0, ri, a0), (x1, ri, a0), (x1, ri, a1), (x0, ri, a1),
                                       (x0, ro, a0), (x1, ro, a0), (x1, ro, a1), (x0, ro, a1))])
-        X[:, 0] *= e
+        X[:, 0] = X[:, 0] * e + dx
         X[:, 2] *= s
         blocks.append((f"flyer {corner} voussoir {k + 1}", [hexahedron(X)]))
     zf0, zf1 = z_out + ri, z_out + ri + bay.flyer_pier_depth_m
@@ -597,19 +666,46 @@ def main(argv=None) -> None:
                         help="factor on every length (a smaller bay has fewer blocks)")
     parser.add_argument("--parts", default=",".join(PARTS),
                         help=f"comma-separated parts to write (of {', '.join(PARTS)})")
+    parser.add_argument("--bays", type=int, default=1,
+                        help="bays along the nave (1: the bay alone, the shipped mesh)")
     parser.add_argument("-o", "--output", type=Path,
                         default=Path(__file__).with_name("nave_bay.msh"))
+    parser.add_argument("--case", type=Path, default=None,
+                        help="also write a case of this mesh: the shipped bay's, its "
+                             "supports every foundation")
     args = parser.parse_args(argv)
     if not 0.05 <= args.scale <= 4.0:
         parser.error("--scale must be between 0.05 and 4")
+    if not 1 <= args.bays <= 200:
+        parser.error("--bays must be between 1 and 200")
     parts = tuple(args.parts.split(","))
     if not set(parts) <= set(PARTS):
         parser.error(f"--parts takes {', '.join(PARTS)}")
     bay = Bay(args.scale)
-    blocks, supports = nave_bay_blocks(bay, parts)
+    blocks, supports = nave_blocks(bay, args.bays, parts)
     n_blocks, n_hex = write_mesh(args.output, blocks)
     print(f"wrote {args.output}: {n_blocks} blocks ({len(supports)} fixed foundations), "
           f"{n_hex} hexahedra")
+    if args.case is not None:
+        write_case(args.case, args.output, supports, args.bays)
+        print(f"wrote {args.case}")
+
+
+def write_case(path: Path, mesh: Path, supports: list[str], bays: int) -> None:
+    """The shipped bay's case (``nave_bay.yaml`` beside this script) on ``mesh``, every
+    foundation in ``supports`` fixed."""
+    import os
+
+    import yaml
+
+    case = yaml.safe_load(Path(__file__).with_name("nave_bay.yaml").read_text())
+    case["name"] = path.stem
+    case["description"] = (f"Gothic nave of {bays} bays from a mesh file, growing horizontal "
+                           "body force across the nave to collapse")
+    case["assembly"]["mesh_file"] = os.path.relpath(mesh.resolve(), path.resolve().parent)
+    case["assembly"]["supports"] = [{"group": g, "kind": "fixed"} for g in supports]
+    path.write_text(f"# written by cases/{Path(__file__).name} --bays {bays}\n"
+                    + yaml.safe_dump(case, sort_keys=False, width=100))
 
 
 if __name__ == "__main__":
