@@ -918,6 +918,12 @@ def bench_scaling_cmd(
         "--memory-limit", metavar="GIB",
         help="Per wall: the process's address space in GiB; a wall that needs more is reported "
         "as 'memory' and the larger walls are skipped (default: no limit).")] = None,
+    processes: Annotated[str, typer.Option(
+        "--processes", metavar="P,...",
+        help="Step each wall on each of these numbers of processes (as masonry run "
+        "--processes: PETSc's Krylov solve, installed by make mpi; solver.linear krylov or "
+        "auto), e.g. 1,2: each process's peak memory, and each wall's time per step and "
+        "memory against one process's.")] = "1",
     overrides: SetOption = None,
     overwrite: OverwriteOption = False,
 ) -> None:
@@ -925,8 +931,18 @@ def bench_scaling_cmd(
 
     For walls with 1, 2, 4, ... K times the units of the case: the time per step, the
     factorisations per step and the peak memory, against the number of contact points; each
-    wall stepped N times in a fresh process."""
+    wall stepped N times in a fresh process (or processes: --processes)."""
     case = _load_case_or_exit(case_file, overrides)
+    try:
+        counts = sorted({int(p) for p in processes.split(",")})
+    except ValueError:
+        counts = []
+    if not counts or counts[0] < 1:
+        _fail(f"--processes takes numbers of processes of at least 1, separated by commas, "
+              f"got {processes!r}", 2)
+    if counts[-1] > 1 and case.solver.linear not in ("krylov", "auto"):
+        _fail(f"--processes {processes}: several processes solve by PETSc's Krylov method; "
+              f"solver.linear must be krylov or auto, got {case.solver.linear}", 2)
     if steps < 2:
         _fail(f"--steps must be >= 2, got {steps}", 2)
     if largest < 1 or largest > 256 or largest & (largest - 1):
@@ -945,7 +961,8 @@ def bench_scaling_cmd(
         rows, statements = bm.bench_scaling(case_file, outdir, overrides=list(overrides or ()),
                                             steps=steps, largest=largest, smallest=smallest,
                                             time_limit_s=time_limit,
-                                            memory_limit_gib=memory_limit, echo=typer.echo)
+                                            memory_limit_gib=memory_limit, processes=counts,
+                                            echo=typer.echo)
     except KeyboardInterrupt:
         _fail("interrupted", 130)
     typer.echo(bm.format_scaling_table(rows))

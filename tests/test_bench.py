@@ -268,6 +268,31 @@ def test_scaling_on_the_smoke_wall(tmp_path):
     assert "of the step time:" in res.output
 
 
+def test_scaling_refuses_processes_it_cannot_use(tmp_path):
+    """``--processes``: numbers of at least 1, and several only with a Krylov solve; exit 2
+    naming the option before any wall is built."""
+    for bad, words in ((["--processes", "0"], "--processes takes"),
+                       (["--processes", "one"], "--processes takes"),
+                       (["--processes", "1,2", "--set", "solver.linear=pardiso"],
+                        "solver.linear must be krylov or auto")):
+        res = CliRunner().invoke(app, ["bench-scaling", SMOKE, "-o", str(tmp_path / "x"), *bad])
+        assert res.exit_code == 2 and words in res.output, res.output
+        assert not (tmp_path / "x" / "scaling.csv").exists()
+
+
+def test_processes_statements_compare_each_wall_with_one_process():
+    """Each wall on several processes against the same wall on one: the ratios of its median
+    time per step and of each process's peak memory."""
+    one = bm.ScalingRow("8x", 44, 12, 1, steps=10, step_ms_median=100.0, peak_rss_MiB=1000.0)
+    two = bm.ScalingRow("8x", 44, 12, 2, steps=10, step_ms_median=65.0, peak_rss_MiB=800.0,
+                        peak_rss_MiB_others=400.0, peak_rss_MiB_all=1200.0)
+    lines = bm.processes_statements([one, two])
+    assert lines == [("8x on 2 processes against one: time per step 0.65 (medians after the "
+                      "first steps), peak memory 0.80 on process 0 and 0.40 on the largest "
+                      "other, 1.20 in all")]
+    assert bm.processes_statements([one]) == []
+
+
 def test_the_scaling_steps_stop_where_the_case_ends(tmp_path):
     """A wall given more steps than its case needs stops at the case's end, after the same
     steps as ``masonry run`` (the target displacement reached)."""

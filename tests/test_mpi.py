@@ -19,6 +19,7 @@ mpi4py on the system's MPICH) and is skipped without it.
 
 from __future__ import annotations
 
+import csv
 import json
 import os
 import re
@@ -255,3 +256,28 @@ def test_sigterm_on_two_processes_stops_at_the_step_end_then_resumes(tmp_path):
     c = _curve(out)
     assert np.array_equal(c["step"], np.arange(1, 401))
     assert c["ux_mm"][-1] >= 0.5
+
+
+@needs_petsc
+def test_bench_scaling_steps_a_wall_on_two_processes(tmp_path):
+    """``bench-scaling --processes 1,2``: the wall stepped on one process and on two, each
+    process's peak memory in the row of two, and the comparison of the two printed."""
+    from masonry_nscd.studies import bench as bm
+
+    r = subprocess.run([sys.executable, "-m", "masonry_nscd.cli", "bench-scaling", SMOKE,
+                        "--largest", "1", "--steps", "3", "--processes", "1,2", "-o",
+                        str(tmp_path), "--set", "solver.linear=krylov"], capture_output=True,
+                       text=True, check=False, timeout=600, env=_quiet_env())
+    assert r.returncode == 0, r.stdout + r.stderr
+    with open(tmp_path / "scaling.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [(row["wall"], row["processes"]) for row in rows] == \
+        [("baseline", "1"), ("1x", "1"), ("1x", "2")]
+    two = rows[-1]
+    assert two["status"] == "ok" and int(two["steps"]) == 3
+    others, each, total = (float(two[k]) for k in ("peak_rss_MiB_others", "peak_rss_MiB",
+                                                  "peak_rss_MiB_all"))
+    assert others > 0.0 and each > 0.0 and total == pytest.approx(each + others, abs=0.01)  # each written to 1e-3
+    assert rows[1]["peak_rss_MiB_others"] == ""  # none on one process (NaN, written empty)
+    assert "1x on 2 processes against one: time per step" in r.stdout
+    assert bm.SCALING_COLUMNS == list(rows[0])

@@ -128,22 +128,13 @@ def relaunch(processes: int, argv: list[str]) -> int:
     and return its exit code. A first Ctrl-C or a SIGTERM reaches every process (process 0
     ends its step and keeps its outputs); this process waits for them. A RuntimeError where
     mpiexec or mpi4py is missing."""
-    import importlib.util
-    import shutil
     import subprocess
-
-    mpiexec = os.path.join(os.path.dirname(sys.executable), "mpiexec")
-    if not os.access(mpiexec, os.X_OK):
-        mpiexec = shutil.which("mpiexec")
-    if mpiexec is None or any(importlib.util.find_spec(m) is None
-                              for m in ("mpi4py", "petsc4py")):
-        raise RuntimeError(f"--processes {processes}: {MISSING}")
     import tempfile
 
+    launch = launcher(processes)
     fd, exit_file = tempfile.mkstemp(prefix="masonry-exit-")
     os.close(fd)
-    child = subprocess.Popen([mpiexec, "-n", str(processes), sys.executable, "-m",
-                              "masonry_nscd.cli", *argv],
+    child = subprocess.Popen([*launch, "-m", "masonry_nscd.cli", *argv],
                              env={**os.environ, EXIT_FILE_VARIABLE: exit_file})
 
     def forward(signum, frame):
@@ -160,6 +151,22 @@ def relaunch(processes: int, argv: list[str]) -> int:
         os.unlink(exit_file)
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
         signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+def launcher(processes: int) -> list[str]:
+    """The command that starts this environment's Python on ``processes`` processes under its
+    ``mpiexec`` (the module or script and its arguments to follow). A RuntimeError where
+    mpiexec, mpi4py or petsc4py is missing."""
+    import importlib.util
+    import shutil
+
+    mpiexec = os.path.join(os.path.dirname(sys.executable), "mpiexec")
+    if not os.access(mpiexec, os.X_OK):
+        mpiexec = shutil.which("mpiexec")
+    if mpiexec is None or any(importlib.util.find_spec(m) is None
+                              for m in ("mpi4py", "petsc4py")):
+        raise RuntimeError(f"--processes {processes}: {MISSING}")
+    return [mpiexec, "-n", str(processes), sys.executable]
 
 
 def record_exit(code: int) -> None:

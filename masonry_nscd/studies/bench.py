@@ -570,7 +570,20 @@ def _limit_memory(gib: float | None) -> None:
 
 
 def _child_main(spec_path: str) -> int:
-    """Entry point of a child process: read the spec, run it, write the result JSON."""
+    """Entry point of a child process: read the spec, run it, write the result JSON. Launched
+    on several processes (``processes`` in the spec), process 0 runs it and the others take
+    part in its linear solves (``nscd/mpi.py``); the result has every process's peak memory
+    (``peak_rss_MiB_per_process``)."""
+    from masonry_nscd.nscd import mpi
+
+    if mpi.launched_rank() > 0:
+        from masonry_nscd import threads
+
+        threads.set_count(1)
+        mpi.serve(mpi.world())
+        return 0
+    if mpi.launched_processes() > 1:
+        mpi.world()  # MPI started before the run, so that an early error still stops the others
     spec = json.loads(Path(spec_path).read_text())
     try:
         _limit_memory(spec.get("memory_limit_gib"))
@@ -581,8 +594,10 @@ def _child_main(spec_path: str) -> int:
                    f"address space: MemoryError {exc}")
     except Exception as exc:  # noqa: BLE001 - reported to the parent as the run's outcome
         out = {"status": "error", "message": f"{type(exc).__name__}: {exc}"}
-    out["peak_rss_MiB"] = timing.peak_memory_mib()
+    out["peak_rss_MiB_per_process"] = mpi.peak_memory_per_process()
+    out["peak_rss_MiB"] = out["peak_rss_MiB_per_process"][0]
     Path(spec["result"]).write_text(json.dumps(out))
+    mpi.shutdown()  # the other processes stop (nothing on one process)
     return 0
 
 
@@ -600,16 +615,23 @@ def run_in_child(spec: Mapping[str, Any], timeout_s: float | None = None) -> dic
 
     ``spec``: ``kind`` (``run``: :func:`masonry_nscd.studies.point.run_point` of ``case`` with
     ``overrides`` into ``outdir``, stopped after ``time_limit_s``; ``steps``: build the wall and
-    make ``steps`` steps, no outputs). The result always has ``status`` (``ok``, ``timeout``,
-    ``failed``, ``error``), ``message`` and, unless the process died, ``peak_rss_MiB``.
+    make ``steps`` steps, no outputs), and ``processes`` (default 1: more launches the child
+    under ``mpiexec``, ``mpi.launcher``). The result always has ``status`` (``ok``,
+    ``timeout``, ``failed``, ``error``), ``message`` and, unless the process died,
+    ``peak_rss_MiB`` (process 0's) and ``peak_rss_MiB_per_process``.
     """
+    from masonry_nscd.nscd import mpi
+
+    processes = int(spec.get("processes", 1))
+    python = mpi.launcher(processes) if processes > 1 else [sys.executable]
     with tempfile.TemporaryDirectory(prefix="masonry-bench-") as tmp:
         spec_path, result = Path(tmp) / "spec.json", Path(tmp) / "result.json"
         spec_path.write_text(json.dumps({**spec, "result": str(result)}))
         t0 = time.perf_counter()
         try:
-            proc = subprocess.run([sys.executable, "-m", "masonry_nscd.studies.bench",
-                                   str(spec_path)], check=False, capture_output=True, text=True, timeout=timeout_s)
+            proc = subprocess.run([*python, "-m", "masonry_nscd.studies.bench", str(spec_path)],
+                                  check=False, capture_output=True, text=True,
+                                  timeout=timeout_s)
         except subprocess.TimeoutExpired:
             # a step that never ended: what the child wrote before it (``_write_partial``)
             return {**_partial_result({"result": str(result)}), "status": "timeout",
@@ -1017,6 +1039,7 @@ class ScalingRow:
     wall: str  # baseline, 1x, 2x, 4x, 8x, ...
     courses: int
     units_per_course: int
+    processes: int = 1  # the processes the wall was stepped on (``masonry run --processes``)
     units: int = 0
     contact_points: int = 0
     dofs: int = 0
@@ -1034,8 +1057,10 @@ class ScalingRow:
     factorisations_per_step: float = math.nan
     linear_iterations_per_step: float = math.nan
     linear_fallbacks: int = 0
-    peak_rss_MiB: float = math.nan
+    peak_rss_MiB: float = math.nan  # process 0's
     rss_above_baseline_MiB: float = math.nan
+    peak_rss_MiB_others: float = math.nan  # the largest of the other processes' (none on one)
+    peak_rss_MiB_all: float = math.nan  # every process's, summed
     process_s: float = math.nan
     status: str = ""
     message: str = ""
@@ -1115,11 +1140,14 @@ def linear_fit(x: Sequence[float], y: Sequence[float]) -> tuple[float, float]:
 
 
 def _scaling_row(name: str, courses: int, units: int, res: Mapping[str, Any],
-                 skip: int) -> ScalingRow:
-    """The row of one wall from its child's result; a wall stopped by its time or memory limit
-    keeps its build time and the steps it made."""
-    row = ScalingRow(name, courses, units, status=res["status"], message=res.get("message", ""),
-                     process_s=res["process_s"], peak_rss_MiB=_num(res.get("peak_rss_MiB")))
+                 skip: int, processes: int = 1) -> ScalingRow:
+    """The row of one wall stepped on ``processes`` processes from its child's result; a wall
+    stopped by its time or memory limit keeps its build time and the steps it made."""
+    each = [_num(m) for m in res.get("peak_rss_MiB_per_process") or [res.get("peak_rss_MiB")]]
+    row = ScalingRow(name, courses, units, processes=processes, status=res["status"],
+                     message=res.get("message", ""), process_s=res["process_s"],
+                     peak_rss_MiB=each[0], peak_rss_MiB_all=float(sum(each)),
+                     peak_rss_MiB_others=max(each[1:]) if len(each) > 1 else math.nan)
     if "build_s" in res:
         row.units, row.contact_points, row.dofs = res["units"], res["contact_points"], res["dofs"]
         row.scene_s, row.build_s = res["scene_s"], res["build_s"]
@@ -1150,12 +1178,16 @@ def _scaling_row(name: str, courses: int, units: int, res: Mapping[str, Any],
 def bench_scaling(case_path: Path | str, outdir: Path | str, *, overrides: Sequence[str] = (),
                   steps: int = 40, largest: int = 8, smallest: int = 1,
                   time_limit_s: float | None = None,
-                  memory_limit_gib: float | None = None, echo: Callable[[str], None] = print
+                  memory_limit_gib: float | None = None, processes: Sequence[int] = (1,),
+                  echo: Callable[[str], None] = print
                   ) -> tuple[list[ScalingRow], list[str]]:
     """Step walls of ``smallest``, ..., 4, ... ``largest`` times the units of the case (powers
-    of two) ``steps`` times each, in fresh subprocesses, after a one-unit baseline; write ``scaling.csv`` and ``scaling.png``
-    in ``outdir``. Returns the rows (baseline first) and the fit statements
-    (:func:`scaling_statements`).
+    of two) ``steps`` times each, in fresh subprocesses, after a one-unit baseline; write
+    ``scaling.csv`` and ``scaling.png`` in ``outdir``. Returns the rows (baseline first) and
+    the fit statements (:func:`scaling_statements`). Each wall is stepped once on each number
+    of ``processes`` (``masonry run --processes``: PETSc's Krylov solve, ``solver.linear:
+    krylov``); the fits and the figure are of one process, and each wall on more is compared
+    with it (:func:`processes_statements`).
 
     ``time_limit_s``: per wall, no step starts after that long (s, build included), and a step
     still going a minute later is killed with its process; the wall is reported with status
@@ -1169,8 +1201,8 @@ def bench_scaling(case_path: Path | str, outdir: Path | str, *, overrides: Seque
     skip = min(5, steps // 4)
     walls = [("baseline", 1, 1)] + [(f"{k}x", c, n) for k, c, n in sizes if k >= smallest]
 
-    def spec(c: int, n: int) -> dict[str, Any]:
-        return {"kind": "steps", "case": str(case_path), "steps": steps,
+    def spec(c: int, n: int, p: int = 1) -> dict[str, Any]:
+        return {"kind": "steps", "case": str(case_path), "steps": steps, "processes": p,
                 "time_limit_s": time_limit_s, "memory_limit_gib": memory_limit_gib,
                 "overrides": [*overrides, f"wall.courses={c}", f"wall.units_per_course={n}"]}
 
@@ -1179,26 +1211,32 @@ def bench_scaling(case_path: Path | str, outdir: Path | str, *, overrides: Seque
     rows: list[ScalingRow] = []
     parts: list[PartRow] = []
     step_rows: list[StepRow] = []
-    for name, c, n in walls:
+    runs = [(name, c, n, p) for name, c, n in walls
+            for p in ((1,) if name == "baseline" else processes)]
+    for name, c, n, p in runs:
+        label = name if p == 1 else f"{name} on {p} processes"
         if rows and rows[-1].status in ("memory", "skipped"):
-            rows.append(ScalingRow(name, c, n, status="skipped",
+            rows.append(ScalingRow(name, c, n, p, status="skipped",
                                    message=f"not tried: {rows[-1].wall} hit its limit"))
-            echo(f"{name}: skipped ({rows[-1].message})")
+            echo(f"{label}: skipped ({rows[-1].message})")
             continue
-        res = run_in_child(spec(c, n), timeout_s=kill_s)
-        row = _scaling_row(name, c, n, res, skip)
+        res = run_in_child(spec(c, n, p), timeout_s=kill_s)
+        row = _scaling_row(name, c, n, res, skip, p)
         rows.append(row)
-        wall_parts = scaling_parts(name, res)
+        wall_parts = scaling_parts(label, res)
         parts += wall_parts
-        step_rows += scaling_steps(name, res)
+        step_rows += scaling_steps(label, res)
         end = (f"the case's end (t = {row.simulated_s:.4g} s)" if row.finished else
                f"t = {row.simulated_s:.4g} s")
-        echo(f"{name}: {c} courses x {n} units per course, {row.units} units, "
+        memory = (f"{row.peak_rss_MiB:.0f} MiB" if p == 1 else
+                  f"{row.peak_rss_MiB:.0f} MiB on process 0, {row.peak_rss_MiB_others:.0f} "
+                  f"on the largest other, {row.peak_rss_MiB_all:.0f} in all")
+        echo(f"{label}: {c} courses x {n} units per course, {row.units} units, "
              f"{row.contact_points} contact points: {row.status}, build {row.build_s:.3g} s, "
              f"{row.steps} steps to {end}, {row.step_ms_mean:.3g} ms per step on average "
              f"({row.step_ms_median:.3g} median after the first {skip}), "
              f"{row.factorisations_per_step:.2g} factorisations per step, "
-             f"{row.peak_rss_MiB:.0f} MiB" + (f": {row.message}" if row.message else ""))
+             + memory + (f": {row.message}" if row.message else ""))
         top = wall_parts[:4]  # the longest first (timing.table)
         if top:
             echo("  of the step time: " + ", ".join(
@@ -1206,19 +1244,20 @@ def bench_scaling(case_path: Path | str, outdir: Path | str, *, overrides: Seque
                 for p in top))
     base = rows[0].peak_rss_MiB
     for r in rows[1:]:
-        r.rss_above_baseline_MiB = r.peak_rss_MiB - base
+        if r.processes == 1:
+            r.rss_above_baseline_MiB = r.peak_rss_MiB - base
     write_rows(outdir / "scaling.csv", rows, SCALING_COLUMNS)
     write_rows(outdir / "scaling_parts.csv", parts, PARTS_COLUMNS)
     write_rows(outdir / "scaling_steps.csv", step_rows, STEP_COLUMNS)
     plot_scaling(rows, outdir / "scaling.png",
                  f"{case.name}: up to {steps} steps per wall (fewer where the case ends)")
-    return rows, scaling_statements(rows)
+    return rows, scaling_statements(rows) + processes_statements(rows)
 
 
 def _measured_walls(rows: Sequence[ScalingRow]) -> list[ScalingRow]:
     """The walls that made steps: finished, or stopped by their time limit after some steps
     (their peak memory and time per step are measured; a wall out of memory is not)."""
-    return [r for r in rows if r.wall != "baseline" and r.steps > 0
+    return [r for r in rows if r.wall != "baseline" and r.steps > 0 and r.processes == 1
             and r.status in ("ok", "timeout")]
 
 
@@ -1227,7 +1266,8 @@ def scaling_statements(rows: Sequence[ScalingRow]) -> list[str]:
     increments above the baseline, and the log-log slope of the time per step."""
     walls = _measured_walls(rows)
     npt = [float(r.contact_points) for r in walls]
-    timed = [r for r in rows if r.wall != "baseline" and math.isfinite(r.step_ms_median)]
+    timed = [r for r in rows if r.wall != "baseline" and r.processes == 1
+             and math.isfinite(r.step_ms_median)]
     slope, intercept = linear_fit(npt, [r.peak_rss_MiB for r in walls])
     above = [r.rss_above_baseline_MiB for r in walls]
     s_mem = loglog_slope(npt, above)
@@ -1254,15 +1294,33 @@ def scaling_statements(rows: Sequence[ScalingRow]) -> list[str]:
     ]
 
 
+def processes_statements(rows: Sequence[ScalingRow]) -> list[str]:
+    """Each wall stepped on several processes against the same wall on one: its median time
+    per step, and each process's peak memory, as ratios of one process's."""
+    one = {r.wall: r for r in rows if r.processes == 1 and r.steps > 0}
+    out = []
+    for r in rows:
+        ref = one.get(r.wall)
+        if r.processes == 1 or r.steps == 0 or ref is None:
+            continue
+        out.append(f"{r.wall} on {r.processes} processes against one: time per step "
+                   f"{r.step_ms_median / ref.step_ms_median:.2f} (medians after the first "
+                   f"steps), peak memory {r.peak_rss_MiB / ref.peak_rss_MiB:.2f} on process 0 "
+                   f"and {r.peak_rss_MiB_others / ref.peak_rss_MiB:.2f} on the largest other, "
+                   f"{r.peak_rss_MiB_all / ref.peak_rss_MiB:.2f} in all")
+    return out
+
+
 def format_scaling_table(rows: Sequence[ScalingRow]) -> str:
     """The scaling rows as a fixed-width text table."""
-    lines = [(f"{'wall':8s} {'courses':>7s} {'upc':>4s} {'units':>6s} {'points':>7s} "
+    lines = [(f"{'wall':8s} {'P':>2s} {'courses':>7s} {'upc':>4s} {'units':>6s} {'points':>7s} "
               f"{'dofs':>7s} {'scene s':>8s} {'build s':>8s} {'steps':>5s} {'mean ms':>8s} "
               f"{'ms/step':>8s} {'it/step':>7s} "
               f"{'ms/it':>7s} {'LU/step':>7s} {'kry/st':>6s} "
               f"{'RSS MiB':>8s} {'above base':>10s} status")]
     for r in rows:
-        lines.append(f"{r.wall:8s} {r.courses:7d} {r.units_per_course:4d} {r.units:6d} "
+        lines.append(f"{r.wall:8s} {r.processes:2d} {r.courses:7d} {r.units_per_course:4d} "
+                     f"{r.units:6d} "
                      f"{r.contact_points:7d} {r.dofs:7d} {r.scene_s:8.3g} {r.build_s:8.3g} "
                      f"{r.steps:5d} {r.step_ms_mean:8.3g} "
                      f"{r.step_ms_median:8.3g} {r.median_iterations:7.3g} "
