@@ -509,7 +509,7 @@ def nave_blocks(bay: Bay, bays: int, parts=PARTS
 
     blocks: list[tuple[str, list[np.ndarray]]] = []
     supports: list[str] = []
-    own = [(n, hx) for n, hx in nave_bay_blocks(bay, tuple(p for p in parts if p == "walls"))[0]]
+    own = list(nave_bay_blocks(bay, ("walls",) if "walls" in parts else ())[0])
     if "vault" in parts:
         own += vault_blocks(bay, bay.bay_m - bay.transverse_rib_width_m)
     for k in range(bays):

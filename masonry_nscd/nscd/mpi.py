@@ -12,9 +12,9 @@ Newton matrix, the outputs). It drives the others by commands (``command``): a n
 (``INIT``), a new matrix (``SETUP``: it then sends every process its rows of ``S``, their
 arrays as they are in memory, ``send_rows``), a solve (``SOLVE``), a solver dropped
 (``FORGET``), each process's peak memory (``MEMORY``, gathered on process 0:
-``peak_memory_per_process``), the end of the run (``STOP``). The other processes wait for them (``serve``),
-looking every ``POLL_S`` and sleeping in between, so that they leave the cores to process 0's
-kernels. So the linear solve's work and memory are split; the rest of a step is not yet
+``peak_memory_per_process``), the end of the run (``STOP``). The other processes wait for
+them (``serve``), looking every ``POLL_S`` and sleeping in between, so that they leave the
+cores to process 0's kernels. So the linear solve's work and memory are split; the rest of a step is not yet
 (``docs/scaling.md``, "Beyond one machine").
 """
 
