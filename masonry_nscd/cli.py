@@ -202,11 +202,7 @@ def run(
         except RuntimeError as exc:
             _fail(str(exc), 2)
         raise typer.Exit(code)
-    if mpi.launched_rank() > 0:  # mpiexec's other processes: the linear solves, no outputs
-        from masonry_nscd import threads
-
-        threads.set_count(1)
-        mpi.serve(mpi.world())
+    if mpi.take_part():  # mpiexec's other processes: the linear solves, no outputs
         return
     if mpi.launched_processes() > 1:
         try:  # MPI started now, so that an early exit (a bad case) still stops the others

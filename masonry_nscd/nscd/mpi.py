@@ -260,6 +260,19 @@ def _next_command(comm) -> tuple[int, int]:
     return int(buf[0]), int(buf[1])
 
 
+def take_part() -> bool:
+    """On a process other than 0 of those mpiexec launched: take part in process 0's solves
+    until it stops (``serve``, this process's kernels on one thread), then True. False at once
+    on process 0 or without mpiexec: the caller runs the work."""
+    if launched_rank() == 0:
+        return False
+    from masonry_nscd import threads
+
+    threads.set_count(1)
+    serve(world())
+    return True
+
+
 def serve(comm) -> None:
     """A process other than 0: take part in process 0's solves until it stops, then end MPI.
     Interrupts are process 0's to handle (it finishes its step and keeps its outputs); an

@@ -554,7 +554,8 @@ def _write_partial(spec: Mapping[str, Any], out: Mapping[str, Any]) -> None:
         return
     path = Path(spec["result"])
     tmp = path.with_suffix(".part")
-    tmp.write_text(json.dumps({**out, "status": "partial", "peak_rss_MiB": timing.peak_memory_mib()}))
+    tmp.write_text(json.dumps({**out, "status": "partial",
+                               "peak_rss_MiB": timing.peak_memory_mib()}))
     tmp.replace(path)
 
 
@@ -576,11 +577,7 @@ def _child_main(spec_path: str) -> int:
     (``peak_rss_MiB_per_process``)."""
     from masonry_nscd.nscd import mpi
 
-    if mpi.launched_rank() > 0:
-        from masonry_nscd import threads
-
-        threads.set_count(1)
-        mpi.serve(mpi.world())
+    if mpi.take_part():
         return 0
     if mpi.launched_processes() > 1:
         mpi.world()  # MPI started before the run, so that an early error still stops the others
