@@ -51,8 +51,7 @@ GROUPS: dict[str, tuple[str, ...]] = {
                "masonry_nscd.nscd.step_residual.momentum_rows",
                "masonry_nscd.nscd.step_residual.traction_change",
                "masonry_nscd.nscd.step_residual.change_norm",
-               "masonry_nscd.nscd.newton._jacobian_entries",
-               "masonry_nscd.nscd.newton.scatter_add"),
+               "masonry_nscd.nscd.newton._jacobian_entries"),
     # the ENDO3D blocks: the trial and its tangent share the material's update
     "endo3d": ("masonry_nscd.fe.element.forces_from_gradients",
                "masonry_nscd.materials.blocks.trial_forces",

@@ -379,16 +379,6 @@ def jacobian_values(slot, nnz, body_dof0, mhat_off, mhat, free_index, nfree, sid
 
 
 @njit(cache=True)
-def scatter_add(slot, vals, out):
-    """``out[slot[k]] += vals[k]`` over all k, from ``out = 0``: triplets summed into the
-    values of a fixed sparse pattern."""
-    for i in range(out.shape[0]):
-        out[i] = 0.0
-    for k in range(slot.shape[0]):
-        out[slot[k]] += vals[k]
-
-
-@njit(cache=True)
 def csc_slots(rows, cols, n, indptr):
     """The compressed-column pattern of the triplets ``(rows, cols)`` of an ``n x n`` matrix
     and the place of each triplet in it: returns ``(slot, indices)`` and fills ``indptr``
@@ -465,8 +455,8 @@ class _Pattern:
 
     Every Newton matrix of a scene has the same pattern (the same bodies, points and free
     dofs; ``jacobian_coo(..., keep_zeros=True)`` emits the same triplets in the same order), so
-    the place of each triplet in the CSC arrays is computed once and filling a matrix is a
-    scatter (``scatter_add``) instead of a COO to CSC conversion. The symmetric minimum-degree
+    the place of each triplet in the CSC arrays is computed once and a matrix is summed
+    straight into its values (``jacobian_values``) instead of a COO to CSC conversion. The symmetric minimum-degree
     order of SuperLU (``MMD_AT_PLUS_A``) is also computed once, at the first factorisation,
     and the later matrices are factorised already permuted, in their natural order: the same
     fill in L + U as an order computed for each matrix, without the conversion and the
@@ -515,10 +505,9 @@ class _Pattern:
         return other
 
     def values(self, vals: np.ndarray) -> np.ndarray:
-        """The CSC values of the matrix of the triplet values ``vals`` (in the current order)."""
-        data = np.empty(len(self.indices))
-        scatter_add(self.slot, vals, data)
-        return data
+        """The CSC values of the matrix of the triplet values ``vals`` (in the current order),
+        summed in the triplets' order as ``jacobian_values`` sums them."""
+        return np.bincount(self.slot, weights=vals, minlength=len(self.indices))
 
     def matrix(self, data: np.ndarray) -> sp.csc_matrix:
         """The matrix of the CSC values ``data`` (in the current order)."""
