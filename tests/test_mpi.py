@@ -277,7 +277,8 @@ def test_bench_scaling_steps_a_wall_on_two_processes(tmp_path):
     assert two["status"] == "ok" and int(two["steps"]) == 3
     others, each, total = (float(two[k]) for k in ("peak_rss_MiB_others", "peak_rss_MiB",
                                                   "peak_rss_MiB_all"))
-    assert others > 0.0 and each > 0.0 and total == pytest.approx(each + others, abs=0.01)  # each written to 1e-3
+    # each figure written to 1e-3 MiB
+    assert others > 0.0 and each > 0.0 and total == pytest.approx(each + others, abs=0.01)
     assert rows[1]["peak_rss_MiB_others"] == ""  # none on one process (NaN, written empty)
     assert "1x on 2 processes against one: time per step" in r.stdout
     assert bm.SCALING_COLUMNS == list(rows[0])

@@ -192,9 +192,9 @@ def _hexahedron_volumes(X: np.ndarray, hexes: np.ndarray) -> np.ndarray:
     """The volumes of hexahedra with flat faces (m^3): each cut into six tetrahedra about its
     diagonal from corner 0 to corner 6."""
     P = X[hexes]
+    d = P[:, 6] - P[:, 0]
     total = np.zeros(len(hexes))
     for a, b in ((1, 2), (2, 3), (3, 7), (7, 4), (4, 5), (5, 1)):
-        d = P[:, 6] - P[:, 0]
         total += np.einsum("ei,ei->e", d, np.cross(P[:, a] - P[:, 0], P[:, b] - P[:, 0])) / 6.0
     return np.abs(total)
 
