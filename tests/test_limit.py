@@ -13,12 +13,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 from scipy.optimize import linprog
 from typer.testing import CliRunner
 
 from masonry_nscd.case import load_case
 from masonry_nscd.cli import app
-from masonry_nscd.limit import friction, mechanism, path
+from masonry_nscd.limit import friction, mechanism, path, statics
 from masonry_nscd.limit.analysis import analyse
 from masonry_nscd.limit.lp import elastic_state, solve_limit, solve_non_associative
 from masonry_nscd.limit.path import follow_load
@@ -516,6 +517,61 @@ def test_the_barrel_vault_collapses_as_its_weakest_ring():
 
 
 # --- the load followed from rest (--method load-path) -----------------------------------------
+
+def test_the_load_path_point_law_by_hand_and_by_differences():
+    """One point of each kind against the law written out (k_n = k_t = 1e9 N/m, mu = 0.5):
+    open, sticking, sliding and glued; then the tangent of every kind against central
+    differences of the forces."""
+    kn = kt = np.full(4, 1e9)
+    mu = np.full(4, 0.5)
+    glued = np.array([False, False, False, True])
+    g = np.array([[1e-4, 3e-4, 0.0],     # open
+                  [-1e-3, 2e-4, 0.0],    # closed, |F*| = 2e5 N <= mu N = 5e5 N: sticks
+                  [-1e-3, 2e-3, 0.0],    # |F*| = 2e6 N > 5e5 N: slides back to the cone
+                  [1e-4, 3e-4, 0.0]])    # glued: a spring in tension too
+    slip = np.zeros((4, 2))
+    f, D, after, closed, sliding = path.joint_forces(g, slip, kn, kt, mu, glued)
+    assert closed.tolist() == [False, True, True, True]
+    assert sliding.tolist() == [False, False, True, False]
+    np.testing.assert_allclose(f, [[0, 0, 0], [1e6, -2e5, 0], [1e6, -5e5, 0],
+                                   [-1e5, -3e5, 0]], atol=1e-6)
+    np.testing.assert_allclose(after, [[3e-4, 0], [0, 0], [1.5e-3, 0], [0, 0]], atol=1e-15)
+    # the slider: dN/dg_n = -k_n, dT/dg_n = -mu k_n e_t = +5e8, dS/dg_s = -k_t mu N / |F*|
+    np.testing.assert_allclose(D[2], [[-1e9, 0, 0], [5e8, 0, 0], [0, 0, -2.5e8]])
+    rng = np.random.default_rng(3)
+    g = np.array([[-1e-3, 2e-4, 1e-4], [-1e-3, 1.5e-3, -1e-3], [2e-4, 1e-4, -3e-4]])
+    slip = rng.normal(scale=1e-4, size=(3, 2))
+    args = (slip, kn[:3], kt[:3], mu[:3], np.array([False, False, True]))
+    D = path.joint_forces(g, *args)[1]
+    h = 1e-9
+    for k in range(3):
+        step = np.zeros_like(g)
+        step[:, k] = h
+        diff = (path.joint_forces(g + step, *args)[0] - path.joint_forces(g - step, *args)[0])
+        np.testing.assert_allclose(D[:, :, k], diff / (2 * h), rtol=1e-6, atol=1e-6 * 1e9)
+
+
+def test_the_load_path_matrix_and_forces_are_those_of_the_equilibrium_matrix():
+    """The kernels' ``B^T u``, ``B f`` and ``B D B^T`` on the free dofs against the
+    equilibrium matrix of the statics (assembled independently, by scipy) on the arch, for
+    random displacements, forces and point tangents."""
+    m = rigid_model(build_scene(load_case(ARCH)))
+    points = path._Points(m, linear="lu")
+    free = np.flatnonzero(m.free)
+    B = statics.equilibrium_matrix(m).toarray()[free]
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=len(free))
+    f = rng.normal(size=(m.points, 3))
+    D = rng.normal(size=(m.points, 3, 3))
+    np.testing.assert_allclose(points.gap(x).ravel(), B.T @ x, atol=1e-12)
+    np.testing.assert_allclose(points.force(f), B @ f.ravel(), atol=1e-12)
+    blocks = np.zeros((3 * m.points, 3 * m.points))
+    for a in range(m.points):
+        blocks[3 * a:3 * a + 3, 3 * a:3 * a + 3] = D[a]
+    J = sp.csc_matrix((points.matrix(D, c=2.0), points.indices, points.indptr),
+                      shape=(len(free), len(free))).toarray()
+    np.testing.assert_allclose(J, B @ blocks @ B.T - 2.0 * np.eye(len(free)), atol=1e-10)
+
 
 @pytest.mark.parametrize("width, height, mu", [(0.1, 0.4, 0.6), (0.3, 0.4, 0.5)])
 def test_the_load_path_topples_or_slides_the_block(width, height, mu):

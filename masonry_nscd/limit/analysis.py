@@ -58,8 +58,9 @@ def _kind(flow: str, iteration: dict | None, method: str = METHODS[0]) -> str:
         return ("associative: the collapse multiplier of the normality rule (a sliding joint "
                 "dilates); an upper bound of the non-associative one where sliding matters")
     if method == "load-path":
-        above = ("the blocks move the collapse displacement" if iteration and
-                 iteration.get("collapsed") else "the solver failed (no collapse seen)")
+        above = ("the blocks flow (a tenth of the collapse displacement in one load step)"
+                 if iteration and iteration.get("collapsed")
+                 else "the solver failed (no collapse seen)")
         return ("non-associative: the load followed from rest, rigid blocks on the joints' "
                 f"springs, Coulomb friction without dilatancy; the last load at rest before {above}")
     done = "converged" if iteration and iteration.get("converged") else "not converged"
