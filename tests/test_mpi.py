@@ -9,6 +9,9 @@
 * a run of the smoke case on 2 and 3 processes: the log says so and names PETSc's solver, and
   the curve is the run's on one process to the Newton tolerance, step for step; PETSc's
   options from the command line over the case's.
+* the 8x elastic study wall on 2 and 3 processes: the one-process curve within the
+  regression's bound (``test_regression.py``); the ENDO3D study wall to 2 mm on 2 and 3
+  processes: its stored regression curve within that bound.
 * a direct solver asked for, or a bad case, on several processes: exit 2, the message once.
 * SIGTERM on two processes: exit 130, the outputs kept, no process left; --resume on two
   processes finishes the run.
@@ -32,12 +35,14 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+import test_regression
 from conftest import stop_by_sigterm, wait_for_rows
 from typer.testing import CliRunner
 
 from masonry_nscd.case import load_case
 from masonry_nscd.cli import app
 from masonry_nscd.nscd import linear, mpi, petsc_solve
+from masonry_nscd.report import read_curve_csv
 from masonry_nscd.scenes import build_scene
 
 needs_petsc = pytest.mark.skipif(
@@ -192,6 +197,58 @@ def test_a_run_on_several_processes_is_the_run_on_one(one_process_curve, process
         scale = np.abs(a[col]).max()
         assert np.abs(a[col] - b[col]).max() <= 100.0 * tol * scale, col
     assert np.all(b["converged"] == 1)
+
+
+#: The study's wall, eight times the units (44 courses of 12), elastic, to 0.5 mm: the
+#: regression's settings (``test_regression.CASES``) on the Krylov solver.
+STUDY_8X = ("cases/wall_0.5MPa_elastic.yaml",
+            [*test_regression.CASES["study_elastic_0.5mm"][1], "wall.courses=44",
+             "wall.units_per_course=12"])
+
+
+def _run_on(case: str, sets: list[str], processes: int, out: Path) -> dict:
+    """``masonry run`` of ``case`` on the Krylov solver on ``processes`` processes: the
+    curve's columns."""
+    args = [a for s in (*sets, *QUIET, "solver.linear=krylov") for a in ("--set", s)]
+    r = subprocess.run([sys.executable, "-m", "masonry_nscd.cli", "run", case, "-o", str(out),
+                        *args, "--processes", str(processes)], capture_output=True, text=True,
+                       check=False, timeout=900, env=_quiet_env())
+    assert r.returncode == 0, r.stderr
+    return read_curve_csv(out / "force_displacement.csv")
+
+
+@pytest.fixture(scope="module")
+def study_8x_one_process(tmp_path_factory):
+    return _run_on(*STUDY_8X, 1, tmp_path_factory.mktemp("study8x") / "one")
+
+
+@needs_petsc
+@pytest.mark.parametrize("processes", [2, 3])
+def test_the_8x_study_wall_on_several_processes_is_the_run_on_one(study_8x_one_process,
+                                                                  processes, tmp_path):
+    """The 8x elastic study wall (18,000 dofs) on 2 and 3 processes: every physical column
+    within the regression's bound of the one-process curve (the solver's tolerance, step for
+    step while the runs step alike)."""
+    case, sets = STUDY_8X
+    new = _run_on(case, sets, processes, tmp_path / "run")
+    ref = study_8x_one_process
+    assert len(new["step"]) == len(ref["step"])
+    assert not test_regression.moved(ref, new, load_case(case, sets).solver.tolerance)
+
+
+@needs_petsc
+@pytest.mark.parametrize("processes", [2, 3])
+def test_the_endo3d_study_wall_keeps_its_regression_curve_on_several_processes(processes,
+                                                                               tmp_path):
+    """The study's wall with ENDO3D blocks to 2 mm, past the cracking of the heel, on 2 and 3
+    processes: its stored regression curve (``tests/data/regression``, written with the
+    direct solver on one process) within the regression's bound."""
+    name = "study_endo3d_2mm"
+    case, sets = test_regression.CASES[name]
+    new = _run_on(case, sets, processes, tmp_path / "run")
+    ref = read_curve_csv(test_regression.DATA / f"{name}.csv")
+    assert len(new["step"]) == len(ref["step"])
+    assert not test_regression.moved(ref, new, load_case(case, sets).solver.tolerance)
 
 
 @needs_petsc
