@@ -25,7 +25,10 @@ A polygon is a (k, 2) array of corners in counter-clockwise order.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 
 #: Barycentric coordinates of the degree-2 points of a triangle (each of weight 1/3)
 TRIANGLE_POINTS = np.array([[2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6], [1 / 6, 1 / 6, 2 / 3]])
@@ -33,10 +36,19 @@ TRIANGLE_POINTS = np.array([[2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6], [1 / 6
 
 def signed_area(P: np.ndarray) -> float:
     """Area of polygon ``P`` (k, 2), positive when its corners turn counter-clockwise (m^2)."""
-    if len(P) < 3:
+    return _signed_area(np.ascontiguousarray(P, dtype=float))
+
+
+@njit(cache=True)
+def _signed_area(P):
+    k = P.shape[0]
+    if k < 3:
         return 0.0
-    x, y = P[:, 0], P[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+    s = 0.0
+    for i in range(k):
+        j = (i + 1) % k
+        s += P[i, 0] * P[j, 1] - P[j, 0] * P[i, 1]
+    return 0.5 * s
 
 
 def counter_clockwise(P: np.ndarray) -> np.ndarray:
@@ -48,37 +60,61 @@ def clip(subject: np.ndarray, clipper: np.ndarray, tol: float = 0.0) -> np.ndarr
     """The part of convex polygon ``subject`` inside convex polygon ``clipper`` (both (k, 2),
     any orientation): a counter-clockwise polygon, (0, 2) when they do not overlap. A corner
     closer than ``tol`` (m) to an edge line counts as on it."""
-    out = counter_clockwise(np.asarray(subject, dtype=float))
-    C = counter_clockwise(np.asarray(clipper, dtype=float))
-    for a, b in zip(C, np.roll(C, -1, axis=0), strict=True):
-        if len(out) == 0:
+    out = _clip(np.ascontiguousarray(counter_clockwise(np.asarray(subject, dtype=float))),
+                np.ascontiguousarray(counter_clockwise(np.asarray(clipper, dtype=float))),
+                float(tol))
+    return _without_repeats(out, float(tol))
+
+
+@njit(cache=True)
+def _clip(S, C, tol):
+    """Sutherland-Hodgman on counter-clockwise ``S`` and ``C`` (module docstring)."""
+    out = S.copy()
+    m = C.shape[0]
+    for e in range(m):
+        n = out.shape[0]
+        if n == 0:
             break
-        edge = b - a
-        length = float(np.hypot(*edge))
+        a0, a1 = C[e, 0], C[e, 1]
+        e0, e1 = C[(e + 1) % m, 0] - a0, C[(e + 1) % m, 1] - a1
+        length = math.hypot(e0, e1)
         if length == 0.0:
             continue
         # signed distance of each corner to the edge line, positive inside (on the left)
-        d = (edge[0] * (out[:, 1] - a[1]) - edge[1] * (out[:, 0] - a[0])) / length
-        kept = []
-        for i in range(len(out)):
-            p, q, dp, dq = out[i], out[(i + 1) % len(out)], d[i], d[(i + 1) % len(out)]
+        d = np.empty(n)
+        for i in range(n):
+            d[i] = (e0 * (out[i, 1] - a1) - e1 * (out[i, 0] - a0)) / length
+        kept = np.empty((2 * n, 2))  # a corner and a crossing per edge at most
+        k = 0
+        for i in range(n):
+            j = (i + 1) % n
+            dp, dq = d[i], d[j]
             if dp >= -tol:
-                kept.append(p)
+                kept[k, 0], kept[k, 1] = out[i, 0], out[i, 1]
+                k += 1
             if (dp > tol and dq < -tol) or (dp < -tol and dq > tol):
-                kept.append(p + (q - p) * (dp / (dp - dq)))
-        out = np.array(kept).reshape(-1, 2)
-    return _without_repeats(out, tol)
+                t = dp / (dp - dq)
+                kept[k, 0] = out[i, 0] + (out[j, 0] - out[i, 0]) * t
+                kept[k, 1] = out[i, 1] + (out[j, 1] - out[i, 1]) * t
+                k += 1
+        out = kept[:k].copy()
+    return out
 
 
-def _without_repeats(P: np.ndarray, tol: float) -> np.ndarray:
+@njit(cache=True)
+def _without_repeats(P, tol):
     """``P`` without corners that repeat the one before them (within ``tol`` m, and at least a
     1e-12 of the polygon's size)."""
-    if len(P) < 2:
+    k = P.shape[0]
+    if k < 2:
         return P
-    size = float(np.ptp(P, axis=0).max())
+    size = max(P[:, 0].max() - P[:, 0].min(), P[:, 1].max() - P[:, 1].min())
     eps = max(tol, 1e-12 * size)
-    keep = np.linalg.norm(P - np.roll(P, 1, axis=0), axis=1) > eps
-    return P[keep] if keep.any() else P[:1]
+    keep = np.empty(k, dtype=np.bool_)
+    for i in range(k):
+        dx, dy = P[i, 0] - P[i - 1, 0], P[i, 1] - P[i - 1, 1]
+        keep[i] = math.sqrt(dx * dx + dy * dy) > eps
+    return P[keep] if keep.any() else P[:1].copy()
 
 
 def fan(P: np.ndarray) -> np.ndarray:
