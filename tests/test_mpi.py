@@ -8,7 +8,8 @@
   (another set-up) with another right-hand side, likewise.
 * a run of the smoke case on 2 and 3 processes: the log says so and names PETSc's solver, and
   the curve is the run's on one process to the Newton tolerance, step for step; PETSc's
-  options from the command line over the case's.
+  options from the command line over the case's; ``-log_view`` among them prints PETSc's
+  summary.
 * the 8x elastic study wall on 2 and 3 processes: the one-process curve within the
   regression's bound (``test_regression.py``); the ENDO3D study wall to 2 mm on 2 and 3
   processes: its stored regression curve within that bound.
@@ -268,6 +269,25 @@ def test_petsc_options_of_the_command_line_go_over_the_case(one_process_curve, t
     a, b = one_process_curve, _curve(out)
     tol = load_case(SMOKE).solver.tolerance
     assert np.abs(a["fx_kN"] - b["fx_kN"]).max() <= 100.0 * tol * np.abs(a["fx_kN"]).max()
+
+
+@needs_petsc
+def test_petsc_log_view_from_the_command_line_prints_the_summary(tmp_path):
+    """``--petsc-options -log_view``, an option PETSc reads at its initialisation only: the run
+    ends normally (exit 0) and prints PETSc's performance summary with its message counts,
+    written to the file the option names."""
+    log = tmp_path / "log_view.txt"
+    sets = [a for s in (*QUIET, "solver.linear=krylov", "loading.horizontal.target_m=1e-4")
+            for a in ("--set", s)]
+    r = subprocess.run([sys.executable, "-m", "masonry_nscd.cli", "run", SMOKE, "-o",
+                        str(tmp_path / "run"), *sets, "--processes", "2", "--petsc-options",
+                        f"-log_view :{log}"], capture_output=True, text=True, check=False,
+                       timeout=600, env=_quiet_env())
+    assert r.returncode == 0, r.stderr
+    text = log.read_text()
+    assert "PETSc Performance Summary" in text and "with 2 processes" in text
+    counts = re.search(r"MPI Msg Count:\s+\S+\s+\S+\s+\S+\s+(\S+)", text)
+    assert counts is not None and float(counts.group(1)) > 0.0
 
 
 @needs_petsc

@@ -34,6 +34,7 @@ the curve is that of one process within it.
 from __future__ import annotations
 
 import itertools
+import shlex
 import weakref
 
 import numpy as np
@@ -63,9 +64,11 @@ _ids = itertools.count()
 _PETSc = None
 
 
-def petsc():
+def petsc(option_string: str = ""):
     """petsc4py's ``PETSc`` module, initialised on MPI's world communicator (mpi4py's, started
-    first): a RuntimeError that says how to install it where it is missing."""
+    first): a RuntimeError that says how to install it where it is missing. ``option_string``
+    is given to PETSc's initialisation, the first call's only: the options PETSc reads there
+    alone (``-log_view``, ``-info``, ``-malloc_debug``) then take effect."""
     global _PETSc
     if _PETSc is None:
         try:
@@ -74,7 +77,8 @@ def petsc():
         except ImportError as exc:
             raise RuntimeError(MISSING) from exc
         # Python keeps its signal handlers: SIGTERM and Ctrl-C end a run at the end of a step
-        petsc4py.init(["masonry", "-no_signal_handler"], comm=MPI.COMM_WORLD)
+        petsc4py.init(["masonry", "-no_signal_handler", *shlex.split(option_string)],
+                      comm=MPI.COMM_WORLD)
         from petsc4py import PETSc
 
         _PETSc = PETSc
@@ -141,7 +145,7 @@ class Part:
 
     def __init__(self, comm, body_of: np.ndarray, modes: np.ndarray, rtol: float,
                  restart: int, max_iterations: int, option_string: str):
-        PETSc = petsc()
+        PETSc = petsc(option_string)
         self.comm = comm
         self.cuts = mpi.partition(body_of, comm.size)
         lo, hi = self.lo, self.hi = int(self.cuts[comm.rank]), int(self.cuts[comm.rank + 1])
