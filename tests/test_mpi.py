@@ -163,6 +163,18 @@ def _quiet_env() -> dict:
     return {k: v for k, v in os.environ.items() if k not in mpi.SIZE_VARIABLES}
 
 
+def _run_on(case: str, sets: list[str], processes: int, out: Path, *options: str) -> Path:
+    """``masonry run`` of ``case`` into ``out`` on the Krylov solver on ``processes``
+    processes, without fields (``QUIET``), the command line's further ``options`` after it;
+    it must exit 0. Returns ``out``."""
+    args = [a for s in (*sets, *QUIET, "solver.linear=krylov") for a in ("--set", s)]
+    r = subprocess.run([sys.executable, "-m", "masonry_nscd.cli", "run", case, "-o", str(out),
+                        *args, "--processes", str(processes), *options], capture_output=True,
+                       text=True, check=False, timeout=900, env=_quiet_env())
+    assert r.returncode == 0, r.stderr
+    return out
+
+
 @pytest.fixture(scope="module")
 def one_process_curve(tmp_path_factory):
     one = tmp_path_factory.mktemp("one")
@@ -175,12 +187,7 @@ def one_process_curve(tmp_path_factory):
 @needs_petsc
 @pytest.mark.parametrize("processes", [2, 3])
 def test_a_run_on_several_processes_is_the_run_on_one(one_process_curve, processes, tmp_path):
-    sets = [a for s in (*QUIET, "solver.linear=krylov") for a in ("--set", s)]
-    out = tmp_path / "run"
-    r = subprocess.run([sys.executable, "-m", "masonry_nscd.cli", "run", SMOKE, "-o", str(out),
-                        *sets, "--processes", str(processes)], capture_output=True, text=True,
-                       check=False, timeout=600, env=_quiet_env())
-    assert r.returncode == 0, r.stderr
+    out = _run_on(SMOKE, [], processes, tmp_path / "run")
     log = (out / "run.log").read_text()
     assert f"linear solver krylov on {processes} processes" in log
     assert "0 solves made by LU" in log
@@ -207,20 +214,10 @@ STUDY_8X = ("cases/wall_0.5MPa_elastic.yaml",
              "wall.units_per_course=12"])
 
 
-def _run_on(case: str, sets: list[str], processes: int, out: Path) -> dict:
-    """``masonry run`` of ``case`` on the Krylov solver on ``processes`` processes: the
-    curve's columns."""
-    args = [a for s in (*sets, *QUIET, "solver.linear=krylov") for a in ("--set", s)]
-    r = subprocess.run([sys.executable, "-m", "masonry_nscd.cli", "run", case, "-o", str(out),
-                        *args, "--processes", str(processes)], capture_output=True, text=True,
-                       check=False, timeout=900, env=_quiet_env())
-    assert r.returncode == 0, r.stderr
-    return read_curve_csv(out / "force_displacement.csv")
-
-
 @pytest.fixture(scope="module")
 def study_8x_one_process(tmp_path_factory):
-    return _run_on(*STUDY_8X, 1, tmp_path_factory.mktemp("study8x") / "one")
+    out = _run_on(*STUDY_8X, 1, tmp_path_factory.mktemp("study8x") / "one")
+    return read_curve_csv(out / "force_displacement.csv")
 
 
 @needs_petsc
@@ -231,7 +228,8 @@ def test_the_8x_study_wall_on_several_processes_is_the_run_on_one(study_8x_one_p
     within the regression's bound of the one-process curve (the solver's tolerance, step for
     step while the runs step alike)."""
     case, sets = STUDY_8X
-    new = _run_on(case, sets, processes, tmp_path / "run")
+    new = read_curve_csv(_run_on(case, sets, processes, tmp_path / "run")
+                         / "force_displacement.csv")
     ref = study_8x_one_process
     assert len(new["step"]) == len(ref["step"])
     assert not test_regression.moved(ref, new, load_case(case, sets).solver.tolerance)
@@ -246,7 +244,8 @@ def test_the_endo3d_study_wall_keeps_its_regression_curve_on_several_processes(p
     direct solver on one process) within the regression's bound."""
     name = "study_endo3d_2mm"
     case, sets = test_regression.CASES[name]
-    new = _run_on(case, sets, processes, tmp_path / "run")
+    new = read_curve_csv(_run_on(case, sets, processes, tmp_path / "run")
+                         / "force_displacement.csv")
     ref = read_curve_csv(test_regression.DATA / f"{name}.csv")
     assert len(new["step"]) == len(ref["step"])
     assert not test_regression.moved(ref, new, load_case(case, sets).solver.tolerance)
@@ -256,15 +255,8 @@ def test_the_endo3d_study_wall_keeps_its_regression_curve_on_several_processes(p
 def test_petsc_options_of_the_command_line_go_over_the_case(one_process_curve, tmp_path):
     """The case asks for block Jacobi, the command line for overlapping Schwarz with ILU: the
     solve is PETSc's GMRES with ASM, and the curve is still the one-process curve."""
-    out = tmp_path / "run"
-    sets = [a for s in (*QUIET, "solver.linear=krylov",
-                        "solver.petsc_options=-pc_type bjacobi -ksp_max_it 400")
-            for a in ("--set", s)]
-    r = subprocess.run([sys.executable, "-m", "masonry_nscd.cli", "run", SMOKE, "-o", str(out),
-                        *sets, "--processes", "2", "--petsc-options",
-                        "-pc_type asm -sub_pc_type ilu"], capture_output=True, text=True,
-                       check=False, timeout=600, env=_quiet_env())
-    assert r.returncode == 0, r.stderr
+    out = _run_on(SMOKE, ["solver.petsc_options=-pc_type bjacobi -ksp_max_it 400"], 2,
+                  tmp_path / "run", "--petsc-options", "-pc_type asm -sub_pc_type ilu")
     assert "(PETSc KSP gmres, PC asm on 2 processes)" in (out / "run.log").read_text()
     a, b = one_process_curve, _curve(out)
     tol = load_case(SMOKE).solver.tolerance
@@ -277,13 +269,8 @@ def test_petsc_log_view_from_the_command_line_prints_the_summary(tmp_path):
     ends normally (exit 0) and prints PETSc's performance summary with its message counts,
     written to the file the option names."""
     log = tmp_path / "log_view.txt"
-    sets = [a for s in (*QUIET, "solver.linear=krylov", "loading.horizontal.target_m=1e-4")
-            for a in ("--set", s)]
-    r = subprocess.run([sys.executable, "-m", "masonry_nscd.cli", "run", SMOKE, "-o",
-                        str(tmp_path / "run"), *sets, "--processes", "2", "--petsc-options",
-                        f"-log_view :{log}"], capture_output=True, text=True, check=False,
-                       timeout=600, env=_quiet_env())
-    assert r.returncode == 0, r.stderr
+    _run_on(SMOKE, ["loading.horizontal.target_m=1e-4"], 2, tmp_path / "run",
+            "--petsc-options", f"-log_view :{log}")
     text = log.read_text()
     assert "PETSc Performance Summary" in text and "with 2 processes" in text
     counts = re.search(r"MPI Msg Count:\s+\S+\s+\S+\s+\S+\s+(\S+)", text)
