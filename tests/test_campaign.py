@@ -75,6 +75,15 @@ def test_unit_parameters():
     assert rules.tensile_fracture_energy_J_m2(10.0) == pytest.approx(73 * 10 ** 0.18)
     assert rules.tensile_fracture_energy_J_m2(10.0) == pytest.approx(110.49, rel=1e-4)
     assert rules.density_kg_m3() * 9.81 == pytest.approx(20e3)
+    # the masonry's strength, where measured, is the units' crushing strength, and the rest
+    # follows from it: R_t a tenth, eps_pic_c twice R_c / E, G_ft from 73 f^0.18
+    m = rules.unit_parameters(50.0, 20000.0, masonry_fc_MPa=5.0)
+    assert m["E_Pa"] == 2e10 and m["R_c_Pa"] == 5e6 and m["R_t_Pa"] == pytest.approx(5e5)
+    assert m["eps_pic_c"] == pytest.approx(5e-4) and m["eps_pic_t"] == pytest.approx(2.5e-5)
+    assert m["G_ft_J_m2"] == pytest.approx(73 * 5 ** 0.18)
+    assert rules.unit_parameters(None, 20000.0, 5.0) == m
+    with pytest.raises(ValueError, match="compressive strength"):
+        rules.unit_parameters(None, 20000.0, None)
 
 
 # --- one row's case -------------------------------------------------------------------------
@@ -99,7 +108,9 @@ def test_case_for_fixed_fixed_row():
     assert case.joint.K_II_spring_Pa_m == pytest.approx(3.23e10 / 2.4, rel=1e-12)
     assert case.joint.sigma_II_e_Pa == pytest.approx(0.1875e6)   # mortar 4.08 MPa
     assert case.blocks.E_Pa == pytest.approx(16.9e9)
-    assert case.blocks.endo3d.R_c_Pa == pytest.approx(65.6e6)
+    # the units crush at the masonry's strength (10.34 MPa), not their own (65.6 MPa)
+    assert case.blocks.endo3d.R_c_Pa == pytest.approx(10.34e6)
+    assert case.blocks.endo3d.R_t_Pa == pytest.approx(1.034e6)
 
 
 def test_case_for_cantilever_row():
@@ -141,12 +152,12 @@ def test_case_for_dry_row_takes_the_dry_law_and_touching_units():
     assert case.joint.K_t_Pa_m == pytest.approx(case.joint.K_n_Pa_m / 2.4, rel=1e-12)
     assert case.joint.mu == 0.65
     assert case.blocks.material == "endo3d"  # the units crush and split, dry or mortared
-    assert case.blocks.endo3d.R_c_Pa == pytest.approx(float(row["unit_fc_MPa"]) * 1e6)
+    assert case.blocks.endo3d.R_c_Pa == pytest.approx(float(row["masonry_fc_MPa"]) * 1e6)
 
 
 def test_a_row_without_the_numbers_its_rules_need_is_named(tmp_path):
     rows = list(csv.DictReader(TESTS_CSV.open()))
-    rows[0]["unit_fc_MPa"] = ""                         # units with no compression test
+    rows[0]["unit_fc_MPa"] = rows[0]["masonry_fc_MPa"] = ""  # no compression test at all
     rows[1]["joints"], rows[1]["masonry_E_compression_MPa"] = "dry", ""  # a dry wall, no E_m
     table = tmp_path / "tests.csv"
     with table.open("w", newline="") as f:
@@ -158,6 +169,13 @@ def test_a_row_without_the_numbers_its_rules_need_is_named(tmp_path):
     text = str(err.value)
     assert f"{rows[0]['test']}: unit_fc_MPa is empty" in text
     assert f"{rows[1]['test']}: masonry_E_compression_MPa is empty" in text
+
+
+def test_units_not_tested_crush_at_the_masonrys_strength():
+    """The units' own strength is not needed where the masonry's was measured."""
+    base = read_yaml(TEMPLATE.read_text())
+    case = case_from_dict(campaign.case_for_row(base, {**_row("PG1"), "unit_fc_MPa": ""}))
+    assert case.blocks.endo3d.R_c_Pa == pytest.approx(3.22e6)
 
 
 def test_a_mortar_not_tested_takes_the_weakest_class():

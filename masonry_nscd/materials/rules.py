@@ -44,13 +44,18 @@ stiffnesses, no cohesion, no tension), where the test table names the joints dry
   direct shear tests on dry joints of dressed granite (Vasconcelos and Lourenco 2009) gave
   friction coefficients of the same order, 0.6 to 0.7 (recalled, not confirmed).
 
-Units (ENDO3D, docs/model.md section 3): ``E``, ``R_c`` the units' tested modulus and
-strength; ``R_t = 0.1 R_c`` (the order of the tensile over the compressive strength of rocks,
-e.g. granite 7-25 against 100-250 MPa; no source for these stones, not confirmed); tensile
-peak strain ``R_t / E``; tensile fracture energy of fib Model Code 2010, eq. (5.1-9),
-``G_F = 73 f_cm^0.18`` N/m (a rule for concrete, borrowed; confirmed); compressive peak strain
-``2 R_c / E`` (the secant modulus at the peak half the initial one, the rules' choice); the
-rest as the project's study wall.
+Units (ENDO3D, docs/model.md section 3): ``E`` the units' tested modulus; ``R_c`` the
+masonry's compressive strength from its compression test, where measured, else the units' own.
+The joints cannot crush (the fczm law has no cap in compression), while tested masonry crushes
+at its prisms' strength, 2 to 19 times below its units' (the mortar, squeezed between the
+units, splits them): in a simplified micro-model that crushing is the interface's cap at the
+masonry's strength (Lourenco and Rots 1997); here it is the units'. ``R_t = 0.1 R_c`` (the
+order of the tensile over the compressive strength of rocks, e.g. granite 7-25 against
+100-250 MPa; no source for these stones, not confirmed); tensile peak strain ``R_t / E``;
+tensile fracture energy of fib Model Code 2010, eq. (5.1-9), ``G_F = 73 f_cm^0.18`` N/m with
+that R_c (a rule for concrete, borrowed; confirmed); compressive peak strain ``2 R_c / E``
+(the secant modulus at the peak half the initial one, the rules' choice); the rest as the
+project's study wall.
 """
 
 from __future__ import annotations
@@ -195,14 +200,22 @@ def tensile_fracture_energy_J_m2(fc_MPa: float) -> float:
     return 73.0 * fc_MPa ** 0.18
 
 
-def unit_parameters(unit_fc_MPa: float, unit_E_MPa: float) -> dict[str, float]:
-    """The ENDO3D numbers of the units (SI) from their strength and modulus."""
+def unit_parameters(unit_fc_MPa: float | None, unit_E_MPa: float,
+                    masonry_fc_MPa: float | None = None) -> dict[str, float]:
+    """The ENDO3D numbers of the units (SI) from their modulus and a compressive strength
+    f_c: the masonry's (its compression test) where given, else the units' own (module
+    docstring: the joints cannot crush, so the masonry's crushing is the units');
+    ``R_t``, ``G_ft`` and ``eps_pic_c`` follow from that f_c. Raises ValueError without
+    either strength."""
+    fc = masonry_fc_MPa if masonry_fc_MPa else unit_fc_MPa
+    if not fc or fc <= 0:
+        raise ValueError("a compressive strength (the masonry's or the units') is needed")
     E = unit_E_MPa * 1e6
-    R_c = unit_fc_MPa * 1e6
+    R_c = fc * 1e6
     R_t = TENSION_OVER_COMPRESSION * R_c
     return {
         "E_Pa": E, "nu": NU, "R_t_Pa": R_t, "eps_pic_t": R_t / E,
-        "G_ft_J_m2": tensile_fracture_energy_J_m2(unit_fc_MPa), "R_c_Pa": R_c,
+        "G_ft_J_m2": tensile_fracture_energy_J_m2(fc), "R_c_Pa": R_c,
         "eps_pic_c": PEAK_STRAIN_FACTOR * R_c / E,
     }
 

@@ -208,8 +208,11 @@ def case_for_row(template: dict[str, Any], row: dict[str, str], cyclic: bool = F
             mortar_E_MPa=mortar_E, joint_mm=joint_mm)
         d["joint"] = {**{k: v for k, v in d.get("joint", {}).items()
                          if k not in ("regions", "scatter", "K_n_Pa_m", "K_t_Pa_m")}, **joint}
-    units = rules.unit_parameters(
-        required(row, "unit_fc_MPa", "the units' ENDO3D strength comes from it"), E_u)
+    masonry_fc = number(row.get("masonry_fc_MPa"))
+    # the units crush at the masonry's strength where it was measured, else at their own
+    unit_fc = number(row.get("unit_fc_MPa")) if masonry_fc else required(
+        row, "unit_fc_MPa", "without masonry_fc_MPa the units' ENDO3D strength comes from it")
+    units = rules.unit_parameters(unit_fc, E_u, masonry_fc)
     blocks = d.setdefault("blocks", {})
     blocks["density_kg_m3"] = rules.density_kg_m3()
     blocks["E_Pa"], blocks["nu"] = units.pop("E_Pa"), units.pop("nu")
