@@ -47,9 +47,10 @@ stiffnesses, no cohesion, no tension), where the test table names the joints dry
 Units (ENDO3D, docs/model.md section 3): ``E`` the units' tested modulus; ``R_c`` the
 masonry's compressive strength from its compression test, where measured, else the units' own.
 The joints cannot crush (the fczm law has no cap in compression), while tested masonry crushes
-at its prisms' strength, 2 to 19 times below its units' (the mortar, squeezed between the
-units, splits them): in a simplified micro-model that crushing is the interface's cap at the
-masonry's strength (Lourenco and Rots 1997); here it is the units'. ``R_t = 0.1 R_c`` (the
+at its prisms' strength, well below its units' (2 to 19 times in the walls of
+docs/campaign.md; the mortar, squeezed between the units, splits them): in a simplified
+micro-model that crushing is the interface's cap at the masonry's strength (Lourenco, Rots and
+Blaauwendraad 1995; Lourenco and Rots 1997); here it is the units'. ``R_t = 0.1 R_c`` (the
 order of the tensile over the compressive strength of rocks, e.g. granite 7-25 against
 100-250 MPa; no source for these stones, not confirmed); tensile peak strain ``R_t / E``;
 tensile fracture energy of fib Model Code 2010, eq. (5.1-9), ``G_F = 73 f_cm^0.18`` N/m with
