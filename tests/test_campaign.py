@@ -171,6 +171,26 @@ def test_a_row_without_the_numbers_its_rules_need_is_named(tmp_path):
     assert f"{rows[1]['test']}: masonry_E_compression_MPa is empty" in text
 
 
+def test_a_table_without_the_columns_it_may_leave_empty_is_read(tmp_path):
+    """The units' and the mortar's strengths may be absent from a table whose walls have the
+    masonry's strength; a row that needs one then names it."""
+    rows = list(csv.DictReader(TESTS_CSV.open()))[:1]
+    for row in rows:
+        del row["unit_fc_MPa"], row["mortar_fc_MPa"]
+    table = tmp_path / "tests.csv"
+    with table.open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    assert len(campaign.read_tests(table)) == 1
+    base = read_yaml(TEMPLATE.read_text())
+    case = case_from_dict(campaign.case_for_row(base, rows[0]))
+    assert case.blocks.endo3d.R_c_Pa == pytest.approx(float(rows[0]["masonry_fc_MPa"]) * 1e6)
+    del rows[0]["masonry_fc_MPa"]
+    with pytest.raises(ValueError, match=r"unit_fc_MPa is empty \(no such column\)"):
+        campaign.case_for_row(base, rows[0])
+
+
 def test_units_not_tested_crush_at_the_masonrys_strength():
     """The units' own strength is not needed where the masonry's was measured."""
     base = read_yaml(TEMPLATE.read_text())

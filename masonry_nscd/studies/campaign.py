@@ -103,14 +103,16 @@ def number(text: str | None) -> float | None:
 
 
 def read_tests(path: Path) -> list[dict[str, str]]:
-    """The rows of a test table (a list of column -> text)."""
+    """The rows of a test table (a list of column -> text). The columns every row's rules read
+    must be there; those whose cells may be empty (the units' and the mortar's strengths, the
+    masonry's, the mortar's modulus, the second direction's results) may be absent too."""
     with open(path, newline="") as f:
         rows = list(csv.DictReader(f))
     if not rows:
         raise SweepError(f"{path}: no tests in the table")
     need = ("test", "H_mm", "L_mm", "t_mm", "H0_mm", "unit_height_mm", "unit_length_mm",
-            "masonry_E_compression_MPa", "unit_fc_MPa", "unit_E_MPa", "mortar_fc_MPa",
-            "sigma0_applied_MPa", "Vmax_pos_kN", "drift_at_Vmax_pos_pct")
+            "masonry_E_compression_MPa", "unit_E_MPa", "sigma0_applied_MPa", "Vmax_pos_kN",
+            "drift_at_Vmax_pos_pct")
     missing = [c for c in need if c not in rows[0]]
     if missing:
         raise SweepError(f"{path}: missing columns {', '.join(missing)}")
@@ -160,7 +162,8 @@ def required(row: dict[str, str], column: str, why: str) -> float:
     cell is empty."""
     value = number(row.get(column))
     if value is None:
-        raise ValueError(f"{column} is empty: {why}")
+        raise ValueError(f"{column} is empty{'' if column in row else ' (no such column)'}: "
+                         f"{why}")
     return value
 
 
