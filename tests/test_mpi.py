@@ -6,10 +6,11 @@
   (mpiexec): the residual ``|S v - rhs|`` computed here within the tolerance asked, the
   solution that of SciPy's direct solver to the system's conditioning; a second matrix
   (another set-up) with another right-hand side, likewise.
-* a run of the smoke case on 2 and 3 processes: the log says so and names PETSc's solver, and
-  the curve is the run's on one process to the Newton tolerance, step for step; PETSc's
-  options from the command line over the case's; ``-log_view`` among them prints PETSc's
-  summary.
+* a run of the smoke case on 2 and 3 processes: the log says so and names PETSc's solver and
+  its coarse LU, and the curve is the run's on one process to the Newton tolerance, step for
+  step; PETSc's options from the command line over the case's (PETSc's own coarse LU over
+  MKL's PARDISO, which ``make mpi`` builds PETSc with wherever MKL is installed);
+  ``-log_view`` among them prints PETSc's summary.
 * the 8x elastic study wall on 2 and 3 processes: the one-process curve within the
   regression's bound (``test_regression.py``); the ENDO3D study wall to 2 mm on 2 and 3
   processes: its stored regression curve within that bound.
@@ -191,7 +192,8 @@ def test_a_run_on_several_processes_is_the_run_on_one(one_process_curve, process
     log = (out / "run.log").read_text()
     assert f"linear solver krylov on {processes} processes" in log
     assert "0 solves made by LU" in log
-    assert f"(PETSc KSP gmres, PC mg on {processes} processes)" in log
+    assert re.search(rf"\(PETSc KSP gmres, PC mg, coarse LU (mkl_pardiso|petsc) on {processes} "
+                     r"processes\)", log)
     # every process's peak memory, and their sum
     memory = re.search(r"memory: peak per process ([\d, +]+) = ([\d,]+) MiB", log)
     assert memory is not None
@@ -258,6 +260,32 @@ def test_petsc_options_of_the_command_line_go_over_the_case(one_process_curve, t
     out = _run_on(SMOKE, ["solver.petsc_options=-pc_type bjacobi -ksp_max_it 400"], 2,
                   tmp_path / "run", "--petsc-options", "-pc_type asm -sub_pc_type ilu")
     assert "(PETSc KSP gmres, PC asm on 2 processes)" in (out / "run.log").read_text()
+    a, b = one_process_curve, _curve(out)
+    tol = load_case(SMOKE).solver.tolerance
+    assert np.abs(a["fx_kN"] - b["fx_kN"]).max() <= 100.0 * tol * np.abs(a["fx_kN"]).max()
+
+
+@needs_petsc
+def test_the_distributed_engine_has_mkl_pardiso_where_the_venv_has_mkl():
+    """``make mpi`` builds PETSc on the mkl wheel's libraries wherever they are installed, so
+    that the coarse level's LU is MKL's PARDISO: PETSc says it has the package."""
+    if not list(Path(sys.prefix, "lib").glob("libmkl_core.so.*")):
+        pytest.skip("no MKL in this environment: PETSc's own LU is the coarse solver")
+    ask = "from petsc4py import PETSc; print(PETSc.Sys.hasExternalPackage('mkl_pardiso'))"
+    out = subprocess.run([sys.executable, "-c", ask], check=False, capture_output=True,
+                         text=True, env=_quiet_env(), timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "True"
+
+
+@needs_petsc
+def test_petscs_own_coarse_lu_gives_the_curve_of_one_process(one_process_curve, tmp_path):
+    """The coarse LU named on the command line (PETSc's own) goes over MKL's PARDISO: the log
+    says so, and the curve is the one-process curve."""
+    out = _run_on(SMOKE, [], 2, tmp_path / "run", "--petsc-options",
+                  "-mg_coarse_redundant_pc_factor_mat_solver_type petsc")
+    assert "(PETSc KSP gmres, PC mg, coarse LU petsc on 2 processes)" in \
+        (out / "run.log").read_text()
     a, b = one_process_curve, _curve(out)
     tol = load_case(SMOKE).solver.tolerance
     assert np.abs(a["fx_kN"] - b["fx_kN"]).max() <= 100.0 * tol * np.abs(a["fx_kN"]).max()

@@ -18,9 +18,11 @@ right preconditioning, so that it stops on the true relative residual ``|rhs - S
 |rhs|`` as on one process) with the two levels of the one-process preconditioner in PETSc's
 multigrid ``PCMG``: the coarse space ``R`` of six rigid-body motions per body as the
 interpolation, the coarse matrix ``R^T S R`` made by PETSc (Galerkin), gathered and factorised
-by LU on every process (``PCREDUNDANT``); then, on what the coarse correction leaves, one
-Richardson sweep of the bodies' diagonal blocks inverted (``PCVPBJACOBI``, the blocks of
-variable size given by the bodies): the kaskade cycle, the one-process method's order.
+by LU on every process (``PCREDUNDANT``: MKL's PARDISO where PETSc was built with it, as ``make
+mpi`` builds it, else PETSc's own LU; ``COARSE_LU``); then, on what the coarse correction
+leaves, one Richardson sweep of the bodies' diagonal blocks inverted (``PCVPBJACOBI``, the
+blocks of variable size given by the bodies): the kaskade cycle, the one-process method's
+order.
 The case's ``solver.petsc_options`` and the command line's ``--petsc-options``, in that order,
 override any of them (docs/guide/solvers.md): for example ``-pc_type asm -sub_pc_type ilu``
 or ``-pc_type bjacobi -sub_pc_type lu``; with ``-pc_type mg`` the interpolation is always the
@@ -51,6 +53,10 @@ DEFAULT_OPTIONS = (
     "-mg_levels_ksp_type richardson -mg_levels_ksp_max_it 1 -mg_levels_pc_type vpbjacobi "
     "-mg_coarse_ksp_type preonly -mg_coarse_pc_type redundant "
     "-mg_coarse_redundant_pc_type lu -options_left 0")
+#: The coarse level's LU by MKL's PARDISO, where PETSc has it: put before the case's and the
+#: command line's options, which may name another (``petsc`` for PETSc's own LU, which
+#: factorises a large coarse matrix many times slower: docs/scaling.md)
+COARSE_LU = "-mg_coarse_redundant_pc_factor_mat_solver_type mkl_pardiso"
 #: PETSc's error code for a type name it does not know
 PETSC_ERR_UNKNOWN_TYPE = 86
 MISSING = ("several processes need PETSc, petsc4py and mpi4py built on the system's MPI: "
@@ -107,6 +113,14 @@ def options() -> str:
     """The options a solver is made with: the defaults, then the case's, then the command
     line's (a later one wins)."""
     return " ".join(s for s in (DEFAULT_OPTIONS, case_options, command_line_options) if s)
+
+
+def with_coarse_lu(PETSc, option_string: str) -> str:
+    """``option_string`` after ``COARSE_LU`` where this PETSc has MKL's PARDISO (the options
+    given then override it)."""
+    if PETSc.Sys.hasExternalPackage("mkl_pardiso"):
+        return f"{COARSE_LU} {option_string}"
+    return option_string
 
 
 def _refused(PETSc, option_string: str) -> str | None:
@@ -167,7 +181,7 @@ class Part:
                                   R.shape[1])),
             csr=(_int(Rp.indptr), _int(Rp.indices), Rp.data), comm=PETSc.COMM_WORLD)
         self.P.assemble()
-        PETSc.Options().insertString(option_string)
+        PETSc.Options().insertString(with_coarse_lu(PETSc, option_string))
         # every process finds the same refusal; process 0 ends the run (exit 2), the others
         # wait for its stop
         refused = _refused(PETSc, option_string)
@@ -231,9 +245,16 @@ class Part:
         return x.getArray().copy(), int(self.ksp.getIterationNumber()), float(r.norm())
 
     def describe(self) -> str:
-        """The KSP and preconditioner the options made (after the first set-up)."""
+        """The KSP and preconditioner the options made (after the first set-up), and with
+        ``PCMG`` the package of its coarse LU."""
+        PETSc = petsc()
         pc = self.ksp.getPC()
-        return f"KSP {self.ksp.getType()}, PC {pc.getType()}"
+        text = f"KSP {self.ksp.getType()}, PC {pc.getType()}"
+        if pc.getType() == PETSc.PC.Type.MG:
+            package = PETSc.Options().getString(
+                "mg_coarse_redundant_pc_factor_mat_solver_type", "petsc")
+            text += f", coarse LU {package}"
+        return text
 
 
 class PetscKrylovSolver(linear.KrylovSolver):
