@@ -192,7 +192,7 @@ def test_a_run_on_several_processes_is_the_run_on_one(one_process_curve, process
     log = (out / "run.log").read_text()
     assert f"linear solver krylov on {processes} processes" in log
     assert "0 solves made by LU" in log
-    assert re.search(rf"\(PETSc KSP gmres, PC mg, coarse LU (mkl_pardiso|petsc) on {processes} "
+    assert re.search(rf"\(PETSc KSP fgmres, PC mg, coarse LU (mkl_pardiso|petsc) on {processes} "
                      r"processes\)", log)
     # every process's peak memory, and their sum
     memory = re.search(r"memory: peak per process ([\d, +]+) = ([\d,]+) MiB", log)
@@ -259,7 +259,7 @@ def test_petsc_options_of_the_command_line_go_over_the_case(one_process_curve, t
     solve is PETSc's GMRES with ASM, and the curve is still the one-process curve."""
     out = _run_on(SMOKE, ["solver.petsc_options=-pc_type bjacobi -ksp_max_it 400"], 2,
                   tmp_path / "run", "--petsc-options", "-pc_type asm -sub_pc_type ilu")
-    assert "(PETSc KSP gmres, PC asm on 2 processes)" in (out / "run.log").read_text()
+    assert "(PETSc KSP fgmres, PC asm on 2 processes)" in (out / "run.log").read_text()
     a, b = one_process_curve, _curve(out)
     tol = load_case(SMOKE).solver.tolerance
     assert np.abs(a["fx_kN"] - b["fx_kN"]).max() <= 100.0 * tol * np.abs(a["fx_kN"]).max()
@@ -284,7 +284,7 @@ def test_petscs_own_coarse_lu_gives_the_curve_of_one_process(one_process_curve, 
     says so, and the curve is the one-process curve."""
     out = _run_on(SMOKE, [], 2, tmp_path / "run", "--petsc-options",
                   "-mg_coarse_redundant_pc_factor_mat_solver_type petsc")
-    assert "(PETSc KSP gmres, PC mg, coarse LU petsc on 2 processes)" in \
+    assert "(PETSc KSP fgmres, PC mg, coarse LU petsc on 2 processes)" in \
         (out / "run.log").read_text()
     a, b = one_process_curve, _curve(out)
     tol = load_case(SMOKE).solver.tolerance

@@ -13,9 +13,11 @@ is a PETSc ``MPIAIJ`` matrix whose rows are split among the processes by ``mpi.p
 solve the right-hand side and the start are scattered, PETSc's ``KSP`` solves on every
 process and process 0 gathers the solution.
 
-The solve, by default (``DEFAULT_OPTIONS``, PETSc's own option names): GMRES (restart 40,
-right preconditioning, so that it stops on the true relative residual ``|rhs - S v| <= rtol
-|rhs|`` as on one process) with the two levels of the one-process preconditioner in PETSc's
+The solve, by default (``DEFAULT_OPTIONS``, PETSc's own option names): flexible GMRES
+(``KSPFGMRES``, restart 40; right preconditioning, so that it stops on the true relative
+residual ``|rhs - S v| <= rtol |rhs|`` as on one process; it keeps the preconditioned vectors,
+so forming the solution applies the preconditioner no more, where GMRES applies it once more
+a solve: the whole coarse solve again) with the two levels of the one-process preconditioner in PETSc's
 multigrid ``PCMG``: the coarse space ``R`` of six rigid-body motions per body as the
 interpolation, the coarse matrix ``R^T S R`` made by PETSc (Galerkin), gathered and factorised
 by LU on every process (``PCREDUNDANT``: MKL's PARDISO where PETSc was built with it, as ``make
@@ -48,7 +50,7 @@ from masonry_nscd.nscd import linear, mpi
 #: PETSc's options for the solve unless the case or the command line give others (module
 #: docstring; chosen by measurement, docs/scaling.md)
 DEFAULT_OPTIONS = (
-    "-ksp_type gmres -ksp_pc_side right "
+    "-ksp_type fgmres -ksp_pc_side right "
     "-pc_type mg -pc_mg_galerkin both -pc_mg_type kaskade "
     "-mg_levels_ksp_type richardson -mg_levels_ksp_max_it 1 -mg_levels_pc_type vpbjacobi "
     "-mg_coarse_ksp_type preonly -mg_coarse_pc_type redundant "
@@ -210,7 +212,7 @@ class Part:
         self.S = S
         ksp = self.ksp = PETSc.KSP().create(comm=PETSc.COMM_WORLD)
         ksp.setOperators(S)
-        ksp.setType(PETSc.KSP.Type.GMRES)
+        ksp.setType(PETSc.KSP.Type.FGMRES)
         ksp.setGMRESRestart(self.restart)
         ksp.getPC().setType(PETSc.PC.Type.MG)
         ksp.getPC().setMGLevels(2)  # the blocks and the blocks as rigid bodies
