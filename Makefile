@@ -25,7 +25,7 @@ venv: $(BIN)/masonry
 # The distributed engine (docs/guide/solvers.md): one MPI for everything, Debian's MPICH, under
 # mpi4py and PETSc alike (MPICH's wheel, which `make venv` does not install, would be a second
 # one). PETSc's source distribution configures against it, without C++ or Fortran, and compiles
-# for about six minutes on two cores. Its BLAS and LAPACK are the `mkl` wheel's that `make venv`
+# for about three minutes on two cores (the whole install about seven). Its BLAS and LAPACK are the `mkl` wheel's that `make venv`
 # installed (sequential, 32-bit integers), with MKL's headers from the `mkl-include` wheel of the
 # same version: PETSc then has MKL's PARDISO for the coarse level's LU (MKL's cluster PARDISO
 # configures too, but cannot find its MPI wrappers at run time under petsc4py). PETSc

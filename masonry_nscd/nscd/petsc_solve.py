@@ -17,8 +17,8 @@ The solve, by default (``DEFAULT_OPTIONS``, PETSc's own option names): flexible 
 (``KSPFGMRES``, restart 40; right preconditioning, so that it stops on the true relative
 residual ``|rhs - S v| <= rtol |rhs|`` as on one process; it keeps the preconditioned vectors,
 so forming the solution applies the preconditioner no more, where GMRES applies it once more
-a solve: the whole coarse solve again) with the two levels of the one-process preconditioner in PETSc's
-multigrid ``PCMG``: the coarse space ``R`` of six rigid-body motions per body as the
+a solve: the whole coarse solve again) with the two levels of the one-process preconditioner
+in PETSc's multigrid ``PCMG``: the coarse space ``R`` of six rigid-body motions per body as the
 interpolation, the coarse matrix ``R^T S R`` made by PETSc (Galerkin), gathered and factorised
 by LU on every process (``PCREDUNDANT``: MKL's PARDISO where PETSc was built with it, as ``make
 mpi`` builds it, else PETSc's own LU; ``COARSE_LU``); then, on what the coarse correction
