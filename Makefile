@@ -25,12 +25,13 @@ venv: $(BIN)/masonry
 # The distributed engine (docs/guide/solvers.md): one MPI for everything, Debian's MPICH, under
 # mpi4py and PETSc alike (MPICH's wheel, which `make venv` does not install, would be a second
 # one). PETSc's source distribution configures against it, without C++ or Fortran, and compiles
-# for about three minutes on two cores (the whole install about seven). Its BLAS and LAPACK are the `mkl` wheel's that `make venv`
-# installed (sequential, 32-bit integers), with MKL's headers from the `mkl-include` wheel of the
-# same version: PETSc then has MKL's PARDISO for the coarse level's LU (MKL's cluster PARDISO
-# configures too, but cannot find its MPI wrappers at run time under petsc4py). PETSc
-# finds MKL by its libraries' plain names, which the wheel does not ship: .venv/mkl links them
-# (and their versioned names, which the libraries load, so that its programs find them there).
+# for about three minutes on two cores (the whole install about seven). Its BLAS and LAPACK are
+# the `mkl` wheel's that `make venv` installed (sequential, 32-bit integers), with MKL's headers
+# from the `mkl-include` wheel of the same version: PETSc then has MKL's PARDISO for the coarse
+# level's LU (MKL's cluster PARDISO configures too, but cannot find its MPI wrappers at run time
+# under petsc4py). PETSc finds MKL by its libraries' plain names, which the wheel does not ship:
+# .venv/mkl links them (and their versioned names, which the libraries load, so that its
+# programs find them there).
 # Where the venv has no MKL (not x86-64), Debian's LAPACK serves and the coarse LU is PETSc's own.
 # The build runs each time (--no-cache-dir): pip's cache does not know the configure options.
 # petsc4py is built each time too (some minutes), as its build records where PETSc is.
