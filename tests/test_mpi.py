@@ -292,6 +292,20 @@ def test_petscs_own_coarse_lu_gives_the_curve_of_one_process(one_process_curve, 
 
 
 @needs_petsc
+def test_a_coarse_level_that_is_no_lu_is_named_by_its_pc(one_process_curve, tmp_path):
+    """A coarse level solved iteratively (GMRES to 1e-10 on block Jacobi, in place of the
+    redundant LU): the log names the coarse PC that ran, not the LU's option, and the curve is
+    still the one-process curve (flexible GMRES takes a preconditioner that varies)."""
+    out = _run_on(SMOKE, [], 2, tmp_path / "run", "--petsc-options",
+                  "-mg_coarse_pc_type bjacobi -mg_coarse_ksp_type gmres -mg_coarse_ksp_rtol 1e-10")
+    assert "(PETSc KSP fgmres, PC mg, coarse PC bjacobi on 2 processes)" in \
+        (out / "run.log").read_text()
+    a, b = one_process_curve, _curve(out)
+    tol = load_case(SMOKE).solver.tolerance
+    assert np.abs(a["fx_kN"] - b["fx_kN"]).max() <= 100.0 * tol * np.abs(a["fx_kN"]).max()
+
+
+@needs_petsc
 def test_petsc_log_view_from_the_command_line_prints_the_summary(tmp_path):
     """``--petsc-options -log_view``, an option PETSc reads at its initialisation only: the run
     ends normally (exit 0) and prints PETSc's performance summary with its message counts,

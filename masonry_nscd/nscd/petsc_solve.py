@@ -248,15 +248,30 @@ class Part:
 
     def describe(self) -> str:
         """The KSP and preconditioner the options made (after the first set-up), and with
-        ``PCMG`` the package of its coarse LU."""
+        ``PCMG`` its coarse solver: the package of its LU, read from the coarse PC itself (a
+        redundant one factorises with the options of its inner solver, prefix
+        ``mg_coarse_redundant_``), or the coarse PC's type where it is no LU."""
         PETSc = petsc()
         pc = self.ksp.getPC()
         text = f"KSP {self.ksp.getType()}, PC {pc.getType()}"
         if pc.getType() == PETSc.PC.Type.MG:
-            package = PETSc.Options().getString(
-                "mg_coarse_redundant_pc_factor_mat_solver_type", "petsc")
-            text += f", coarse LU {package}"
+            text += f", {_coarse(PETSc, pc.getMGCoarseSolve().getPC())}"
         return text
+
+
+def _coarse(PETSc, coarse) -> str:
+    """What PCMG's coarse PC ``coarse`` is: ``coarse LU PACKAGE``, or ``coarse PC TYPE``."""
+    kind = coarse.getType()
+    factors = (PETSc.PC.Type.LU, PETSc.PC.Type.CHOLESKY)
+    if kind == PETSc.PC.Type.REDUNDANT:
+        opts = PETSc.Options("mg_coarse_redundant_")
+        inner = opts.getString("pc_type", PETSc.PC.Type.LU)
+        if inner in factors:
+            return f"coarse {inner.upper()} {opts.getString('pc_factor_mat_solver_type', 'petsc')}"
+        return f"coarse PC redundant {inner}"
+    if kind in factors:
+        return f"coarse {kind.upper()} {coarse.getFactorSolverType()}"
+    return f"coarse PC {kind}"
 
 
 class PetscKrylovSolver(linear.KrylovSolver):
