@@ -261,7 +261,7 @@ BAD_FILES = {
     "out of range": ("joint:\n  d_spring: 1.2\n", ["joint.d_spring", "1.2", "0 <= value < 1"]),
     "negative": ("blocks: {E_Pa: -11.1e9}\n", ["blocks.E_Pa", "-11100000000", "Pa"]),
     "nan": ("blocks: {nu: .nan}\n", ["blocks.nu", "nan"]),
-    "tuple item": ("wall: {elements_per_unit: [2, 9, 1]}\n", ["wall.elements_per_unit[1]", "8"]),
+    "tuple item": ("wall: {elements_per_unit: [2, 17, 1]}\n", ["wall.elements_per_unit[1]", "16"]),
     "tuple length": ("wall: {elements_per_unit: [2, 2]}\n", ["wall.elements_per_unit"]),
     "bad choice": ("blocks: {material: steel}\n", ["blocks.material", "'steel'", "'endo3d'"]),
     "unknown field": ("joint: {mux: 0.5}\n", ["joint.mux", "unknown", "did you mean 'mu'"]),

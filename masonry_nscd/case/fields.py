@@ -25,7 +25,7 @@ Real = Annotated[float, BeforeValidator(_reject_bool)]
 #: A whole number (lax: 3.0 and "3" are converted; 3.5 and booleans are refused).
 Whole = Annotated[int, BeforeValidator(_reject_bool)]
 #: Number of hexahedra of one unit along one direction.
-ElementCount = Annotated[int, BeforeValidator(_reject_bool), Field(ge=1, le=8)]
+ElementCount = Annotated[int, BeforeValidator(_reject_bool), Field(ge=1, le=16)]
 
 SQRT3 = math.sqrt(3.0)
 

@@ -55,7 +55,7 @@ class Arch(Section):
     elements_per_voussoir: tuple[ElementCount, ElementCount, ElementCount] = Field(
         (1, 1, 1),
         description="hexahedra per voussoir along the ring, through the thickness, along the "
-        "depth (counts, 1..8 each)",
+        "depth (counts, 1..16 each)",
     )
     contact_points_per_face: Whole = Field(
         2, ge=1, le=4,

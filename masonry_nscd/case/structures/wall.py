@@ -71,7 +71,7 @@ class RefineRegion(Section):
         "end); null: all",
     )
     elements_per_unit: tuple[ElementCount, ElementCount, ElementCount] = Field(
-        description="hexahedra per unit along length, height, thickness (counts, 1..8 each)"
+        description="hexahedra per unit along length, height, thickness (counts, 1..16 each)"
     )
 
 
@@ -146,7 +146,7 @@ class Wall(Section):
     )
     elements_per_unit: tuple[ElementCount, ElementCount, ElementCount] = Field(
         (2, 2, 1),
-        description="hexahedra per unit along length, height, thickness (counts, 1..8 each)",
+        description="hexahedra per unit along length, height, thickness (counts, 1..16 each)",
     )
     refine: list[RefineRegion] = Field(
         default_factory=list, max_length=100,
