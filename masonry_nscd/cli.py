@@ -1091,6 +1091,10 @@ def campaign_cmd(
     cyclic: Annotated[bool, typer.Option(
         "--cyclic", help="Cyclic tests run reversed cycles (0.25, 0.5, 1 times the push's "
         "target), with the energy of the last cycle against the measured.")] = False,
+    overrides: Annotated[list[str] | None, typer.Option(
+        "--set", metavar="PATH=VALUE",
+        help="Override one field of the template for every test (VALUE read as YAML; "
+        "repeatable); the fields a test's row sets stay the row's.")] = None,
 ) -> None:
     """Predict tested walls from their material tests: one run per row, monotonic (or cyclic
     for cyclic tests with --cyclic).
@@ -1100,13 +1104,14 @@ def campaign_cmd(
     OUTDIR/peaks.png and OUTDIR/curves/TEST.png (docs/campaign.md). Exit 1 when a run did not
     finish.
     """
-    _load_case_or_exit(template)
+    _load_case_or_exit(template, overrides)
     from masonry_nscd.studies.campaign import SweepError, run_campaign
 
     names = [n.strip() for n in only.split(",") if n.strip()] if only else []
     try:
         result = run_campaign(tests, template, output, only=names, dry_run=dry_run,
-                              workers=workers, cyclic=cyclic, echo=typer.echo)
+                              workers=workers, cyclic=cyclic, overrides=overrides or (),
+                              echo=typer.echo)
     except SweepError as exc:
         _fail_list("cannot start the campaign", exc.messages, 2)
     except OSError as exc:

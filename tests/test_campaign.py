@@ -287,6 +287,29 @@ def test_command_dry_run_and_bad_only(tmp_path):
     assert res.exit_code == 2 and "XX" in res.output
 
 
+def test_set_overrides_the_template_for_every_test_but_not_the_rows_fields(tmp_path):
+    """``--set`` changes the template's mesh in every written case; a field that the row sets
+    (the units' modulus) stays the row's; a path the schema lacks exits 2 naming it."""
+    from typer.testing import CliRunner
+
+    from masonry_nscd.case import load_case
+    from masonry_nscd.cli import app
+
+    runner = CliRunner()
+    res = runner.invoke(app, ["campaign", str(TESTS_CSV), "--template", str(TEMPLATE), "-o",
+                              str(tmp_path / "c"), "--only", "SC7,R4", "--dry-run",
+                              "--set", "wall.elements_per_unit=[3,2,1]",
+                              "--set", "blocks.E_Pa=1.0e9"])
+    assert res.exit_code == 0, res.output
+    for name, unit_E_MPa in (("SC7", 16900), ("R4", 20000)):
+        case = load_case(tmp_path / "c" / "cases" / f"{name}.yaml")
+        assert tuple(case.wall.elements_per_unit) == (3, 2, 1)
+        assert case.blocks.E_Pa == pytest.approx(unit_E_MPa * 1e6)
+    res = runner.invoke(app, ["campaign", str(TESTS_CSV), "--template", str(TEMPLATE), "-o",
+                              str(tmp_path / "d"), "--dry-run", "--set", "wall.mesh=[3,2,1]"])
+    assert res.exit_code == 2 and "wall.mesh" in res.output
+
+
 def test_result_row_of_a_made_up_run():
     from masonry_nscd.studies.point import RunRecord
 

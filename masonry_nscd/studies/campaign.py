@@ -57,7 +57,8 @@ from typing import Any
 
 import numpy as np
 
-from masonry_nscd.case import CaseError, case_from_dict, case_to_yaml, read_yaml
+from masonry_nscd.case import Case, CaseError, case_from_dict, case_to_yaml, read_yaml
+from masonry_nscd.case.overrides import apply_override
 from masonry_nscd.materials import rules
 from masonry_nscd.post.cycles import loop_work
 from masonry_nscd.report import first_crossing
@@ -240,15 +241,22 @@ def case_for_row(template: dict[str, Any], row: dict[str, str], cyclic: bool = F
 
 
 def campaign_points(tests: Path, template: Path, only: Sequence[str] = (),
-                    cyclic: bool = False) -> list[Point]:
+                    cyclic: bool = False, overrides: Sequence[str] = ()) -> list[Point]:
     """The validated case of every row (or of the rows ``only``; cyclic rows cyclic with
-    ``cyclic``); :class:`SweepError` listing every problem."""
+    ``cyclic``), the template's fields first overridden by ``overrides`` (``--set
+    PATH=VALUE``; a field that the row sets is the row's); :class:`SweepError` listing every
+    problem."""
     rows = read_tests(tests)
     names = [r["test"].strip() for r in rows]
     unknown = [o for o in only if o not in names]
     if unknown:
         raise SweepError(f"--only: no test {', '.join(unknown)} in {tests} ({', '.join(names)})")
     base = read_yaml(Path(template).read_text())
+    try:
+        for override in overrides:
+            apply_override(base, override, Case)
+    except CaseError as exc:
+        raise SweepError(exc.messages) from None
     points, problems = [], []
     for row in rows:
         name = row["test"].strip()
@@ -575,13 +583,16 @@ class CampaignResult:
 
 def run_campaign(tests: Path, template: Path, outdir: Path, *, only: Sequence[str] = (),
                  dry_run: bool = False, workers: int | None = None, cyclic: bool = False,
+                 overrides: Sequence[str] = (),
                  echo: Callable[[str], None] = print) -> CampaignResult:
     """Validate every row's case, write them to OUTDIR/cases, then (unless ``dry_run``) run
-    them and write the comparison (module docstring; cyclic rows cyclic with ``cyclic``)."""
-    points = campaign_points(tests, template, only, cyclic)
+    them and write the comparison (module docstring; cyclic rows cyclic with ``cyclic``; the
+    template's fields overridden by ``overrides``, ``campaign_points``)."""
+    points = campaign_points(tests, template, only, cyclic, overrides)
     rows = {r["test"].strip(): r for r in read_tests(tests)}
     outdir = Path(outdir)
-    description = {"tests": str(tests), "template": str(template), "runs": [p.name for p in points]}
+    description = {"tests": str(tests), "template": str(template), "set": list(overrides),
+                   "runs": [p.name for p in points]}
     if not dry_run:
         batch.prepare_outdir(outdir, CAMPAIGN_MARKER, description)
     (outdir / "cases").mkdir(parents=True, exist_ok=True)
