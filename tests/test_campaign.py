@@ -385,3 +385,18 @@ def test_energy_per_cycle_ignores_noise_at_zero_and_envelopes():
     assert len(cycles) == 2
     assert cycles[0]["ratio"] == pytest.approx(np.pi / 4.0, rel=0.02)
     assert campaign.energy_per_cycle(np.linspace(-3.0, 3.0, 50), np.linspace(-9.0, 9.0, 50)) == []
+
+
+def test_labels_of_points_side_by_side_do_not_overlap():
+    """Three walls whose peaks nearly coincide (R5, PR6, SC2): each label finds a place whose
+    box overlaps no point and no other label."""
+    top = 160.0
+    pts = [(87.75, 100.4, "R5"), (88.9, 100.6, "PR6"), (89.5, 100.1, "SC2")]
+    boxes = [(a - 1.6, b - 1.6, a + 1.6, b + 1.6) for a, b, _ in pts]
+    placed = [campaign._label_place(a, b, len(n), top, boxes) for a, b, n in pts]
+    labels = boxes[len(pts):]
+    assert len(labels) == 3 and len(placed) == 3
+    for i, (x0, y0, x1, y1) in enumerate(labels):
+        for j, (u0, v0, u1, v1) in enumerate(boxes):
+            if j != len(pts) + i:
+                assert x1 <= u0 or x0 >= u1 or y1 <= v0 or y0 >= v1

@@ -514,12 +514,34 @@ def plot_peaks(rows: Sequence[dict[str, Any]], path: Path) -> Path | None:
     ax.plot([0, top], [0, (1 - HIT) * top], "k:", lw=0.8, label="±15 %")
     for a, b, name in pts:
         ax.plot(a, b, "o", color="C0" if name.startswith("SC") else "C3")
-        ax.annotate(name, (a, b), textcoords="offset points", xytext=(4, 3), fontsize=8)
+    boxes = [(a - 0.01 * top, b - 0.01 * top, a + 0.01 * top, b + 0.01 * top) for a, b, _ in pts]
+    for a, b, name in sorted(pts, key=lambda p: p[1]):
+        x, y = _label_place(a, b, len(name), top, boxes)
+        ax.annotate(name, (a, b), xytext=(x, y), fontsize=8, va="bottom",
+                    arrowprops={"arrowstyle": "-", "lw": 0.4, "color": "0.5"})
     ax.set(xlim=(0, top), ylim=(0, top), xlabel="measured peak (kN)",
            ylabel="predicted peak (kN)", title="Predicted against measured peak")
     ax.legend(loc="upper left")
     fig.savefig(path, dpi=120)
     return path
+
+
+def _label_place(a: float, b: float, chars: int, top: float,
+                 boxes: list[tuple[float, float, float, float]]) -> tuple[float, float]:
+    """Where the label of the point ``(a, b)`` goes (its lower left corner, data units): the
+    first of the places around the point, nearest first, whose box overlaps none of ``boxes``
+    (the points and the labels placed), else the first; its box is added to ``boxes``."""
+    w, h, d = 0.0135 * chars * top, 0.03 * top, 0.012 * top
+    places = [(a + d, b + d / 2), (a + d, b - h - d / 2), (a - w - d, b + d / 2),
+              (a - w - d, b - h - d / 2), (a - w / 2, b + d), (a - w / 2, b - h - d)]
+    places += [(x, y + k * h) for k in (1, -1, 2, -2) for x, y in places[:4]]
+
+    def free(x: float, y: float) -> bool:
+        return all(x + w <= x0 or x >= x1 or y + h <= y0 or y >= y1 for x0, y0, x1, y1 in boxes)
+
+    x, y = next((p for p in places if free(*p)), places[0])
+    boxes.append((x, y, x + w, y + h))
+    return x, y
 
 
 def plot_curve(name: str, record: Any, measured_curve: tuple[np.ndarray, np.ndarray] | None,
