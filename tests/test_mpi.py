@@ -279,26 +279,20 @@ def test_the_distributed_engine_has_mkl_pardiso_where_the_venv_has_mkl():
 
 
 @needs_petsc
-def test_petscs_own_coarse_lu_gives_the_curve_of_one_process(one_process_curve, tmp_path):
-    """The coarse LU named on the command line (PETSc's own) goes over MKL's PARDISO: the log
-    says so, and the curve is the one-process curve."""
-    out = _run_on(SMOKE, [], 2, tmp_path / "run", "--petsc-options",
-                  "-mg_coarse_redundant_pc_factor_mat_solver_type petsc")
-    assert "(PETSc KSP fgmres, PC mg, coarse LU petsc on 2 processes)" in \
-        (out / "run.log").read_text()
-    a, b = one_process_curve, _curve(out)
-    tol = load_case(SMOKE).solver.tolerance
-    assert np.abs(a["fx_kN"] - b["fx_kN"]).max() <= 100.0 * tol * np.abs(a["fx_kN"]).max()
-
-
-@needs_petsc
-def test_a_coarse_level_that_is_no_lu_is_named_by_its_pc(one_process_curve, tmp_path):
-    """A coarse level solved iteratively (GMRES to 1e-10 on block Jacobi, in place of the
-    redundant LU): the log names the coarse PC that ran, not the LU's option, and the curve is
-    still the one-process curve (flexible GMRES takes a preconditioner that varies)."""
-    out = _run_on(SMOKE, [], 2, tmp_path / "run", "--petsc-options",
-                  "-mg_coarse_pc_type bjacobi -mg_coarse_ksp_type gmres -mg_coarse_ksp_rtol 1e-10")
-    assert "(PETSc KSP fgmres, PC mg, coarse PC bjacobi on 2 processes)" in \
+@pytest.mark.parametrize(("options", "coarse"), [
+    # PETSc's own coarse LU, named on the command line, over MKL's PARDISO
+    ("-mg_coarse_redundant_pc_factor_mat_solver_type petsc", "coarse LU petsc"),
+    # the coarse level solved iteratively in place of the redundant LU: GMRES to 1e-10 on
+    # block Jacobi (flexible GMRES outside takes a preconditioner that varies)
+    ("-mg_coarse_pc_type bjacobi -mg_coarse_ksp_type gmres -mg_coarse_ksp_rtol 1e-10",
+     "coarse PC bjacobi"),
+])
+def test_a_coarse_solver_from_the_command_line_is_named_and_gives_the_curve_of_one_process(
+        one_process_curve, tmp_path, options, coarse):
+    """The coarse solver that PETSc's options put in place of the default: the log names the
+    one that ran, read from PETSc's objects, and the curve is the one-process curve."""
+    out = _run_on(SMOKE, [], 2, tmp_path / "run", "--petsc-options", options)
+    assert f"(PETSc KSP fgmres, PC mg, {coarse} on 2 processes)" in \
         (out / "run.log").read_text()
     a, b = one_process_curve, _curve(out)
     tol = load_case(SMOKE).solver.tolerance
