@@ -46,6 +46,18 @@ def test_the_base_region_holds_the_lowest_bed_joint_and_nothing_else():
                                         "G_fII_J_m2")}
 
 
+def test_a_region_on_the_top_course_holds_the_joint_under_the_top_beam():
+    """With the wall on joints of the joint law at its beams, the bed joint on the top course
+    is the one under the top beam (``bed_top``), which a region can name."""
+    case = load_case(STUDY, ["supports.beam_joints=joint_law",
+                             "joint.regions=[{joints: bed, courses: [-1], mu: 0.5}]"])
+    check_case(case)
+    scene = build_scene(case)
+    law = np.array([p.law for p in scene.points])
+    top = _groups(scene) == "bed_top"
+    assert top.sum() > 0 and np.all(law[top] == 1) and np.all(law[~top] == 0)
+
+
 def test_head_regions_take_their_course_and_the_last_region_wins():
     scene = build_scene(load_case(STUDY, [
         "joint.regions=[{joints: head, mu: 0.5}, {joints: head, courses: [2, -2], mu: 0.6}]"]))
@@ -92,6 +104,9 @@ def test_a_region_is_written_back_and_reads_back_equal(tmp_path):
      r"course 11 has no bed joint of the joint law .* allowed courses 1 to 10"),
     (["supports.clamped_courses=1", "joint.regions=[{joints: head, courses: [1], mu: 0.5}]"],
      r"course 1 has no head joint of the joint law .* allowed courses 2 to 10"),
+    (["supports.clamped_courses=1", "supports.beam_joints=glue",
+      "joint.regions=[{joints: bed, courses: [1], mu: 0.5}]"],
+     r"course 1 has no bed joint of the joint law .* allowed courses 2 to 9"),
     (["joint.regions=[{joints: mortar, mu: 0.5}]"], r"joint.regions\[0\].joints: got 'mortar'"),
     (["joint.law=coulomb", "joint.regions=[{joints: bed, mu: 0.5}]"],
      r"joint.regions: given with law coulomb"),

@@ -135,6 +135,71 @@ def test_clamped_courses_meet_the_wall_through_mortar_joints():
     assert info["joint_groups"] == ["bed", "head", "bed_bottom", "bed_top"]
 
 
+def test_beam_joints_default_follows_the_clamped_courses():
+    """Left out, ``supports.beam_joints`` is glue without clamped courses and the joint law
+    with them (the saved case says which); said, it is what the case says."""
+    assert load_case("cases/smoke.yaml").supports.beam_joints == "glue"
+    clamped = load_case("cases/brick_wall_pattern.yaml")
+    assert clamped.supports.beam_joints == "joint_law"
+    assert clamped.model_dump()["supports"]["beam_joints"] == "joint_law"
+    glued = build_scene(load_case("cases/brick_wall_pattern.yaml", ["supports.beam_joints=glue"]))
+    assert {glued.groups[p.group] for p in glued.points} == {"bed", "head", "glue_bottom",
+                                                             "glue_top"}
+
+
+def test_a_wall_on_joints_of_the_joint_law_stands_on_its_beam_with_them():
+    """``beam_joints: joint_law`` without clamped courses: the points the glue had become
+    ``bed_bottom`` and ``bed_top`` points, at the same places, and no glue is left."""
+    glued = build_scene(load_case("cases/smoke.yaml"))
+    on_law = build_scene(load_case("cases/smoke.yaml", ["supports.beam_joints=joint_law"]))
+    rename = {"glue_bottom": "bed_bottom", "glue_top": "bed_top"}
+
+    def places(scene, names):
+        return sorted((names.get(scene.groups[p.group], scene.groups[p.group]),
+                       *np.round(p.x, 9)) for p in scene.points)
+
+    assert {on_law.groups[p.group] for p in on_law.points} == {"bed", "head", "bed_bottom",
+                                                               "bed_top"}
+    assert places(on_law, {}) == places(glued, rename)
+
+
+# a column of six rigid 400 x 100 x 200 mm blocks in stack bond under 12 kN on a top beam free
+# to turn, pushed 20 mm at 0.1 m above its top; its corners carry the joints (Lobatto points)
+ROCKING_COLUMN = [
+    "wall.courses=6", "wall.units_per_course=1", "wall.unit_length_m=0.4", "wall.bond=stack",
+    "wall.contact_point_rule=lobatto", "blocks.material=rigid", "joint.K_n_Pa_m=1e10",
+    "joint.K_t_Pa_m=4e9", "loading.vertical_stress.value_Pa=0.15e6",
+    "loading.gravity.ramp_s=0.02", "loading.vertical_stress.start_s=0.02",
+    "loading.vertical_stress.ramp_s=0.04", "loading.horizontal.start_s=0.06",
+    "loading.horizontal.ramp_s=0.02", "loading.horizontal.rate_m_s=0.04",
+    "loading.horizontal.target_m=20e-3", "solver.tolerance=1e-8", "output.vtu=false",
+    "output.hdf5=false"]
+
+
+@pytest.mark.parametrize("beam_joints", ["joint_law", "glue"])
+def test_a_rigid_column_rocks_about_its_lowest_joint_of_the_joint_law(tmp_path, beam_joints):
+    """The rocking bound of rigid blocks on no-tension joints: the column turns about the toe
+    of its lowest joint that can open, where the horizontal force ``V`` at the height ``H``
+    above that joint balances the weight above it and the vertical load ``N`` at half the
+    length: ``V H = (N + W_above) L / 2``. On its beam (joint law) that is the base (H = 0.7
+    m, the whole weight); glued, the bed joint on the first course (H = 0.6 m, five sixths of
+    it). The blocks turn about their corners, so once the column rocks the force stays at the
+    bound (the rigid blocks' kinematics are those of small rotations)."""
+    case = load_case("cases/dry_stone_wall.yaml",
+                     [*ROCKING_COLUMN, f"supports.beam_joints={beam_joints}"])
+    out = tmp_path / "run"
+    result = run_case(case, out, **QUIET)
+    assert result.unconverged_steps == 0
+    curve = read_curve_csv(out / "force_displacement.csv")
+    w = case.wall
+    weight = case.blocks.density_kg_m3 * 9.81 * w.wall_length_m * w.thickness_m * 0.6
+    N = vertical_force_N(case)
+    H, weight_above = (0.7, weight) if beam_joints == "joint_law" else (0.6, weight * 5 / 6)
+    bound = (N + weight_above) * w.wall_length_m / 2 / H
+    assert np.asarray(curve["fx_kN"])[-1] * 1e3 == pytest.approx(bound, rel=1e-4)
+    assert np.asarray(curve["fy_bottom_kN"])[-1] * 1e3 == pytest.approx(N + weight, rel=1e-4)
+
+
 @pytest.mark.parametrize("case_file, target, extra", [
     # past U_x = 0.93 mm, where the brick wall's joints give way one after another in a step
     # that Newton solves only from the free velocities (Integrator._newton_solve): before

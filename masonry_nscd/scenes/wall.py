@@ -18,13 +18,15 @@ the start of the horizontal stage (``load_then_fixed``). Gravity acts on the uni
 
 Joints are found by contact detection (:mod:`masonry_nscd.model.detection`) with the joint
 thickness as the largest gap, and named: ``bed`` (horizontal) and ``head`` (vertical) joints
-between units; ``glue_bottom`` and ``glue_top`` between the wall and the beams (bilateral
-glue, the study's epoxy). With ``supports.clamped_courses`` = k the k outer courses at each end
-are part of their beam, and the wall meets the beams through mortar joints of the joint law,
-``bed_bottom`` and ``bed_top``. The points of the joints that ``joint.regions`` name take
+between units; between the wall and the beams ``glue_bottom`` and ``glue_top`` (bilateral
+glue, the study's epoxy) or, with ``supports.beam_joints: joint_law``, joints of the joint
+law ``bed_bottom`` and ``bed_top``. With ``supports.clamped_courses`` = k the k outer courses
+at each end are part of their beam (and meet the wall on joints of the joint law unless the
+case says glue). The points of the joints that ``joint.regions`` name take
 their region's parameter row, and with ``joint.scatter`` the joint points take scattered rows
 (:mod:`masonry_nscd.contact.scatter`). A bed joint lies on top of the lower of its two courses
-(``bed_bottom``: the top clamped course at the bottom; ``bed_top``: the highest free course),
+(``bed_bottom``: the top clamped course at the bottom, or the beam, which no course number
+names; ``bed_top``: the highest free course),
 a head joint within its course; a lintel counts as the course it stands on.
 """
 
@@ -195,7 +197,7 @@ def _joints(case, bodies: list, i_low: int, i_up: int | None, course_of: list[in
     named by group (module docstring), with their rows of parameters, the regions' and
     scattered ones as ``joint.regions`` and ``joint.scatter`` say: ``(points, params,
     drawn)``. ``course_of``: the course of each unit (0-based)."""
-    glued = case.supports.clamped_courses == 0
+    glued = case.supports.beam_joints == "glue"
     beam_group = {i_low: "glue_bottom" if glued else "bed_bottom"}
     if i_up is not None:
         beam_group[i_up] = "glue_top" if glued else "bed_top"
@@ -395,8 +397,13 @@ def _region_problems(case) -> list[tuple[str, str]]:
     """The courses of ``joint.regions`` against the wall's: each must have joints of the joint
     law of that kind (a bed joint on top of it, head joints in it) between the beams, not the
     glue and not inside a clamped course."""
-    n, k = case.wall.courses, case.supports.clamped_courses
-    spans = {"bed": (k - 1 if k else 0, n - 1 - k if k else n - 2), "head": (k, n - 1 - k)}
+    sup = case.supports
+    n, k = case.wall.courses, sup.clamped_courses
+    if sup.beam_joints == "joint_law":  # the joint under the lowest course names no course
+        bed = (max(k - 1, 0), n - 1 - k if sup.top_beam == "present" else n - 2)
+    else:
+        bed = (k, n - 2 - k)
+    spans = {"bed": bed, "head": (k, n - 1 - k)}
     problems = []
     for i, region in enumerate(case.joint.regions):
         lo, hi = spans[region.joints]

@@ -247,8 +247,9 @@ class Wall(Section):
 
 
 class Supports(Section):
-    """Boundary conditions: the test rig. The wall is glued to a clamped steel beam below and
-    to a rigid steel beam above (or its outer courses are clamped in them); the top beam's
+    """Boundary conditions: the test rig. The wall stands on a clamped steel beam and carries a
+    rigid steel beam above, glued to them or on joints of the joint law (or its outer courses
+    clamped in them); the top beam's
     out-of-plane displacement and rotations are blocked, its x motion is driven by the
     horizontal stage.
 
@@ -272,6 +273,12 @@ class Supports(Section):
     steel beams (0: none, the wall glued to the beams as in the study; 1: the outer course at
     each end). A clamped course moves with its beam (its weight is the beam's), and the bed
     joint between it and the wall is a mortar joint of the joint law.
+
+    ``beam_joints``: how the wall meets the beams (or the clamped courses in them): ``glue``,
+    bilateral glue that never opens nor slides (the study's epoxy), or ``joint_law``, joints of
+    the case's joint law (``bed_bottom`` and ``bed_top``) on which the wall can rock and slide
+    as a wall built on its foundation with a mortar bed (or dry) does. Left out, it is
+    ``glue`` without clamped courses and ``joint_law`` with them.
 
     ``top_beam``: ``present`` (the rig), or ``absent``: no top beam, the wall stands free on
     its base, for ``loading.ground_motion`` only (no vertical stress then, and no clamped
@@ -298,10 +305,28 @@ class Supports(Section):
         0, ge=0, le=10,
         description="courses embedded in each steel beam, bottom and top (count; 0: glued)",
     )
+    beam_joints: Literal["glue", "joint_law"] = Field(
+        "glue", description="joints between the wall and the beams: glue (never open) or "
+        "joint_law (the case's joint law); left out: glue without clamped courses, joint_law "
+        "with them"
+    )
     top_beam: Literal["present", "absent"] = Field(
         "present", description="the top steel beam: present (the rig), or absent (a "
         "free-standing wall under loading.ground_motion)"
     )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _beam_joints_default(cls, data):
+        """``beam_joints`` left out: the joint law where courses are clamped, glue otherwise."""
+        if isinstance(data, dict) and "beam_joints" not in data:
+            clamped = data.get("clamped_courses", 0)
+            try:
+                on_law = int(clamped) > 0
+            except (TypeError, ValueError):
+                on_law = False  # the field's own check names the bad value
+            data = {**data, "beam_joints": "joint_law" if on_law else "glue"}
+        return data
 
 
 def vertical_force_N(case) -> float:
