@@ -270,9 +270,9 @@ class Supports(Section):
     the 0.2 m tall beam.
 
     ``clamped_courses``: the courses at the bottom and at the top of the wall embedded in the
-    steel beams (0: none, the wall glued to the beams as in the study; 1: the outer course at
+    steel beams (0: none, as in the study; 1: the outer course at
     each end). A clamped course moves with its beam (its weight is the beam's), and the bed
-    joint between it and the wall is a mortar joint of the joint law.
+    joint between it and the wall is as ``beam_joints`` says.
 
     ``beam_joints``: how the wall meets the beams (or the clamped courses in them): ``glue``,
     bilateral glue that never opens nor slides (the study's epoxy), or ``joint_law``, joints of
@@ -303,7 +303,7 @@ class Supports(Section):
     )
     clamped_courses: Whole = Field(
         0, ge=0, le=10,
-        description="courses embedded in each steel beam, bottom and top (count; 0: glued)",
+        description="courses embedded in each steel beam, bottom and top (count; 0: none)",
     )
     beam_joints: Literal["glue", "joint_law"] = Field(
         "glue", description="joints between the wall and the beams: glue (never open) or "
