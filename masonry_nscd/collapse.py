@@ -27,7 +27,10 @@ nodes of its mesh: a rigid block's corners move by ``u_0 + theta x (x - x_ref)``
   structure's own deformation under the imposed motion, no longer the motion itself. Without
   a moving support the displacements are the absolute ones (the fit would be zero).
 * the **onset** of the mechanism: the last step before the collapse at which every block point
-  was slower than ``onset_velocity_m_s`` (m/s), the structure at rest. The loads at collapse
+  was slower than ``onset_velocity_m_s`` (m/s), the structure at rest, or, where the rule gives
+  ``onset_kinetic_energy_J``, at which the blocks' kinetic energy ``v^T M v / 2`` (J, the
+  lumped mass) was below it: a dry assembly's loosest stones may rattle faster than any speed
+  that marks a mechanism while the whole stands, its kinetic energy small. The loads at collapse
   (the body-force multiplier ``lambda``, the force on a block, a settlement: the scene's
   :class:`~masonry_nscd.scenes.scene.LoadFactor` s) are read there: with a load that grows
   while the mechanism gains
@@ -191,7 +194,7 @@ class CollapseMonitor:
         # a resumed run: the onset and the collapse the kept rows show
         for row in self.table.kept:
             self._judge(int(row["step"]), row["time_s"], row["max_displacement_m"],
-                        row["max_speed_m_s"], None, quiet=True)
+                        row["max_speed_m_s"], row["kinetic_energy_J"], None, quiet=True)
 
     def loads(self, t: float) -> dict[str, float]:
         return {f.name: float(f.value(t)) for f in self.rule.factors}
@@ -223,15 +226,17 @@ class CollapseMonitor:
                      "max_speed_m_s": v_max}
         if self.table is not None:
             self.table.write_row([step, t, *loads.values(), d_max, v_max, kinetic])
-        self._judge(step, t, d_max, v_max, disp)
+        self._judge(step, t, d_max, v_max, kinetic, disp)
         return self.detected is not None and t >= self.stop_at - 1e-9
 
-    def _judge(self, step: int, t: float, d_max: float, v_max: float,
+    def _judge(self, step: int, t: float, d_max: float, v_max: float, kinetic: float,
                disp: np.ndarray | None, quiet: bool = False) -> None:
         r = self.rule
         if self.detected is not None:
             return
-        if v_max < r.onset_velocity_m_s:
+        at_rest = v_max < r.onset_velocity_m_s if r.onset_kinetic_energy_J is None else \
+            kinetic < r.onset_kinetic_energy_J
+        if at_rest:
             self.onset = {"step": step, "time_s": t, "loads": self.loads(t)}
         by = "displacement" if d_max > r.displacement_m else \
             "velocity" if r.velocity_m_s is not None and v_max > r.velocity_m_s else None

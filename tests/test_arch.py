@@ -306,6 +306,25 @@ def test_collapse_multiplier_of_a_horizontal_body_force(tmp_path):
     _assert_hinges_at(s, limit_hinges(N, t, True))
 
 
+def test_onset_read_on_kinetic_energy_is_the_limit_multiplier(tmp_path):
+    """The same run with the onset read on the voussoirs' kinetic energy, at the energy of the
+    whole arch moving at the speed the test above calls rest (1e-4 m/s): the multiplier at
+    the onset within 2 % of limit analysis too, and no later than the detection."""
+    from masonry_nscd.scenes import build_scene
+
+    case = load_case(CASE)
+    t = case.arch.thickness_m
+    scene = build_scene(case)
+    mass = sum(scene.bodies[i].mass for i in scene.structure)  # rigid voussoirs (kg)
+    rest_J = 0.5 * mass * 1e-4 ** 2
+    s = _run(tmp_path, "energy", "loading.body_force.rate_per_s=0.02",
+             f"collapse.onset_kinetic_energy_J={rest_J!r}", "collapse.end_time_s=10")
+    assert s["status"] == "collapse"
+    onset = s["collapse"]["loads_at_onset"]["lambda"]
+    assert onset == pytest.approx(collapse_multiplier(N, t), rel=0.02)
+    assert onset <= s["collapse"]["loads_at_detection"]["lambda"]
+
+
 def test_collapse_load_of_a_point_load(tmp_path):
     """A force growing on the extrados of voussoir 7 (37.5 to 45 deg from the springing):
     the force at the onset within 2 % of limit analysis, and its four hinges."""

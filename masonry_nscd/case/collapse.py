@@ -15,7 +15,9 @@ class Collapse(Section):
     if it is given, the largest speed passes ``velocity_m_s``. The run then goes on for
     ``after_s`` and stops, with status ``collapse``; the loads at collapse are read at the
     onset of the mechanism, the last step before it at which every block was slower than
-    ``onset_velocity_m_s``. A run that reaches ``end_time_s`` stands (status ``standing``). A
+    ``onset_velocity_m_s`` or, if ``onset_kinetic_energy_J`` is given, at which the kinetic
+    energy of the blocks was below it (for assemblies whose loosest stones rattle while the
+    whole stands: a dry vault under a growing load). A run that reaches ``end_time_s`` stands (status ``standing``). A
     hinge is a joint open by more than ``hinge_opening_m`` over most of its face and closed at
     one edge.
 
@@ -41,6 +43,11 @@ class Collapse(Section):
         1e-3, gt=0.0, le=1000.0,
         description="slower than this, every block is at rest: the onset of the mechanism is "
         "the last such step (m/s)",
+    )
+    onset_kinetic_energy_J: Real | None = Field(
+        None, gt=0.0, le=1e12,
+        description="with less kinetic energy than this, the structure is at rest: the onset "
+        "is the last such step, in place of onset_velocity_m_s (J; null: the speed decides)",
     )
     hinge_opening_m: Real = Field(
         1e-4, gt=0.0, le=10.0, description="a joint point opened by this much is open (m)"

@@ -216,6 +216,7 @@ def limit_settings(case, factors: list[LoadFactor]) -> tuple[SolverSettings, Col
     solver = SolverSettings.from_case(case, endo)
     rule = CollapseRule(displacement_m=col.displacement_m, velocity_m_s=col.velocity_m_s,
                         onset_velocity_m_s=col.onset_velocity_m_s,
+                        onset_kinetic_energy_J=col.onset_kinetic_energy_J,
                         hinge_opening_m=col.hinge_opening_m, after_s=col.after_s,
                         factors=factors)
     return solver, rule

@@ -125,6 +125,7 @@ class CollapseRule:
     displacement_m: float
     velocity_m_s: float | None = None
     onset_velocity_m_s: float = 1e-3
+    onset_kinetic_energy_J: float | None = None
     hinge_opening_m: float = 1e-4
     after_s: float = 0.0
     factors: list[LoadFactor] = field(default_factory=list)
@@ -132,6 +133,7 @@ class CollapseRule:
     def info(self) -> dict[str, Any]:
         return {"displacement_m": self.displacement_m, "velocity_m_s": self.velocity_m_s,
                 "onset_velocity_m_s": self.onset_velocity_m_s,
+                "onset_kinetic_energy_J": self.onset_kinetic_energy_J,
                 "hinge_opening_m": self.hinge_opening_m, "after_s": self.after_s,
                 "load_factors": [{"name": f.name, "unit": f.unit, "description": f.description}
                                  for f in self.factors]}
