@@ -17,9 +17,9 @@ class Collapse(Section):
     onset of the mechanism, the last step before it at which every block was slower than
     ``onset_velocity_m_s`` or, if ``onset_kinetic_energy_J`` is given, at which the kinetic
     energy of the blocks was below it (for assemblies whose loosest stones rattle while the
-    whole stands: a dry vault under a growing load). A run that reaches ``end_time_s`` stands (status ``standing``). A
-    hinge is a joint open by more than ``hinge_opening_m`` over most of its face and closed at
-    one edge.
+    whole stands: a dry vault under a growing load). A run that reaches ``end_time_s`` stands
+    (status ``standing``). A hinge is a joint open by more than ``hinge_opening_m`` over most
+    of its face and closed at one edge.
 
     With supports that move (``loading.settlement``), the displacements and speeds are those
     relative to the supports' rigid motion: the small rigid motion that best fits the
