@@ -325,6 +325,33 @@ def test_onset_read_on_kinetic_energy_is_the_limit_multiplier(tmp_path):
     assert onset <= s["collapse"]["loads_at_detection"]["lambda"]
 
 
+@pytest.mark.parametrize("part", [0.98, 1.02])
+def test_a_held_body_force_stands_below_the_limit_and_collapses_above(tmp_path, part):
+    """The body force grown at the case's rate and held at ``part`` of the limit multiplier
+    (rigid voussoirs: below it admissible forces carry the load, above none do): at 0.98 the
+    arch comes to rest, its voussoirs displaced by the joints' springs alone (microns), at
+    1.02 it collapses under the load it was held at."""
+    case = load_case(CASE)
+    bf = case.loading.body_force
+    held = part * collapse_multiplier(N, case.arch.thickness_m)
+    # after the ramp lambda = rate (t - start - ramp / 2)
+    hold_s = bf.start_s + bf.ramp_s / 2 + held / bf.rate_per_s
+    s = _run(tmp_path, "held", f"loading.body_force.hold_s={hold_s!r}",
+             f"collapse.end_time_s={hold_s + 3.0!r}")
+    assert s["last_loads"]["lambda"] == pytest.approx(held, rel=1e-9)
+    if part < 1.0:
+        assert s["status"] == "standing" and not s["moving_at_end"]
+        last = (tmp_path / "held" / "limit.csv").read_text().splitlines()[-1].split(",")
+        assert float(last[3]) < 1e-4  # the largest displacement (m)
+    else:
+        assert s["status"] == "collapse"
+        assert s["mechanism"] == "four-hinge"
+
+
+def test_a_hold_before_the_load_starts_is_refused():
+    with pytest.raises(CaseError, match="hold_s.*after start_s"):
+        load_case(CASE, ["loading.body_force.hold_s=0.1"])
+
 def test_collapse_load_of_a_point_load(tmp_path):
     """A force growing on the extrados of voussoir 7 (37.5 to 45 deg from the springing):
     the force at the onset within 2 % of limit analysis, and its four hinges."""

@@ -1,4 +1,5 @@
-"""The displacement histories: the ramp's integral, cyclic and tabulated paths, tables."""
+"""The displacement histories: the ramp's integral, cyclic and tabulated paths, tables; the
+growing load multiplier and its hold."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from masonry_nscd.loading.histories import (
     read_displacement_table,
     table,
 )
+from masonry_nscd.loading.multiplier import GrowingMultiplier
 
 
 def test_ramp_integral_is_the_integral_of_the_ramp():
@@ -22,6 +24,21 @@ def test_ramp_integral_is_the_integral_of_the_ramp():
     assert max(abs(num[i] - ramp_integral(x[i])) for i in range(0, len(x), 500)) < 1e-9
     assert ramp_integral(1.0) == 0.5 and ramp_integral(2.5) == 2.0
     assert REVERSAL_SHORTFALL == pytest.approx(0.1132, abs=1e-4)
+
+
+def test_a_held_multiplier_keeps_the_value_it_reached():
+    """After its ramp the multiplier grows as ``value + rate (t - start - ramp / 2)``; held
+    at ``hold`` it keeps that value, and a level above it is never reached."""
+    grow = GrowingMultiplier(0.01, 0.05, 0.2, 0.1)
+    held = GrowingMultiplier(0.01, 0.05, 0.2, 0.1, hold=2.0)
+    at_hold = 0.01 + 0.05 * (2.0 - 0.25)
+    assert grow(2.0) == pytest.approx(at_hold, rel=1e-12)
+    for t in (0.0, 0.25, 1.0, 2.0):
+        assert held(t) == grow(t)
+    for t in (2.0001, 3.0, 100.0):
+        assert held(t) == grow(2.0)
+    assert held.time_of(0.5 * at_hold) == grow.time_of(0.5 * at_hold)
+    assert held.time_of(1.001 * at_hold) is None
 
 
 def test_cyclic_history_reaches_each_amplitude_and_ends_at_rest_at_zero():

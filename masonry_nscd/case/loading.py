@@ -14,6 +14,12 @@ from masonry_nscd.loading.ground_motion import GroundMotion, read_acceleration_r
 from masonry_nscd.loading.histories import read_displacement_table
 
 
+def _check_hold_after_start(hold_s: float | None, start_s: float) -> None:
+    """A growing load is held after it has started (``hold_s > start_s``)."""
+    if hold_s is not None and hold_s <= start_s:
+        raise_problems([("hold_s", f"got {hold_s:g}; must be after start_s ({start_s:g} s)")])
+
+
 class BodyForce(Section):
     """A body force ``lambda(t) g m`` on every block along ``direction`` (``g`` the gravity
     of ``loading.gravity``, ``m`` the block's mass): the pseudo-static seismic or tilting-table
@@ -24,7 +30,9 @@ class BodyForce(Section):
         lambda(t) = multiplier s(t) + rate_per_s ramp_s S((t - start_s) / ramp_s)
 
     (``s`` the ramp, ``S`` its integral, :mod:`masonry_nscd.loading.multiplier`). A horizontal
-    body force of ``lambda`` with gravity is a base tilted by ``atan(lambda)``.
+    body force of ``lambda`` with gravity is a base tilted by ``atan(lambda)``. With
+    ``hold_s``, ``lambda`` stops growing there and keeps the value it reached: the load held,
+    to see whether the structure comes to rest under it (status ``standing``) or collapses.
     """
 
     direction: Direction = Field(
@@ -40,6 +48,14 @@ class BodyForce(Section):
     )
     start_s: Real = Field(0.3, ge=0.0, le=1e6, description="time at which the ramp starts (s)")
     ramp_s: Real = Field(0.1, gt=0.0, le=1e6, description="duration of the ramp (s)")
+    hold_s: Real | None = Field(
+        None, gt=0.0, le=1e6, description="time from which lambda is held at the value it "
+        "reached (s, after start_s; null: it grows until the run ends)")
+
+    @model_validator(mode="after")
+    def _check_hold(self) -> BodyForce:
+        _check_hold_after_start(self.hold_s, self.start_s)
+        return self
 
     @property
     def active(self) -> bool:
@@ -49,7 +65,8 @@ class BodyForce(Section):
 class PointLoad(Section):
     """A force on one block (``block``: its name, e.g. ``voussoir 7``) at the middle of its
     extrados face, ``force_N`` reached over the tanh ramp ``ramp_s`` from ``start_s`` and
-    growing at ``rate_N_s`` from there on (as ``lambda`` of ``body_force``)."""
+    growing at ``rate_N_s`` from there on, held from ``hold_s`` if given (as ``lambda`` of
+    ``body_force``)."""
 
     block: str = Field(..., min_length=1, max_length=200, description="name of the block")
     direction: Direction = Field(
@@ -59,6 +76,14 @@ class PointLoad(Section):
     rate_N_s: Real = Field(0.0, ge=0.0, le=1e12, description="growth of the force (N/s)")
     start_s: Real = Field(0.3, ge=0.0, le=1e6, description="time at which the ramp starts (s)")
     ramp_s: Real = Field(0.1, gt=0.0, le=1e6, description="duration of the ramp (s)")
+    hold_s: Real | None = Field(
+        None, gt=0.0, le=1e6, description="time from which the force is held at the value it "
+        "reached (s, after start_s; null: it grows until the run ends)")
+
+    @model_validator(mode="after")
+    def _check_hold(self) -> PointLoad:
+        _check_hold_after_start(self.hold_s, self.start_s)
+        return self
 
 
 class Removal(Section):

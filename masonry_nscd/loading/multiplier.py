@@ -10,7 +10,9 @@ with ``s`` the tanh ramp of :func:`masonry_nscd.loading.smooth_step` and ``S(x) 
 (:func:`masonry_nscd.loading.ramp_integral`): the constant part rises over ``ramp``
 and the growth starts along the same ramp, so that ``d lambda / dt`` has no jump; after the
 ramp ``lambda = value + rate (t - start - ramp / 2)``. The multiplier is dimensionless for a body
-force (``lambda g m`` on each block) and a force (N) for a point load.
+force (``lambda g m`` on each block) and a force (N) for a point load. Where a time ``hold`` is
+given, the multiplier stops there and keeps the value it reached, ``lambda(t) =
+lambda(min(t, hold))``: the load held, to see whether the structure comes to rest under it.
 
 A support that settles moves by ``d s((t - start) / duration)`` (m, per component): its
 velocity is imposed, with the displacement known exactly (``displacement``, so that
@@ -33,14 +35,20 @@ class GrowingMultiplier:
     rate: float  # per s
     start: float  # s
     ramp: float  # s
+    hold: float | None = None  # s; the multiplier is held from there on (None: never)
 
     def __call__(self, t: float) -> float:
+        if self.hold is not None:
+            t = min(t, self.hold)
         x = (t - self.start) / self.ramp
         return self.value * smooth_step(t, self.start, self.ramp) + \
             self.rate * self.ramp * ramp_integral(x)
 
     def time_of(self, level: float) -> float | None:
         """The first time (s) at which ``lambda`` reaches ``level`` (None: never)."""
+        if self.hold is not None:
+            t = GrowingMultiplier(self.value, self.rate, self.start, self.ramp).time_of(level)
+            return t if t is None or t <= self.hold else None
         if level <= 0.0 or (self.value <= 0.0 and self.rate <= 0.0):
             return None if level > 0.0 else 0.0
         lo, hi = self.start, self.start + self.ramp

@@ -72,7 +72,7 @@ def limit_loads(case, bodies: list, structure: list[int],
     factors = []
     bf = ld.body_force
     if bf.active:
-        lam = GrowingMultiplier(bf.multiplier, bf.rate_per_s, bf.start_s, bf.ramp_s)
+        lam = GrowingMultiplier(bf.multiplier, bf.rate_per_s, bf.start_s, bf.ramp_s, bf.hold_s)
         gval = grav.value_m_s2
         loads.add(weight_pattern(bf.direction), lambda s, lam=lam, gval=gval: gval * lam(s))
         stages.append(Stage("body force", bf.start_s))
@@ -82,7 +82,7 @@ def limit_loads(case, bodies: list, structure: list[int],
         k = next(i for i, b in enumerate(bodies) if b.name == pl.block)
         F = np.zeros(ndof)
         add_force(F, bodies[k], int(dof0[k]), point_at(k), np.asarray(pl.direction, dtype=float))
-        P = GrowingMultiplier(pl.force_N, pl.rate_N_s, pl.start_s, pl.ramp_s)
+        P = GrowingMultiplier(pl.force_N, pl.rate_N_s, pl.start_s, pl.ramp_s, pl.hold_s)
         loads.add(F, P)
         stages.append(Stage("point load", pl.start_s))
         factors.append(LoadFactor("point_load_N", "N", P, f"force on {pl.block}"))
