@@ -249,9 +249,8 @@ class Wall(Section):
 class Supports(Section):
     """Boundary conditions: the test rig. The wall stands on a clamped steel beam and carries a
     rigid steel beam above, glued to them or on joints of the joint law (or its outer courses
-    clamped in them); the top beam's
-    out-of-plane displacement and rotations are blocked, its x motion is driven by the
-    horizontal stage.
+    clamped in them); the top beam's out-of-plane displacement and rotations are blocked, its
+    x motion is driven by the horizontal stage.
 
     ``top_vertical``: ``load`` - the top beam is free in y and carries the vertical stress of
     ``loading.vertical_stress`` (the study); ``fixed`` - the top beam is held in y (then the
@@ -270,9 +269,9 @@ class Supports(Section):
     the 0.2 m tall beam.
 
     ``clamped_courses``: the courses at the bottom and at the top of the wall embedded in the
-    steel beams (0: none, as in the study; 1: the outer course at
-    each end). A clamped course moves with its beam (its weight is the beam's), and the bed
-    joint between it and the wall is as ``beam_joints`` says.
+    steel beams (0: none, as in the study; 1: the outer course at each end). A clamped course
+    moves with its beam (its weight is the beam's), and the bed joint between it and the wall
+    is as ``beam_joints`` says.
 
     ``beam_joints``: how the wall meets the beams (or the clamped courses in them): ``glue``,
     bilateral glue that never opens nor slides (the study's epoxy), or ``joint_law``, joints of
