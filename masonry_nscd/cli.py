@@ -540,8 +540,15 @@ def limit_cmd(
         "fixed friction capacities).")] = "associative",
     start: Annotated[str, typer.Option(
         "--start", help="With --flow non-associative, the normal forces the iteration starts "
-        "from: elastic (the joints' springs under the dead loads, Coulomb friction) or "
-        "associative (the associative solution at collapse).")] = "elastic",
+        "from: elastic (the joints' springs under the dead loads, Coulomb friction), "
+        "associative (the associative solution at collapse) or run (an NSCD run of the same "
+        "case, --run).")] = "elastic",
+    run_dir: Annotated[Path | None, typer.Option(
+        "--run", metavar="OUTDIR", help="With --start run: the folder of an NSCD run of the "
+        "same scene, whose joint tractions give the start's normal forces.")] = None,
+    run_time: Annotated[float | None, typer.Option(
+        "--run-time-s", metavar="T", help="With --start run: the run's output step nearest "
+        "this time (s; default: its last).")] = None,
     method: Annotated[str, typer.Option(
         "--method", help="With --flow non-associative: fixed-point (the iteration of fixed "
         "friction capacities, seconds) or load-path (the load followed from rest on the "
@@ -563,6 +570,7 @@ def limit_cmd(
     from masonry_nscd.limit.analysis import (
         FLOWS,
         METHODS,
+        RunStartError,
         analyse,
         format_result,
         write_outputs,
@@ -573,6 +581,9 @@ def limit_cmd(
         _fail(f"--flow: one of {', '.join(FLOWS)}, got {flow!r}", 2)
     if start not in STARTS:
         _fail(f"--start: one of {', '.join(STARTS)}, got {start!r}", 2)
+    if (start == "run") != (run_dir is not None) or (run_time is not None and run_dir is None):
+        _fail("--start run takes the run's folder (--run OUTDIR, and --run-time-s T if not "
+              "its last output step); --run and --run-time-s go with --start run only", 2)
     if method not in METHODS:
         _fail(f"--method: one of {', '.join(METHODS)}, got {method!r}", 2)
     if method == "load-path" and (tension or compressive is not None):
@@ -586,9 +597,13 @@ def limit_cmd(
     outdir = _study_outdir(output, Path("results") / f"{case.name}_limit", overwrite)
     if compressive is not None and not compressive > 0.0:
         _fail(f"--compressive-strength: a stress > 0 Pa, got {compressive:g}", 2)
-    result = analyse(case, facets=facets, tension=tension, flow=flow, solver=solver,
-                     compressive_Pa=compressive, start=start, method=method,
-                     progress=lambda line: typer.echo(line, err=True))
+    try:
+        result = analyse(case, facets=facets, tension=tension, flow=flow, solver=solver,
+                         compressive_Pa=compressive, start=start, run_dir=run_dir,
+                         run_time_s=run_time, method=method,
+                         progress=lambda line: typer.echo(line, err=True))
+    except RunStartError as exc:  # a run of another case, or no results in its folder
+        _fail(f"--run: {exc}", 2)
     for line in format_result(result.record):
         typer.echo(line)
     paths = write_outputs(result, outdir)

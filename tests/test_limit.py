@@ -516,6 +516,47 @@ def test_the_barrel_vault_collapses_as_its_weakest_ring():
     assert other.multiplier == pytest.approx(expected, rel=1e-2)
 
 
+def test_the_iteration_from_the_state_of_an_nscd_run(tmp_path):
+    """The same vault run by NSCD under its dead loads alone (gravity, then 0.2 s at rest):
+    the normal forces read from the run (traction times area) carry the vault's weight on its
+    springings (horizontal joints: the sum of their normal forces is the weight), the faces
+    between the rings carry none, and the iteration started from them ends at the weakest
+    ring's multiplier, as from the elastic state. The command refuses a run of another case
+    and ``--start run`` without its folder, once each, exit 2, nothing written."""
+    from masonry_nscd.limit.analysis import run_normal_forces
+    from masonry_nscd.run import run_case
+
+    settings = ["joint.mu=2.0"]
+    vault = CASES / "vault_barrel.yaml"
+    run = tmp_path / "run"
+    run_case(load_case(vault, [*settings, "loading.body_force.start_s=10",
+                               "collapse.end_time_s=0.3", "output.vtu=false"]),
+             run, echo=lambda _m: None)
+    case = load_case(vault, settings)
+    scene = build_scene(case)
+    m = rigid_model(scene)
+    N, origin = run_normal_forces(m, run)
+    assert origin["time_s"] == pytest.approx(0.3)
+    weight = 9.81 * sum(b.mass for i, b in enumerate(scene.bodies) if not m.support[i])
+    springing = m.support[m.pair].any(axis=1)
+    assert np.abs(m.frame[springing, 0, 1]).min() == pytest.approx(1.0)
+    assert N[springing].sum() == pytest.approx(weight, rel=1e-4)
+    assert N[m.group == scene.groups.index("ring")].max() < 1e-5 * N.max()
+    expected = min(four_hinge_multiplier(0, 1.0, 0.15,
+                                         geometry=ring_voussoirs(24, 1.0, 0.15, staggered))[0]
+                   for staggered in (False, True))
+    sol, rec = solve_non_associative(m, start="run", start_normal=N)
+    assert rec["converged"]
+    assert sol.multiplier == pytest.approx(expected, rel=1e-5)
+    runner = CliRunner()
+    for args, word in (([str(ARCH), "--start", "run", "--run", str(run)], "contact points"),
+                       ([str(vault), "--start", "run"], "--run OUTDIR")):
+        res = runner.invoke(app, ["limit", *args, "--flow", "non-associative",
+                                  "-o", str(tmp_path / "out")])
+        assert res.exit_code == 2
+        assert res.output.count("error") == 1 and word in res.output
+        assert not (tmp_path / "out").exists()
+
 # --- the load followed from rest (--method load-path) -----------------------------------------
 
 def test_the_load_path_point_law_by_hand_and_by_differences():

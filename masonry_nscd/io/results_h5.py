@@ -444,6 +444,7 @@ class RunFields:
     time_s: float
     nodal_displacement_m: FloatArray | None = None  # (nn, 3)
     joint_u_m: FloatArray | None = None  # (npt, 3) relative displacements (n, t, s)
+    joint_T_Pa: FloatArray | None = None  # (npt, 3) tractions (n, t, s); compression n < 0
 
     @property
     def joint_d_coh(self) -> FloatArray:
@@ -484,7 +485,7 @@ def read_fields(h5_path: Path | str, step: int | None = None) -> RunFields | Non
         d_c=data.get("element_d_c", np.zeros(ne)), d_cpp=data.get("element_d_cpp", np.zeros(ne)),
         d_t=data.get("element_d_t", np.zeros(ne)), joint_beta=data["joint_beta"],
         step=int(step), time_s=time_s, nodal_displacement_m=data.get("nodal_displacement_m"),
-        joint_u_m=data.get("joint_u_m"))
+        joint_u_m=data.get("joint_u_m"), joint_T_Pa=data.get("joint_T_Pa"))
 
 
 def read_mesh_arrays(h5_path: PathLike, names: Sequence[str]) -> dict[str, NDArray]:

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from masonry_nscd.io import limit_analysis as files
+from masonry_nscd.io.results_h5 import output_steps, read_fields
 from masonry_nscd.limit import friction, mechanism, thrust
 from masonry_nscd.limit.lp import (
     SOLVERS,
@@ -53,6 +54,37 @@ class LimitResult:
     groups: tuple[str, ...]  # the scene's joint group names, by id
 
 
+class RunStartError(ValueError):
+    """The run a non-associative iteration was to start from cannot give its normal forces."""
+
+
+def run_normal_forces(m: RigidModel, run_dir: Path | str, time_s: float | None = None
+                      ) -> tuple[np.ndarray, dict[str, Any]]:
+    """The normal forces (N, compression positive) of the points of ``m`` in an NSCD run of the
+    same scene (the folder ``run_dir``, its ``results.h5``) at the output step nearest
+    ``time_s`` (s; None: the last), each its traction times its area; and what was read
+    (``run``, ``step``, ``time_s``). :class:`RunStartError` naming the problem when the folder
+    has no results, no tractions, or its contact points are not those of ``m``."""
+    h5 = Path(run_dir) / "results.h5"
+    if not h5.is_file():
+        raise RunStartError(f"{run_dir}: no results.h5 (not the folder of a run)")
+    steps = output_steps(h5)
+    if not steps:
+        raise RunStartError(f"{h5}: no output step written yet")
+    step, at = steps[-1] if time_s is None else min(steps, key=lambda s: abs(s[1] - time_s))
+    fields = read_fields(h5, step)
+    assert fields is not None
+    if fields.joint_T_Pa is None:
+        raise RunStartError(f"{h5}: its output steps hold no joint tractions")
+    x = fields.contact_points_m
+    size = float(np.ptp(m.x, axis=0).max()) if m.points else 1.0
+    if len(x) != m.points or float(np.abs(x - m.x).max(initial=0.0)) > 1e-9 * size:
+        raise RunStartError(f"{run_dir}: its contact points are not this case's scene's "
+                         f"({len(x)} points against {m.points}): a run of another case")
+    N = np.maximum(-fields.joint_T_Pa[:, 0] * fields.contact_area_m2, 0.0)
+    return N, {"run": str(run_dir), "step": int(step), "time_s": float(at)}
+
+
 def _kind(flow: str, iteration: dict | None, method: str = METHODS[0]) -> str:
     if flow == "associative":
         return ("associative: the collapse multiplier of the normality rule (a sliding joint "
@@ -65,9 +97,10 @@ def _kind(flow: str, iteration: dict | None, method: str = METHODS[0]) -> str:
                 f"springs, Coulomb friction without dilatancy; the last load at rest before {above}")
     done = "converged" if iteration and iteration.get("converged") else "not converged"
     start = (iteration or {}).get("start", STARTS[0])
-    origin = ("the elastic state under the dead loads (least complementary energy, successive "
-              "Tresca bounds: Panagiotopoulos 1975)" if start == "elastic"
-              else "the associative solution")
+    origin = {"elastic": "the elastic state under the dead loads (least complementary energy, "
+                         "successive Tresca bounds: Panagiotopoulos 1975)",
+              "associative": "the associative solution",
+              "run": "the normal forces of an NSCD run"}[start]
     return ("non-associative: fixed friction capacities (Gilbert, Casapulla and Ahmed 2006) "
             f"iterated from {origin}, proximal steps, {done}; one non-associative collapse "
             "load, not necessarily the least")
@@ -76,9 +109,12 @@ def _kind(flow: str, iteration: dict | None, method: str = METHODS[0]) -> str:
 def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = False,
             flow: str = "associative", solver: str = SOLVERS[0],
             compressive_Pa: float | None = None, start: str = STARTS[0],
+            run_dir: Path | str | None = None, run_time_s: float | None = None,
             method: str = METHODS[0], progress=None) -> LimitResult:
     """The limit analysis of ``case`` (module docstring); ``start``: the non-associative
-    iteration's start (:data:`.lp.STARTS`); ``method``: how the non-associative multiplier is
+    iteration's start (:data:`.lp.STARTS`; ``run``: the normal forces of the NSCD run in
+    ``run_dir`` at its output step nearest ``run_time_s``, :func:`run_normal_forces`;
+    :class:`RunStartError` where that run is not of this case); ``method``: how the non-associative multiplier is
     found (:data:`METHODS`; ``load-path`` has no tension and no compressive bound);
     ``progress``: a callable given the load path's line per load step."""
     if flow not in FLOWS:
@@ -102,8 +138,13 @@ def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = Fals
         sol = solve_limit(model, facets, tension=tension, solver=solver,
                           compressive_Pa=compressive_Pa)
     else:
+        normal, origin = (run_normal_forces(model, run_dir, run_time_s) if start == "run"
+                          else (None, None))
         sol, iteration = solve_non_associative(model, facets, tension=tension, solver=solver,
-                                               compressive_Pa=compressive_Pa, start=start)
+                                               compressive_Pa=compressive_Pa, start=start,
+                                               start_normal=normal)
+        if origin is not None:
+            iteration["start_run"] = origin
     info = scene.info()
     optimal = sol.status == "optimal"
     every = mechanism.joints(model, sol.point_velocity, info) if optimal else []
@@ -222,7 +263,10 @@ def format_result(record: dict[str, Any]) -> list[str]:
                      + (f" ({it['stopped_by']})" if it.get("stopped_by") else "")
                      + (f"; last {len(it['multipliers'][-5:])} multipliers within "
                         f"{it['band'][0]:.6g} to {it['band'][1]:.6g}" if it.get("band") else "")
-                     + f"; from the {it.get('start', STARTS[0])} state"
+                     + (f"; from the run {it['start_run']['run']} at t = "
+                        f"{it['start_run']['time_s']:.6g} s (step {it['start_run']['step']})"
+                        if it.get("start_run") else
+                        f"; from the {it.get('start', STARTS[0])} state")
                      + (f"; associative multiplier {it['associative']:.6g}"
                         if it.get("associative") is not None else ""))
     if "load_path" in record:

@@ -321,8 +321,9 @@ STEADY_STEPS = 5
 NON_ASSOCIATIVE_RTOL = 5e-3
 #: The normal forces the iteration starts from (:func:`solve_non_associative`), the default
 #: first: ``elastic``, the joints' springs under the dead loads with Coulomb friction
-#: (:func:`elastic_state`); ``associative``, the associative solution at collapse.
-STARTS = ("elastic", "associative")
+#: (:func:`elastic_state`); ``associative``, the associative solution at collapse; ``run``, the
+#: normal forces of an NSCD run of the same scene at one of its output steps (given).
+STARTS = ("elastic", "associative", "run")
 #: The elastic state's successive friction bounds: at most this many, until the normal forces
 #: change by less than ``ELASTIC_RTOL`` of the largest between two.
 ELASTIC_STEPS = 20
@@ -437,7 +438,8 @@ def solve_non_associative(m: RigidModel, facets: int = friction.DEFAULT_FACETS, 
                           tension: bool = False, proximal: float = PROXIMAL,
                           rtol: float = NON_ASSOCIATIVE_RTOL, max_iterations: int = 60,
                           solver: str = SOLVERS[0], compressive_Pa: float | None = None,
-                          start: str = STARTS[0]) -> tuple[LimitSolution, dict]:
+                          start: str = STARTS[0], start_normal: np.ndarray | None = None
+                          ) -> tuple[LimitSolution, dict]:
     r"""The multiplier with Coulomb friction that does not dilate, by the iteration of fixed
     friction capacities (Gilbert, Casapulla and Ahmed, Computers & Structures 84, 2006) made
     proximal: from the normal forces ``N^0`` of the start, step ``i`` solves the
@@ -482,6 +484,10 @@ def solve_non_associative(m: RigidModel, facets: int = friction.DEFAULT_FACETS, 
     multiplier of the last :data:`STEADY_STEPS` steps)."""
     if start not in STARTS:
         raise ValueError(f"start: one of {', '.join(STARTS)}, got {start!r}")
+    if (start == "run") != (start_normal is not None) or \
+            (start_normal is not None and len(start_normal) != m.points):
+        raise ValueError(f"start run takes the normal forces of the {m.points} points "
+                         "(start_normal), and only it")
     first = solve_limit(m, facets, tension=tension, solver=solver,
                         compressive_Pa=compressive_Pa)
     record = {"method": "fixed friction capacities, proximal", "start": start,
@@ -498,6 +504,9 @@ def solve_non_associative(m: RigidModel, facets: int = friction.DEFAULT_FACETS, 
             return first, record
         # the bound its forces are admissible with; its own normal forces the first target
         nbar, target = bound.copy(), state[:, 0].copy()
+    elif start == "run":
+        nbar = np.maximum(np.asarray(start_normal, float), 0.0)
+        target = nbar
     else:
         if first.status != "optimal" or first.multiplier is None:
             return first, record
