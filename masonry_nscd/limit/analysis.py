@@ -80,7 +80,7 @@ def run_normal_forces(m: RigidModel, run_dir: Path | str, time_s: float | None =
     size = float(np.ptp(m.x, axis=0).max()) if m.points else 1.0
     if len(x) != m.points or float(np.abs(x - m.x).max(initial=0.0)) > 1e-9 * size:
         raise RunStartError(f"{run_dir}: its contact points are not this case's scene's "
-                         f"({len(x)} points against {m.points}): a run of another case")
+                            f"({len(x)} points against {m.points}): a run of another case")
     N = np.maximum(-fields.joint_T_Pa[:, 0] * fields.contact_area_m2, 0.0)
     return N, {"run": str(run_dir), "step": int(step), "time_s": float(at)}
 
@@ -114,8 +114,9 @@ def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = Fals
     """The limit analysis of ``case`` (module docstring); ``start``: the non-associative
     iteration's start (:data:`.lp.STARTS`; ``run``: the normal forces of the NSCD run in
     ``run_dir`` at its output step nearest ``run_time_s``, :func:`run_normal_forces`;
-    :class:`RunStartError` where that run is not of this case); ``method``: how the non-associative multiplier is
-    found (:data:`METHODS`; ``load-path`` has no tension and no compressive bound);
+    :class:`RunStartError` where that run is not of this case); ``method``: how the
+    non-associative multiplier is found (:data:`METHODS`; ``load-path`` has no tension and
+    no compressive bound);
     ``progress``: a callable given the load path's line per load step."""
     if flow not in FLOWS:
         raise ValueError(f"flow: one of {', '.join(FLOWS)}, got {flow!r}")

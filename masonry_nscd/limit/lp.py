@@ -455,7 +455,9 @@ def solve_non_associative(m: RigidModel, facets: int = friction.DEFAULT_FACETS, 
     ``start`` (:data:`STARTS`): ``elastic`` (the default) takes ``N^0`` from the state of the
     joints' springs under the dead loads (:func:`elastic_state`), the state the structure is in
     when its load starts to grow; ``associative`` from the associative solution at collapse,
-    Gilbert, Casapulla and Ahmed's start. Non-associative collapse loads are not unique, and
+    Gilbert, Casapulla and Ahmed's start; ``run`` from ``start_normal`` (N, per point), the
+    normal forces of an NSCD run of the same scene (the state the run was in, its settling
+    included). Non-associative collapse loads are not unique, and
     the iteration ends at the one its start leads to: the associative start carries the
     self-stress of the associative solution (rings of a vault pressed together and held by
     friction, which the static method may use and the structure loaded from rest never builds)
