@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from masonry_nscd.io import limit_analysis as files
+from masonry_nscd.io import runfolder as rf
 from masonry_nscd.io.results_h5 import output_steps, read_fields
 from masonry_nscd.limit import friction, mechanism, thrust
 from masonry_nscd.limit.lp import (
@@ -65,9 +66,9 @@ def run_normal_forces(m: RigidModel, run_dir: Path | str, time_s: float | None =
     ``time_s`` (s; None: the last), each its traction times its area; and what was read
     (``run``, ``step``, ``time_s``). :class:`RunStartError` naming the problem when the folder
     has no results, no tractions, or its contact points are not those of ``m``."""
-    h5 = Path(run_dir) / "results.h5"
+    h5 = Path(run_dir) / rf.RESULTS
     if not h5.is_file():
-        raise RunStartError(f"{run_dir}: no results.h5 (not the folder of a run)")
+        raise RunStartError(f"{run_dir}: no {rf.RESULTS} (not the folder of a run)")
     steps = output_steps(h5)
     if not steps:
         raise RunStartError(f"{h5}: no output step written yet")
