@@ -352,6 +352,7 @@ def test_a_hold_before_the_load_starts_is_refused():
     with pytest.raises(CaseError, match="hold_s.*after start_s"):
         load_case(CASE, ["loading.body_force.hold_s=0.1"])
 
+
 def test_collapse_load_of_a_point_load(tmp_path):
     """A force growing on the extrados of voussoir 7 (37.5 to 45 deg from the springing):
     the force at the onset within 2 % of limit analysis, and its four hinges."""
