@@ -287,6 +287,22 @@ def test_horizontal_multiplier_of_the_arch_and_its_four_hinges():
     assert lam * (m.live @ v) + m.dead @ v == pytest.approx(0.0, abs=1e-9 * abs(m.dead @ v))
 
 
+@pytest.mark.parametrize("load", ["body_force", "point_load"])
+def test_a_held_load_is_analysed_as_the_load_it_holds(load):
+    """A run's hold (``hold_s``) stops the growth in time; the analysis of the held case is
+    that of the growing load all the same: the kinematic theorem's multiplier of the arch, for
+    the body force and for a force on voussoir 7."""
+    sets = [] if load == "body_force" else [
+        "loading.body_force.rate_per_s=0",
+        "loading.point_load={block: voussoir 7, rate_N_s: 200}"]
+    held = analyse(load_case(ARCH, [*sets, f"loading.{load}.hold_s=1.0"]))
+    per_area = 2000.0 * 9.81 * 0.25  # N per m^2 of the chord trapezoids (density, g, depth)
+    expected, _ = (four_hinge_multiplier(24, 1.0, 0.15) if load == "body_force" else
+                   four_hinge_multiplier(24, 1.0, 0.15, point_load=6))
+    scale = 1.0 if load == "body_force" else per_area
+    assert held.solution.multiplier == pytest.approx(expected * scale, rel=1e-6)
+
+
 def test_minimum_thickness_of_the_arch():
     """The minimum thickness of the shipped arch's 24 voussoirs by bisection on the static
     programme (``masonry threshold --method limit``) is that of the thrust line within 0.1 %,

@@ -19,6 +19,9 @@ from typing import Any
 
 import numpy as np
 
+from masonry_nscd.case import case_from_dict
+from masonry_nscd.case.files import case_to_yaml
+from masonry_nscd.case.yaml12 import read_yaml
 from masonry_nscd.io import limit_analysis as files
 from masonry_nscd.io import runfolder as rf
 from masonry_nscd.io.results_h5 import output_steps, read_fields
@@ -57,6 +60,20 @@ class LimitResult:
 
 class RunStartError(ValueError):
     """The run a non-associative iteration was to start from cannot give its normal forces."""
+
+
+def unheld(case):
+    """``case`` with its growing loads not held (``hold_s`` null): a run's hold says when the
+    load stops growing, and the analysis asks how far it could grow."""
+    data = read_yaml(case_to_yaml(case, comments=False), case.name)  # the case as saved
+    loading = data["loading"]
+    held = [k for k in ("body_force", "point_load")
+            if loading.get(k) is not None and loading[k].get("hold_s") is not None]
+    if not held:
+        return case
+    for k in held:
+        loading[k]["hold_s"] = None
+    return case_from_dict(data)
 
 
 def run_normal_forces(m: RigidModel, run_dir: Path | str, time_s: float | None = None
@@ -128,7 +145,7 @@ def analyse(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = Fals
         raise ValueError("method load-path: the joints' springs carry no tension and crush "
                          "nowhere; leave out --tension and --compressive-strength")
     t0 = time.perf_counter()
-    scene = build_scene(case)
+    scene = build_scene(unheld(case))
     t1 = time.perf_counter()
     model = rigid_model(scene)
     t2 = time.perf_counter()
@@ -191,7 +208,7 @@ def stands(case, *, facets: int = friction.DEFAULT_FACETS, tension: bool = False
            solver: str = SOLVERS[0]) -> bool:
     """Whether admissible forces carry the dead loads of ``case`` alone (its growing load at
     zero): the static programme is feasible."""
-    model = rigid_model(build_scene(case))
+    model = rigid_model(build_scene(unheld(case)))
     return solve_limit(model, facets, tension=tension, dead_only=True,
                        solver=solver).status == "optimal"
 
