@@ -197,6 +197,7 @@ def _case_line(case, scene, integ) -> str:
         + (f", steps of {solver.h:g} s to {solver.h * (1 << solver.max_growth):g} "
            "s (adaptive)" if solver.max_growth else "")
         + (" (auto)" if case.solver.method == "auto" else "")
+        + (", kinetic damping" if solver.kinetic_damping else "")
         + (f", linear solver {integ.newton.linear}"
            + (" (auto)" if case.solver.linear == "auto" else "")
            + (f" on {mpi.launched_processes()} processes" if mpi.launched_processes() > 1

@@ -98,6 +98,13 @@ class Solver(Section):
         "its integrity and no ENDO3D Gauss point gained more than this of damage in it; twice "
         "as much halves the next step (dimensionless)",
     )
+    kinetic_damping: bool = Field(
+        False,
+        description="Cundall's kinetic damping: every free velocity set to zero after a step "
+        "in which the blocks' kinetic energy fell; the run then asks which loads the structure "
+        "carries at rest, without the momentum a dynamic run builds (a static solution by "
+        "dynamic relaxation; docs/guide/limit_states.md)",
+    )
 
     @property
     def max_growth(self) -> int:

@@ -42,7 +42,7 @@ def checkpoint_arrays(integ) -> dict[str, NDArray]:
     return {
         "format": np.array(FORMAT), "format_version": np.int64(FORMAT_VERSION),
         **integrator_state(integ),
-        **{k: np.int64(v) for k, v in integ.step_memory().items()},
+        **{k: np.asarray(v) for k, v in integ.step_memory().items()},
     }
 
 

@@ -11,6 +11,8 @@ What a checkpoint holds (SI units, as in the integrator):
   ``Integrator.halve_after_failure``; absent in older checkpoints: no memory);
 * ``step_level``, ``step_easy``: the adaptive step size's level and its count of easy steps
   (``nscd/step_size.py``; absent in older checkpoints: level 0);
+* ``kinetic_last_J``: with kinetic damping, the kinetic energy at the end of the last step (J),
+  which the next step's is compared with (absent: no comparison at the first step);
 * ``joint_u``, ``joint_U``, ``joint_uc``, ``joint_beta``, ``joint_T``, ``joint_status``: the
   :class:`~masonry_nscd.nscd.integrator.JointState` of every contact point (m, m/s, m, -, Pa,
   status code);
@@ -116,4 +118,5 @@ def restore_integrator(integ, state: Mapping[str, ArrayLike]) -> None:
     integ.t = float(arr["t"])
     integ.step_index = int(arr["step_index"])
     integ.set_step_memory({k: np.asarray(v) for k, v in state.items()
-                           if k in ("halve_next", "halve_run", "step_level", "step_easy")})
+                           if k in ("halve_next", "halve_run", "step_level", "step_easy",
+                                    "kinetic_last_J")})

@@ -66,7 +66,9 @@ The terms, each from its own quantities:
 Summed over the steps, (2) gives ``W_ext = KE + E_stored + D_joints + D_blocks + D_num`` up to
 the solvers' tolerance: the imbalance is a check of the state (``u, v, T`` consistent with
 each other and with the loads), of the reactions, and of the numerical term. The relative
-imbalance is ``|W_ext - sum of the terms| / max(|W_ext|, largest term)``.
+imbalance is ``|W_ext - sum of the terms| / max(|W_ext|, largest term)``. Kinetic damping
+(``Integrator.kinetic_damping``) sets the velocities to zero between two steps, outside (1): the
+kinetic energy it takes is added to the bodies' numerical term, a dissipation of the method.
 
 Cost: per step a handful of dot products over the dofs and vectorised arithmetic over the
 contact points (no kernel call: the internal forces at ``u1`` are those the next step needs,

@@ -42,6 +42,14 @@ to ``max_growth``, made by integrators of the same scene built at those sizes on
 ``_rungs``), grown while the steps stay easy and lowered when one is hard; a step of ``h 2^k``
 that does not converge is made again from its start at ``h 2^(k-1)``. This integrator holds the
 state of the run throughout: the state a rung's step ends in is put back into it.
+
+With ``kinetic_damping`` (Cundall's kinetic damping, a dynamic relaxation) every free velocity
+is set to zero after a step in which the blocks' kinetic energy ``1/2 v . M v`` fell: its peak
+has passed, the blocks are about where the potential energy is least along their motion, and
+they start again from rest there. A structure that can carry the load comes to rest without
+the momentum a dynamic run builds (a rattle, a flow that overshoots); one that cannot keeps
+gaining kinetic energy, and no reset stops it. The energy taken away is the scheme's: it is
+counted with the numerical dissipation of the balance (``nscd/energy.py``).
 """
 
 from __future__ import annotations
@@ -144,6 +152,7 @@ class Integrator:
         step_limit=None,
         linear: str = "lu",
         layout=None,
+        kinetic_damping: bool = False,
     ):
         if max_halvings < 0:
             raise ValueError(f"max_halvings must be >= 0, got {max_halvings}")
@@ -239,6 +248,12 @@ class Integrator:
                                        linear=linear, node_xyz=node_xyz)
             self.newton.on_slow = self._on_slow
         self._products_without_blocks()
+        # kinetic damping (module docstring): the kinetic energy (J) at the end of the last
+        # step, after its reset if it had one (None: no step yet); not in the halves and rungs,
+        # whose steps make up one step of this integrator
+        self.kinetic_damping = bool(kinetic_damping)
+        self._kinetic_last: float | None = None
+        self.kinetic_resets = 0
         # the energy balance (nscd/energy.py): its accumulated terms are part of the state
         self.energy = np.zeros(len(ACCUMULATED))
         self.energy_account = EnergyAccount(self) if energy else None
@@ -315,7 +330,41 @@ class Integrator:
 
     def step(self) -> StepReport:
         """Advance by one step: of h (made again as halves if it fails, ``_step_h``), or with
-        ``max_growth`` of the size the control picks, ending at or before ``step_limit(t)``."""
+        ``max_growth`` of the size the control picks, ending at or before ``step_limit(t)``;
+        with ``kinetic_damping``, from rest if the kinetic energy fell in it."""
+        rep = self._any_step()
+        if self.kinetic_damping:
+            self._damp_kinetic()
+        return rep
+
+    def _damp_kinetic(self) -> None:
+        """Kinetic damping after a step (module docstring): the free velocities set to zero
+        when the kinetic energy is below the last step's, the joints' relative velocities with
+        them; the energy removed is added to the bodies' numerical dissipation."""
+        s = self.sys
+        account = self.energy_account
+
+        def kinetic(v: np.ndarray) -> float:  # J; the rigid bodies' full mass where kept
+            return 0.5 * float(v @ (account.mass_times(v) if account is not None
+                                    else s.mass * v))
+
+        now = kinetic(self.v)
+        last, self._kinetic_last = self._kinetic_last, now
+        if last is None or now >= last:
+            return
+        v = np.zeros_like(self.v)
+        v[s.imposed_dofs] = self.v[s.imposed_dofs]  # driven and held dofs keep their histories
+        self._kinetic_last = kinetic(v)
+        self.energy[ACCUMULATED.index("numerical_bodies")] += now - self._kinetic_last
+        self.v = v
+        U = np.empty((s.npt, 3))
+        kernels.local_velocities(s.side_dofs, s.side_coef, v, U)
+        self.joints.U = U
+        self._made_by = -1  # a rung's own state is no longer the run's
+        self.kinetic_resets += 1
+
+    def _any_step(self) -> StepReport:
+        """One step of the run, of h or of the adaptive size (:meth:`step`)."""
         if self.control is None:
             return self._step_h()
         h = self.sys.h
@@ -415,8 +464,11 @@ class Integrator:
         """What the step control remembers of the last steps (the halving's run of failures,
         the adaptive step's level and easy steps): a resumed run needs it to step the same."""
         level, easy = self.control.memory() if self.control is not None else (0, 0)
-        return {"halve_next": self._halve_next, "halve_run": self._halve_run,
-                "step_level": level, "step_easy": easy}
+        out = {"halve_next": self._halve_next, "halve_run": self._halve_run,
+               "step_level": level, "step_easy": easy}
+        if self.kinetic_damping and self._kinetic_last is not None:
+            out["kinetic_last_J"] = self._kinetic_last  # the kinetic damping's last energy
+        return out
 
     def set_step_memory(self, memory) -> None:
         """Put back what :meth:`step_memory` gave (missing keys: no memory)."""
@@ -426,6 +478,8 @@ class Integrator:
         if self.control is not None and "step_level" in memory:
             self.control.level = min(int(memory["step_level"]), self.control.max_level)
             self.control.easy = int(memory["step_easy"])
+        if "kinetic_last_J" in memory:
+            self._kinetic_last = float(memory["kinetic_last_J"])
 
     def _rung(self, k: int) -> Integrator:
         """The integrator of steps of ``h 2^k``, built on first use (no halving of its own: a

@@ -90,6 +90,7 @@ class SolverSettings:
     easy_iterations: int = 4
     easy_damage: float = 0.02
     linear: str = "lu"  # the Newton matrix's solver: auto, lu, krylov (nscd/linear.py)
+    kinetic_damping: bool = False  # velocities to zero after a step whose kinetic energy fell
 
     @classmethod
     def from_case(cls, case, endo3d_params: np.ndarray | None = None) -> SolverSettings:
@@ -104,7 +105,8 @@ class SolverSettings:
                    endo3d_tau=case.blocks.endo3d.relaxation_time_s,
                    energy=case.output.energy, max_growth=case.step_growth,
                    grow_after=sol.grow_after_steps, easy_iterations=sol.easy_iterations,
-                   easy_damage=sol.easy_damage, linear=sol.linear)
+                   easy_damage=sol.easy_damage, linear=sol.linear,
+                   kinetic_damping=sol.kinetic_damping)
 
 
 @dataclass(frozen=True)
@@ -303,7 +305,8 @@ class Scene:
                           halve_after_failure=s.halve_after_failure, energy=s.energy,
                           max_growth=s.max_growth, grow_after=s.grow_after,
                           easy_iterations=s.easy_iterations, easy_damage=s.easy_damage,
-                          step_limit=self.step_limit_s, linear=s.linear)
+                          step_limit=self.step_limit_s, linear=s.linear,
+                          kinetic_damping=s.kinetic_damping)
         integ.phase = self.phase_at(t)  # what it was built for (``next_integrator``)
         return integ
 
