@@ -462,7 +462,8 @@ class Integrator:
 
     def step_memory(self) -> dict[str, int]:
         """What the step control remembers of the last steps (the halving's run of failures,
-        the adaptive step's level and easy steps): a resumed run needs it to step the same."""
+        the adaptive step's level and easy steps) and, with kinetic damping, the last step's
+        kinetic energy (J): a resumed run needs it to step the same."""
         level, easy = self.control.memory() if self.control is not None else (0, 0)
         out = {"halve_next": self._halve_next, "halve_run": self._halve_run,
                "step_level": level, "step_easy": easy}
