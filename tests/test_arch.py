@@ -331,8 +331,8 @@ def test_a_held_body_force_stands_below_the_limit_and_collapses_above(tmp_path, 
     """The body force grown at the case's rate and held at ``part`` of the limit multiplier
     (rigid voussoirs: below it admissible forces carry the load, above none do): at 0.98 the
     arch comes to rest, its voussoirs displaced by the joints' springs alone (microns), at
-    1.02 it collapses under the load it was held at; the same with kinetic damping, which
-    stops no mechanism (its kinetic energy only grows)."""
+    1.02 it collapses under the load it was held at; the same with kinetic damping, the
+    mechanism above the limit still gaining kinetic energy."""
     case = load_case(CASE)
     bf = case.loading.body_force
     held = part * collapse_multiplier(N, case.arch.thickness_m)
