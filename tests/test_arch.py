@@ -346,6 +346,9 @@ def test_a_held_body_force_stands_below_the_limit_and_collapses_above(tmp_path, 
         assert s["status"] == "standing" and not s["moving_at_end"]
         last = (tmp_path / "held" / "limit.csv").read_text().splitlines()[-1].split(",")
         assert float(last[3]) < 1e-4  # the largest displacement (m)
+        creep = s["creep_at_end"]  # at rest: nothing grows over the run's last tenth
+        assert creep["window_s"] == pytest.approx(0.1 * (hold_s + 3.0), rel=0.01)
+        assert abs(creep["growth_m"]) < 1e-7
     else:
         assert s["status"] == "collapse"
         assert s["mechanism"] == "four-hinge"
@@ -487,3 +490,20 @@ def test_hinges_are_marked_in_the_vtu_output(tmp_path):
     for j in reference:
         assert {j - 1, j, j + 1} & set(found.tolist()), (j, found)
     assert (counts == 4).all()
+
+
+def test_creep_at_end_reads_the_growth_over_the_last_tenth_of_the_run():
+    """A largest displacement that grows at 2 mm/s from 0.5 s on, read over the last tenth
+    of a 2 s run (rows every 0.01 s): 0.2 s, 0.4 mm, 2 mm/s; at rest, nothing; with one row,
+    no reading."""
+    from masonry_nscd.post.limit import creep_at_end
+
+    t = np.arange(201) * 0.01
+    d = np.where(t > 0.5, 1e-3 + 2e-3 * (t - 0.5), 1e-3)
+    creep = creep_at_end({"time_s": t, "max_displacement_m": d})
+    assert creep["window_s"] == pytest.approx(0.2)
+    assert creep["growth_m"] == pytest.approx(4e-4)
+    assert creep["rate_m_s"] == pytest.approx(2e-3)
+    assert creep_at_end({"time_s": t, "max_displacement_m": np.full_like(t, 1e-3)})[
+        "growth_m"] == 0.0
+    assert creep_at_end({"time_s": t[:1], "max_displacement_m": d[:1]}) is None

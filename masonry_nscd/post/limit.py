@@ -44,8 +44,8 @@ from typing import Any
 
 import numpy as np
 
-from masonry_nscd.io.limit_files import read_limit
-from masonry_nscd.io.runfolder import SUMMARY
+from masonry_nscd.io.limit_files import read_limit, read_limit_table
+from masonry_nscd.io.runfolder import LIMIT_CSV, SUMMARY
 
 #: A hinge is open over at least this fraction of its face.
 HINGE_FRACTION = 0.5
@@ -221,7 +221,8 @@ def limit_summary(outdir: Path | str, scene: Mapping[str, Any], fields) -> dict[
     ``collapse.onset_velocity_m_s`` at the end: a mechanism too slow to pass the displacement
     bound in the time of the run), and ``removal`` (each group of blocks taken out, in the order
     of their times: its ``blocks``, the time asked for, ``time_s``, and the time they left,
-    ``at_s``: the start of the step in which it falls; None without one)."""
+    ``at_s``: the start of the step in which it falls; None without one), and
+    ``creep_at_end`` (:func:`creep_at_end`)."""
     record = read_limit(outdir) or {}
     rule = scene.get("collapse") or {}
     opening = float(rule.get("hinge_opening_m", 1e-4))
@@ -243,9 +244,34 @@ def limit_summary(outdir: Path | str, scene: Mapping[str, Any], fields) -> dict[
     # standing by the rule, but still in motion at the end: a slow mechanism may be forming
     out["moving_at_end"] = bool(out["status"] == "standing" and last_speed is not None
                                 and last_speed > float(rule.get("onset_velocity_m_s", 0.0)))
+    out["creep_at_end"] = creep_at_end(read_limit_table(outdir)) \
+        if (Path(outdir) / LIMIT_CSV).exists() else None
     if record.get("message"):
         out["status_message"] = record["message"]
     return out
+
+
+#: The share of a run's time over which :func:`creep_at_end` reads the growth at its end.
+CREEP_WINDOW_SHARE = 0.1
+
+
+def creep_at_end(table: Mapping[str, np.ndarray]) -> dict[str, float] | None:
+    """How far the largest displacement of a block point grew over the last tenth of the run
+    (``limit.csv``'s ``max_displacement_m`` at its last row less at the last row at or before
+    ``t_end - window``): ``window_s`` (s), ``growth_m`` (m) and ``rate_m_s = growth_m /
+    window_s`` (m/s). A structure at rest grows by nothing; one that stands by the rule but
+    creeps (stones that slide a little after every rattle) says how fast, where the speed at
+    the last step (``moving_at_end``) reads one instant. None with fewer than two rows."""
+    t = np.asarray(table.get("time_s", ()), dtype=float)
+    d = np.asarray(table.get("max_displacement_m", ()), dtype=float)
+    if len(t) < 2:
+        return None
+    start = t[-1] - CREEP_WINDOW_SHARE * t[-1]
+    k = max(int(np.searchsorted(t, start, side="right")) - 1, 0)
+    window = float(t[-1] - t[k])
+    growth = float(d[-1] - d[k])
+    return {"window_s": window, "growth_m": growth,
+            "rate_m_s": growth / window if window > 0.0 else 0.0}
 
 
 def format_limit(s: Mapping[str, Any]) -> list[str]:
@@ -267,8 +293,12 @@ def format_limit(s: Mapping[str, Any]) -> list[str]:
             lines.append("collapse: moved most: " + ", ".join(
                 f"{m['body']} ({1e3 * m['displacement_m']:.3g} mm)" for m in c["moved_most"][:3]))
     elif s.get("last_loads"):
+        creep = s.get("creep_at_end")
         lines.append("standing at " + ", ".join(f"{k} = {v:.5g}"
-                                                for k, v in s["last_loads"].items()))
+                                                for k, v in s["last_loads"].items())
+                     + (f"; the largest displacement grew by {1e3 * creep['growth_m']:.3g} mm "
+                        f"over the last {creep['window_s']:.3g} s "
+                        f"({1e3 * creep['rate_m_s']:.3g} mm/s)" if creep else ""))
     if s.get("moving_at_end"):
         lines.append("standing, but still moving at the end: a slow mechanism may be forming "
                      "(a later collapse.end_time_s tells)")
