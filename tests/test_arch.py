@@ -494,9 +494,9 @@ def test_hinges_are_marked_in_the_vtu_output(tmp_path):
 
 def test_creep_at_end_reads_the_growth_over_the_last_tenth_of_the_run():
     """A largest displacement that grows at 2 mm/s from 0.5 s on, read over the last tenth
-    of a 2 s run (rows every 0.01 s): 0.2 s, 0.4 mm, 2 mm/s; at rest, nothing; with one row,
-    no reading."""
-    from masonry_nscd.post.limit import creep_at_end
+    of a 2 s run (rows every 0.01 s): 0.2 s, 0.4 mm, 2 mm/s, and the report's standing line
+    says so; at rest, nothing (steady); with one row, no reading."""
+    from masonry_nscd.post.limit import creep_at_end, format_limit
 
     t = np.arange(201) * 0.01
     d = np.where(t > 0.5, 1e-3 + 2e-3 * (t - 0.5), 1e-3)
@@ -507,3 +507,8 @@ def test_creep_at_end_reads_the_growth_over_the_last_tenth_of_the_run():
     assert creep_at_end({"time_s": t, "max_displacement_m": np.full_like(t, 1e-3)})[
         "growth_m"] == 0.0
     assert creep_at_end({"time_s": t[:1], "max_displacement_m": d[:1]}) is None
+    standing = {"status": "standing", "last_loads": {"lambda": 0.5}}
+    line = format_limit({**standing, "creep_at_end": creep})[1]
+    assert line.endswith("grew by 0.4 mm over the last 0.2 s (2 mm/s)")
+    at_rest = creep_at_end({"time_s": t, "max_displacement_m": np.full_like(t, 1e-3)})
+    assert "steady over the last 0.2 s" in format_limit({**standing, "creep_at_end": at_rest})[1]

@@ -253,6 +253,8 @@ def limit_summary(outdir: Path | str, scene: Mapping[str, Any], fields) -> dict[
 
 #: The share of a run's time over which :func:`creep_at_end` reads the growth at its end.
 CREEP_WINDOW_SHARE = 0.1
+#: A growth at the end smaller than this is reported as none (m): a micron.
+CREEP_NONE_M = 1e-6
 
 
 def creep_at_end(table: Mapping[str, np.ndarray]) -> dict[str, float] | None:
@@ -274,6 +276,17 @@ def creep_at_end(table: Mapping[str, np.ndarray]) -> dict[str, float] | None:
             "rate_m_s": growth / window if window > 0.0 else 0.0}
 
 
+def _creep_words(creep: Mapping[str, float] | None) -> str:
+    """The report's words for :func:`creep_at_end` (empty without it)."""
+    if not creep:
+        return ""
+    if abs(creep["growth_m"]) < CREEP_NONE_M:
+        return (f"; the largest displacement steady over the last {creep['window_s']:.3g} s "
+                f"(within {1e3 * CREEP_NONE_M:g} mm)")
+    return (f"; the largest displacement grew by {1e3 * creep['growth_m']:.3g} mm over the "
+            f"last {creep['window_s']:.3g} s ({1e3 * creep['rate_m_s']:.3g} mm/s)")
+
+
 def format_limit(s: Mapping[str, Any]) -> list[str]:
     """The lines of the short report of a limit-state summary."""
     lines = [f"status: {s['status']}" + (f" ({s['status_message']})"
@@ -293,12 +306,9 @@ def format_limit(s: Mapping[str, Any]) -> list[str]:
             lines.append("collapse: moved most: " + ", ".join(
                 f"{m['body']} ({1e3 * m['displacement_m']:.3g} mm)" for m in c["moved_most"][:3]))
     elif s.get("last_loads"):
-        creep = s.get("creep_at_end")
         lines.append("standing at " + ", ".join(f"{k} = {v:.5g}"
                                                 for k, v in s["last_loads"].items())
-                     + (f"; the largest displacement grew by {1e3 * creep['growth_m']:.3g} mm "
-                        f"over the last {creep['window_s']:.3g} s "
-                        f"({1e3 * creep['rate_m_s']:.3g} mm/s)" if creep else ""))
+                     + _creep_words(s.get("creep_at_end")))
     if s.get("moving_at_end"):
         lines.append("standing, but still moving at the end: a slow mechanism may be forming "
                      "(a later collapse.end_time_s tells)")
