@@ -103,7 +103,9 @@ class Solver(Section):
         description="Cundall's kinetic damping: every free velocity set to zero after a step "
         "in which the blocks' kinetic energy fell; the run then asks which loads the structure "
         "carries at rest, without the momentum a dynamic run builds (a static solution by "
-        "dynamic relaxation; docs/guide/limit_states.md)",
+        "dynamic relaxation). On an assembly of many loose stones every rattle that ends resets "
+        "a mechanism too: read the summary's creep_at_end before calling a held run standing "
+        "(docs/guide/limit_states.md)",
     )
 
     @property
