@@ -268,7 +268,7 @@ def creep_at_end(table: Mapping[str, np.ndarray]) -> dict[str, float] | None:
     d = np.asarray(table.get("max_displacement_m", ()), dtype=float)
     if len(t) < 2:
         return None
-    start = t[-1] - CREEP_WINDOW_SHARE * t[-1]
+    start = (1.0 - CREEP_WINDOW_SHARE) * t[-1] * (1.0 + 1e-12)  # a row at the start counts
     k = max(int(np.searchsorted(t, start, side="right")) - 1, 0)
     window = float(t[-1] - t[k])
     growth = float(d[-1] - d[k])
