@@ -20,11 +20,12 @@ from typer.testing import CliRunner
 from masonry_nscd.case import load_case
 from masonry_nscd.cli import app
 from masonry_nscd.limit import friction, mechanism, path, statics
-from masonry_nscd.limit.analysis import analyse
+from masonry_nscd.limit.analysis import analyse, format_result
 from masonry_nscd.limit.lp import elastic_state, solve_limit, solve_non_associative
 from masonry_nscd.limit.path import follow_load
 from masonry_nscd.limit.statics import rigid_model
 from masonry_nscd.limit.thickness import threshold
+from masonry_nscd.post.limit import describe_hinges
 from masonry_nscd.scenes import build_scene
 from masonry_nscd.scenes.small import tilting_block
 
@@ -336,6 +337,19 @@ def test_shipped_cases_against_nscd(name):
     lam = result.solution.multiplier
     assert 0.0 < (NSCD[name] - lam) / NSCD[name] < 0.02
     assert result.record["hinges"]
+
+
+def test_the_report_names_twelve_hinges_and_counts_the_others():
+    """The cross vault's mechanism has more hinges than a line can name: ``masonry limit``
+    prints the first twelve and how many more ``limit.json`` lists (all of them)."""
+    result = analyse(load_case(CASES / "cross_vault.yaml"))
+    hinges = result.record["hinges"]
+    assert len(hinges) > 12
+    line = next(x for x in format_result(result.record) if x.startswith("mechanism:"))
+    assert line.count(" / ") == 12
+    assert f"; {len(hinges) - 12} more (limit.json lists every hinge)" in line
+    assert describe_hinges(hinges[:3], "limit.json").count(" / ") == 3  # all named, no count
+    assert "more" not in describe_hinges(hinges[:12], "limit.json")
 
 
 def test_non_associative_iteration_keeps_a_hinge_mechanism():

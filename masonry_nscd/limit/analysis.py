@@ -36,6 +36,7 @@ from masonry_nscd.limit.lp import (
 from masonry_nscd.limit.path import follow_load
 from masonry_nscd.limit.picture import draw_mechanism
 from masonry_nscd.limit.statics import RigidModel, rigid_model
+from masonry_nscd.post.limit import describe_hinges
 from masonry_nscd.scenes import build_scene
 
 FLOWS = ("associative", "non-associative")
@@ -268,7 +269,7 @@ def format_result(record: dict[str, Any]) -> list[str]:
         unit = f" {mult['unit']}" if mult["unit"] else ""
         lines.append(f"collapse multiplier: {mult['name']} = {mult['value']:.6g}{unit} "
                      f"({record['flow']})")
-        hinges = "; ".join(mechanism.describe_hinge(h) for h in record["hinges"])
+        hinges = describe_hinges(record["hinges"], rf.LIMIT_JSON)
         lines.append(f"mechanism: {record['mechanism']}" + (f"; hinges at {hinges}" if hinges
                                                             else "")
                      + (f"; {len(record['sliding_joints'])} joints sliding"

@@ -78,13 +78,3 @@ def summary(found: list[dict[str, Any]]) -> dict[str, Any]:
             "hinges": [public(j) for j in found if j["kind"] == "hinge"],
             "sliding_joints": [public(j) for j in found if j["kind"] == "sliding"],
             "open_joints": [public(j) for j in found if j["kind"] == "open"]}
-
-
-def describe_hinge(h: dict[str, Any]) -> str:
-    """One hinge as the run log names it: ``joint 3 (intrados, 67.5 deg from the crown)`` for
-    an arch, else the two bodies."""
-    if h.get("joint") is not None:
-        angle = h.get("angle_from_crown_deg")
-        return f"joint {h['joint']} ({h.get('side')}" + (
-            f", {angle:.1f} deg from the crown)" if angle is not None else ")")
-    return f"{h['bodies'][0]} / {h['bodies'][1]}"

@@ -185,8 +185,28 @@ def arch_place(arch: Mapping[str, Any], name0: str, name1: str,
     return {"joint": j, "angle_from_crown_deg": angle, "side": side}
 
 
-#: Hinges named in the summary's line of the run log (the others: ``summary.json``)
+#: Hinges a report names (the run log's summary line, ``masonry limit``'s); the others are in
+#: ``summary.json`` or ``limit.json``
 HINGES_SHOWN = 12
+
+
+def describe_hinge(h: dict[str, Any]) -> str:
+    """One hinge as the reports name it: ``joint 3 (intrados, 67.5 deg from the crown)`` for
+    an arch, else the two bodies."""
+    if h.get("joint") is not None:
+        angle = h.get("angle_from_crown_deg")
+        return f"joint {h['joint']} ({h.get('side')}" + (
+            f", {angle:.1f} deg from the crown)" if angle is not None else ")")
+    return f"{h['bodies'][0]} / {h['bodies'][1]}"
+
+
+def describe_hinges(hinges: list[dict[str, Any]], listed_in: str) -> str:
+    """The first :data:`HINGES_SHOWN` hinges, ``; ``-separated (:func:`describe_hinge`), and how
+    many more the file ``listed_in`` lists: a vault's thousand hinges are read there, not in a
+    report's line."""
+    named = "; ".join(describe_hinge(h) for h in hinges[:HINGES_SHOWN])
+    more = len(hinges) - HINGES_SHOWN
+    return named + (f"; {more} more ({listed_in} lists every hinge)" if more > 0 else "")
 
 
 def mechanism_name(joints: list[dict[str, Any]]) -> str:
@@ -314,13 +334,7 @@ def format_limit(s: Mapping[str, Any]) -> list[str]:
                      "(a later collapse.end_time_s tells)")
     if s.get("mechanism") is not None:
         hinges = s.get("hinges") or []
-        where = "; ".join(
-            (f"joint {h['joint']} ({h['side']}, {h['angle_from_crown_deg']:.1f} deg from the "
-             "crown)" if h.get("joint") is not None and h.get("angle_from_crown_deg") is not None
-             else f"joint {h.get('joint')} ({h.get('side')})" if h.get("joint") is not None
-             else f"{h['bodies'][0]} / {h['bodies'][1]}") for h in hinges[:HINGES_SHOWN])
-        if len(hinges) > HINGES_SHOWN:
-            where += f"; {len(hinges) - HINGES_SHOWN} more ({SUMMARY} lists every hinge)"
+        where = describe_hinges(hinges, SUMMARY)
         lines.append(f"mechanism: {s['mechanism']}" + (f"; hinges at {where}" if hinges else "")
                      + (f"; {len(s['sliding_joints'])} joints sliding"
                         if s.get("sliding_joints") else ""))
