@@ -36,7 +36,7 @@ from masonry_nscd.limit.lp import (
 from masonry_nscd.limit.path import follow_load
 from masonry_nscd.limit.picture import draw_mechanism
 from masonry_nscd.limit.statics import RigidModel, rigid_model
-from masonry_nscd.post.limit import describe_hinges
+from masonry_nscd.post.limit import mechanism_line
 from masonry_nscd.scenes import build_scene
 
 FLOWS = ("associative", "non-associative")
@@ -269,11 +269,8 @@ def format_result(record: dict[str, Any]) -> list[str]:
         unit = f" {mult['unit']}" if mult["unit"] else ""
         lines.append(f"collapse multiplier: {mult['name']} = {mult['value']:.6g}{unit} "
                      f"({record['flow']})")
-        hinges = describe_hinges(record["hinges"], rf.LIMIT_JSON)
-        lines.append(f"mechanism: {record['mechanism']}" + (f"; hinges at {hinges}" if hinges
-                                                            else "")
-                     + (f"; {len(record['sliding_joints'])} joints sliding"
-                        if record["sliding_joints"] else ""))
+        lines.append(mechanism_line(record["mechanism"], record["hinges"],
+                                    record["sliding_joints"], rf.LIMIT_JSON))
     if record.get("note"):
         lines.append(f"note: {record['note']}")
     if "non_associative" in record:

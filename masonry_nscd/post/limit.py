@@ -209,6 +209,15 @@ def describe_hinges(hinges: list[dict[str, Any]], listed_in: str) -> str:
     return named + (f"; {more} more ({listed_in} lists every hinge)" if more > 0 else "")
 
 
+def mechanism_line(mechanism: str, hinges: list[dict[str, Any]], sliding: list[Any],
+                   listed_in: str) -> str:
+    """The reports' line of a mechanism: its name, its hinges (:func:`describe_hinges`, the
+    others in the file ``listed_in``) and how many joints slide."""
+    return (f"mechanism: {mechanism}"
+            + (f"; hinges at {describe_hinges(hinges, listed_in)}" if hinges else "")
+            + (f"; {len(sliding)} joints sliding" if sliding else ""))
+
+
 def mechanism_name(joints: list[dict[str, Any]]) -> str:
     """``four-hinge``, ``sliding``, ``hinges and sliding``, ``none``... (module docstring)."""
     hinges = sum(1 for j in joints if j["kind"] == "hinge")
@@ -333,9 +342,6 @@ def format_limit(s: Mapping[str, Any]) -> list[str]:
         lines.append("standing, but still moving at the end: a slow mechanism may be forming "
                      "(a later collapse.end_time_s tells)")
     if s.get("mechanism") is not None:
-        hinges = s.get("hinges") or []
-        where = describe_hinges(hinges, SUMMARY)
-        lines.append(f"mechanism: {s['mechanism']}" + (f"; hinges at {where}" if hinges else "")
-                     + (f"; {len(s['sliding_joints'])} joints sliding"
-                        if s.get("sliding_joints") else ""))
+        lines.append(mechanism_line(s["mechanism"], s.get("hinges") or [],
+                                    s.get("sliding_joints") or [], SUMMARY))
     return lines
